@@ -1,0 +1,5 @@
+"""``python -m rvdiag`` runs the ``rvdiag`` command."""
+
+from rvdiag.cli import main
+
+main()

@@ -1,0 +1,81 @@
+"""The ``rvdiag`` command.
+
+Every module in this package other than ``__init__`` and names starting with ``_`` defines
+``register(app: typer.Typer) -> None`` that adds its command(s) to the main app.  Modules are found
+by :func:`pkgutil.iter_modules`, so adding a command never means editing this file.
+
+Errors: an :class:`rvdiag.errors.RvdiagError` (and a missing or unreadable file) becomes one line
+``error: <message>`` on stderr and exit code 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+import sys
+
+import click
+import typer
+
+from rvdiag import __version__
+from rvdiag.errors import RvdiagError
+
+
+def _version_callback(value: bool) -> None:
+    if value:
+        typer.echo(f"rvdiag {__version__}")
+        raise typer.Exit()
+
+
+def build_app() -> typer.Typer:
+    """Create the Typer app with every command module of :mod:`rvdiag.cli` registered."""
+    app = typer.Typer(
+        name="rvdiag",
+        help="Physics-based fault diagnosis of RV reducers: mesh stiffness, dynamics, "
+        "simulated fault libraries, classifiers and diagnosis of measured signals.",
+        no_args_is_help=True,
+        pretty_exceptions_enable=False,
+        add_completion=False,
+    )
+
+    @app.callback()
+    def _root(
+        version: bool = typer.Option(
+            False, "--version", callback=_version_callback, is_eager=True, help="Print the version."
+        ),
+    ) -> None:
+        """rvdiag: diagnose RV-reducer gear faults by physics."""
+
+    for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
+        if info.name.startswith("_"):
+            continue
+        module = importlib.import_module(f"{__name__}.{info.name}")
+        register = getattr(module, "register", None)
+        if register is not None:
+            register(app)
+    return app
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point of the ``rvdiag`` console script."""
+    app = build_app()
+    try:
+        app(args=argv, prog_name="rvdiag", standalone_mode=False)
+    except RvdiagError as exc:
+        _fail(str(exc))
+    except (FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError) as exc:
+        _fail(f"{exc.strerror or exc}: {exc.filename}" if getattr(exc, "filename", None) else str(exc))
+    except click.exceptions.UsageError as exc:
+        _fail(exc.format_message())
+    except click.exceptions.Abort:
+        typer.echo("aborted", err=True)
+        sys.exit(130)
+    except click.exceptions.Exit as exc:
+        sys.exit(exc.exit_code)
+
+
+def _fail(message: str) -> None:
+    """Print one line ``error: message`` on stderr and exit with code 2."""
+    first_line = " ".join(str(message).split())
+    typer.echo(f"error: {first_line}", err=True)
+    sys.exit(2)

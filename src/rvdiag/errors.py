@@ -1,0 +1,42 @@
+"""The one exception hierarchy of rvdiag.
+
+Every error a user can cause by bad input derives from :class:`RvdiagError`.  The ``rvdiag`` command
+catches it, prints ``error: <message>`` as one line on stderr and exits with code 2 (see
+:mod:`rvdiag.cli`).  Messages name the offending value and, where there is one, the remedy.
+"""
+
+from __future__ import annotations
+
+
+class RvdiagError(Exception):
+    """Base class of every rvdiag error that is the user's input, not a bug."""
+
+    exit_code = 2
+
+
+class ParameterError(RvdiagError, ValueError):
+    """A reducer parameter, fault severity or setting is out of its valid range."""
+
+
+class ConfigError(RvdiagError, ValueError):
+    """A configuration file (parameter set, library config) cannot be read or is invalid."""
+
+
+class GeometryError(ParameterError):
+    """The gear or cycloid geometry is impossible (interference, crack deeper than the tooth...)."""
+
+
+class SimulationError(RvdiagError, RuntimeError):
+    """The numerical integration failed (instability, NaN)."""
+
+
+class StoreError(RvdiagError, OSError):
+    """A sample store is missing, corrupt, or was built from a different config."""
+
+
+class DataFileError(RvdiagError, ValueError):
+    """A measured-signal file cannot be read (format, channel, length, NaN...)."""
+
+
+class ModelFileError(RvdiagError, ValueError):
+    """A saved model directory is missing, corrupt, or does not match the data."""

@@ -1,0 +1,322 @@
+"""Typed schema of a reducer parameter set, with TOML load, validation and save.
+
+A parameter set is a TOML file with the sections of :class:`ReducerParams` (see ``rv20e.toml``, the
+default).  Every field is SI unless its name says otherwise.  Loading validates every value and
+raises :class:`rvdiag.errors.ConfigError` naming the file, the key and the problem; saving and
+loading again returns an equal object (round trip).
+
+Examples
+--------
+>>> p = ReducerParams.default()
+>>> p.stage1.sun_teeth, p.stage2.pins
+(11, 40)
+>>> round(p.ratio, 6)
+121.0
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass, field, fields
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import tomli_w
+
+from rvdiag.errors import ConfigError
+
+DEFAULT_PARAMS_NAME = "rv20e.toml"
+
+
+def _positive(**kw: Any) -> Any:
+    return field(metadata={"check": "positive", **kw})
+
+
+def _nonnegative(**kw: Any) -> Any:
+    return field(metadata={"check": "nonnegative", **kw})
+
+
+def _any(**kw: Any) -> Any:
+    return field(metadata={"check": "any", **kw})
+
+
+@dataclass(frozen=True)
+class Stage1:
+    """Involute sun-planet stage (first reduction stage)."""
+
+    sun_teeth: int = _positive()
+    planet_teeth: int = _positive()
+    n_planets: int = _positive()
+    module: float = _positive()
+    pressure_angle_deg: float = _positive()
+    addendum_coefficient: float = _positive()
+    dedendum_coefficient: float = _positive()
+    root_fillet_coefficient: float = _nonnegative()
+    sun_profile_shift: float = _any()
+    planet_profile_shift: float = _any()
+    face_width: float = _positive()
+    backlash: float = _nonnegative()
+
+    @property
+    def centre_distance(self) -> float:
+        """Operating centre distance of the sun-planet pair (m), for a V-zero pair m (Z1 + Z2) / 2."""
+        return 0.5 * self.module * (self.sun_teeth + self.planet_teeth)
+
+
+@dataclass(frozen=True)
+class Stage2:
+    """Cycloid-pin stage (second reduction stage)."""
+
+    cycloid_lobes: int = _positive()
+    pins: int = _positive()
+    n_discs: int = _positive()
+    disc_phase_deg: float = _nonnegative()
+    n_cranks: int = _positive()
+    pin_circle_radius: float = _positive()
+    pin_radius: float = _positive()
+    eccentricity: float = _positive()
+    cycloid_face_width: float = _positive()
+    equidistant_modification: float = _any()
+    offset_modification: float = _any()
+
+    @property
+    def short_amplitude_coefficient(self) -> float:
+        """K1 = e Zp / rp, the cycloid's short-amplitude coefficient (must be < 1)."""
+        return self.eccentricity * self.pins / self.pin_circle_radius
+
+
+@dataclass(frozen=True)
+class Material:
+    """Elastic and inertial properties of the gear steel."""
+
+    youngs_modulus: float = _positive()
+    poisson_ratio: float = _nonnegative()
+    density: float = _positive()
+
+    @property
+    def shear_modulus(self) -> float:
+        """G = E / (2 (1 + nu))."""
+        return self.youngs_modulus / (2.0 * (1.0 + self.poisson_ratio))
+
+
+@dataclass(frozen=True)
+class Bodies:
+    """Dimensions from which masses and inertias are derived (see :mod:`rvdiag.params.derived`)."""
+
+    sun_shaft_radius: float = _positive()
+    crank_shaft_radius: float = _positive()
+    crank_shaft_length: float = _positive()
+    cycloid_bore_radius: float = _positive()
+    carrier_outer_radius: float = _positive()
+    carrier_width: float = _positive()
+    pin_wheel_outer_radius: float = _positive()
+    pin_wheel_width: float = _positive()
+
+
+@dataclass(frozen=True)
+class Bearings:
+    """Support stiffnesses: linear in N/m, torsional (``*_torsional``) in N m/rad."""
+
+    sun_support: float = _positive()
+    crank_carrier: float = _positive()
+    crank_cycloid: float = _positive()
+    carrier_support: float = _positive()
+    pin_wheel_housing: float = _positive()
+    planet_crank_torsional: float = _positive()
+    input_torsional: float = _positive()
+    output_torsional: float = _positive()
+
+
+@dataclass(frozen=True)
+class Damping:
+    """Viscous damping ratios (dimensionless)."""
+
+    mesh_damping_ratio: float = _nonnegative()
+    bearing_damping_ratio: float = _nonnegative()
+
+
+@dataclass(frozen=True)
+class Operation:
+    """Rated operating figures used as defaults."""
+
+    rated_torque: float = _positive()
+    motor_pole_pairs: int = _positive()
+
+
+_SECTIONS: dict[str, type] = {
+    "stage1": Stage1,
+    "stage2": Stage2,
+    "material": Material,
+    "bodies": Bodies,
+    "bearings": Bearings,
+    "damping": Damping,
+    "operation": Operation,
+}
+
+
+@dataclass(frozen=True)
+class ReducerParams:
+    """A complete RV-reducer parameter set.
+
+    The constructor arguments are the config: ``ReducerParams.from_dict(p.to_dict()) == p``.
+    """
+
+    name: str
+    stage1: Stage1
+    stage2: Stage2
+    material: Material
+    bodies: Bodies
+    bearings: Bearings
+    damping: Damping
+    operation: Operation
+    source: str = field(default="", compare=False)
+
+    # ------------------------------------------------------------------ derived kinematics
+    @property
+    def ratio(self) -> float:
+        """Overall ratio i = 1 + (Z2/Z1) Zp (sun input, carrier output, pin wheel fixed)."""
+        s1, s2 = self.stage1, self.stage2
+        return 1.0 + s1.planet_teeth / s1.sun_teeth * s2.pins
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def default(cls) -> "ReducerParams":
+        """The built-in RV-20E parameter set (``rvdiag/params/rv20e.toml``)."""
+        text = resources.files("rvdiag.params").joinpath(DEFAULT_PARAMS_NAME).read_text("utf-8")
+        return cls.from_dict(tomllib.loads(text), source=f"<builtin {DEFAULT_PARAMS_NAME}>")
+
+    @classmethod
+    def load(cls, path: str | Path | None = None) -> "ReducerParams":
+        """Load and validate a TOML parameter file; ``None`` gives :meth:`default`."""
+        if path is None:
+            return cls.default()
+        path = Path(path)
+        try:
+            text = path.read_text("utf-8")
+        except FileNotFoundError:
+            raise ConfigError(f"parameter file not found: {path}") from None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ConfigError(f"cannot read parameter file {path}: {exc}") from None
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"{path}: not valid TOML ({exc})") from None
+        return cls.from_dict(data, source=str(path))
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], source: str = "<dict>") -> "ReducerParams":
+        """Build from a nested dict (as read from TOML), validating every value."""
+        if not isinstance(data, dict):
+            raise ConfigError(f"{source}: a parameter set must be a table")
+        unknown = set(data) - set(_SECTIONS) - {"name"}
+        if unknown:
+            raise ConfigError(f"{source}: unknown section or key {sorted(unknown)[0]!r}")
+        sections = {}
+        for name, section_cls in _SECTIONS.items():
+            if name not in data:
+                raise ConfigError(f"{source}: missing section [{name}]")
+            sections[name] = _build_section(section_cls, data[name], f"{source} [{name}]")
+        params = cls(name=str(data.get("name", "unnamed")), source=source, **sections)
+        _check_consistency(params, source)
+        return params
+
+    def to_dict(self) -> dict[str, Any]:
+        """Nested plain dict of every value (the inverse of :meth:`from_dict`)."""
+        out: dict[str, Any] = {"name": self.name}
+        for name in _SECTIONS:
+            out[name] = dataclasses.asdict(getattr(self, name))
+        return out
+
+    def to_toml(self) -> str:
+        """TOML text of the parameter set."""
+        return tomli_w.dumps(self.to_dict())
+
+    def save(self, path: str | Path) -> None:
+        """Write the parameter set to a TOML file (comments of the source are not kept)."""
+        Path(path).write_text(self.to_toml(), encoding="utf-8")
+
+    def replace(self, **sections: Any) -> "ReducerParams":
+        """Copy with some values changed: ``p.replace(stage1={"face_width": 0.02})``.
+
+        The result is validated like a loaded file.
+        """
+        data = self.to_dict()
+        for section, values in sections.items():
+            if section == "name":
+                data["name"] = values
+                continue
+            if section not in _SECTIONS:
+                raise ConfigError(f"unknown parameter section {section!r}")
+            data[section].update(values)
+        return type(self).from_dict(data, source=self.source)
+
+
+def _build_section(section_cls: type, values: Any, where: str) -> Any:
+    if not isinstance(values, dict):
+        raise ConfigError(f"{where}: must be a table")
+    known = {f.name: f for f in fields(section_cls)}
+    unknown = set(values) - set(known)
+    if unknown:
+        raise ConfigError(f"{where}: unknown key {sorted(unknown)[0]!r}")
+    kwargs = {}
+    for name, f in known.items():
+        if name not in values:
+            raise ConfigError(f"{where}: missing key {name!r}")
+        kwargs[name] = _check_value(values[name], f, f"{where} {name}")
+    return section_cls(**kwargs)
+
+
+def _check_value(value: Any, f: dataclasses.Field, where: str) -> Any:
+    want_int = f.type in (int, "int")
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(f"{where}: expected a number, got {value!r}")
+    if want_int:
+        if float(value) != int(value):
+            raise ConfigError(f"{where}: expected a whole number, got {value!r}")
+        value = int(value)
+    else:
+        value = float(value)
+    if not math.isfinite(value):
+        raise ConfigError(f"{where}: must be finite, got {value!r}")
+    check = f.metadata.get("check", "any")
+    if check == "positive" and value <= 0:
+        raise ConfigError(f"{where}: must be > 0, got {value!r}")
+    if check == "nonnegative" and value < 0:
+        raise ConfigError(f"{where}: must be >= 0, got {value!r}")
+    return value
+
+
+def _check_consistency(p: ReducerParams, source: str) -> None:
+    s1, s2, m = p.stage1, p.stage2, p.material
+    if s2.pins != s2.cycloid_lobes + 1:
+        raise ConfigError(
+            f"{source}: pins ({s2.pins}) must equal cycloid_lobes + 1 ({s2.cycloid_lobes + 1})"
+        )
+    if s2.n_cranks != s1.n_planets:
+        raise ConfigError(
+            f"{source}: n_cranks ({s2.n_cranks}) must equal n_planets ({s1.n_planets}): "
+            "each planet sits on one crank shaft"
+        )
+    if not 0.0 < s1.pressure_angle_deg < 45.0:
+        raise ConfigError(f"{source}: pressure_angle_deg must lie in (0, 45), got {s1.pressure_angle_deg}")
+    if not m.poisson_ratio < 0.5:
+        raise ConfigError(f"{source}: poisson_ratio must be < 0.5, got {m.poisson_ratio}")
+    if s2.short_amplitude_coefficient >= 1.0:
+        raise ConfigError(
+            f"{source}: eccentricity too large: K1 = e*pins/pin_circle_radius = "
+            f"{s2.short_amplitude_coefficient:.3f} must be < 1"
+        )
+    if s2.pin_radius >= s2.pin_circle_radius * math.sin(math.pi / s2.pins):
+        raise ConfigError(f"{source}: pin_radius {s2.pin_radius} m: neighbouring pins overlap")
+    if s1.centre_distance >= s2.pin_circle_radius:
+        raise ConfigError(
+            f"{source}: stage-1 centre distance {s1.centre_distance:.4g} m must lie inside the "
+            f"pin circle radius {s2.pin_circle_radius:.4g} m"
+        )
+    if p.bodies.carrier_outer_radius >= s2.pin_circle_radius:
+        raise ConfigError(f"{source}: carrier_outer_radius must be smaller than pin_circle_radius")
+    if p.bodies.pin_wheel_outer_radius <= s2.pin_circle_radius + s2.pin_radius:
+        raise ConfigError(f"{source}: pin_wheel_outer_radius must exceed pin_circle_radius + pin_radius")
