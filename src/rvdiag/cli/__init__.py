@@ -14,8 +14,12 @@ import importlib
 import pkgutil
 import sys
 
-import click
 import typer
+
+try:  # typer >= 0.20 vendors click as typer._click
+    from typer._click import exceptions as _click_exc
+except ImportError:  # pragma: no cover - older typer on plain click
+    from click import exceptions as _click_exc
 
 from rvdiag import __version__
 from rvdiag.errors import RvdiagError
@@ -65,12 +69,12 @@ def main(argv: list[str] | None = None) -> None:
         _fail(str(exc))
     except (FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError) as exc:
         _fail(f"{exc.strerror or exc}: {exc.filename}" if getattr(exc, "filename", None) else str(exc))
-    except click.exceptions.UsageError as exc:
+    except _click_exc.UsageError as exc:
         _fail(exc.format_message())
-    except click.exceptions.Abort:
+    except _click_exc.Abort:
         typer.echo("aborted", err=True)
         sys.exit(130)
-    except click.exceptions.Exit as exc:
+    except _click_exc.Exit as exc:
         sys.exit(exc.exit_code)
 
 

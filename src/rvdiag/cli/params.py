@@ -1,0 +1,66 @@
+"""``rvdiag params``: show, check and export reducer parameter sets."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from rvdiag.errors import ConfigError
+from rvdiag.params import ReducerParams, body_properties
+
+
+def register(app: typer.Typer) -> None:
+    params_app = typer.Typer(help="Show, check and export reducer parameter sets (TOML).", no_args_is_help=True)
+    app.add_typer(params_app, name="params")
+
+    @params_app.command("show")
+    def show(
+        params: Optional[Path] = typer.Option(None, "--params", help="Parameter file (default: built-in RV-20E)."),
+        as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+    ) -> None:
+        """Print a parameter set with its derived ratio, masses and inertias."""
+        p = ReducerParams.load(params)
+        bodies = body_properties(p)
+        derived = {
+            "ratio": p.ratio,
+            "centre_distance_m": p.stage1.centre_distance,
+            "short_amplitude_coefficient": p.stage2.short_amplitude_coefficient,
+            "masses_kg": {k: getattr(bodies, k).mass for k in bodies.__dataclass_fields__},
+            "inertias_kg_m2": {k: getattr(bodies, k).inertia for k in bodies.__dataclass_fields__},
+        }
+        if as_json:
+            typer.echo(json.dumps({"params": p.to_dict(), "derived": derived, "source": p.source}))
+            return
+        typer.echo(f"# {p.name}  (from {p.source})")
+        typer.echo(p.to_toml())
+        typer.echo("# derived")
+        for key, value in derived.items():
+            typer.echo(f"# {key} = {value}")
+
+    @params_app.command("check")
+    def check(path: Path = typer.Argument(..., help="Parameter file to validate.")) -> None:
+        """Validate a parameter file; exit 0 and print 'ok' when it is valid."""
+        p = ReducerParams.load(path)
+        typer.echo(f"ok: {p.name}, ratio {p.ratio:g}")
+
+    @params_app.command("export")
+    def export(
+        out: Path = typer.Argument(..., help="Where to write the TOML file."),
+        params: Optional[Path] = typer.Option(None, "--params", help="Source parameter file (default: built-in)."),
+        force: bool = typer.Option(False, "--force", help="Overwrite an existing file."),
+    ) -> None:
+        """Write a parameter set (the built-in RV-20E by default) to a file you can edit."""
+        if out.exists() and not force:
+            raise ConfigError(f"{out} exists; use --force to overwrite")
+        p = ReducerParams.load(params)
+        if params is None:
+            from importlib import resources
+
+            text = resources.files("rvdiag.params").joinpath("rv20e.toml").read_text("utf-8")
+            out.write_text(text, encoding="utf-8")  # keep the source comments
+        else:
+            p.save(out)
+        typer.echo(f"wrote {out}")
