@@ -1,1 +1,88 @@
-"""rvdiag.features."""
+"""Feature extractors: scikit-learn transformers from signal windows (n_samples, n_points) to features.
+
+=========  ==========================================  ===================================
+name       transformer                                 source
+=========  ==========================================  ===================================
+time       :class:`TimeDomainFeatures` (10 statistics)  motor-current seed paper
+spectrum   :class:`SpectrumFeatures` (FFT band powers)
+wpd        :class:`WaveletPacketEnergy` (16 bands)      motor-current seed paper
+eemd       :class:`EEMDFeatures` (mean |IMF| x 6)        EEMD-MPA-KELM seed paper
+none       :class:`RawSignal` (the samples themselves)
+=========  ==========================================  ===================================
+
+Also :class:`CharacteristicBandEnergy` (bands at the reducer's characteristic frequencies) and
+:class:`EnvelopeSpectrumFeatures` (squared-envelope spectrum, the bearing tool).  Other modules add names
+with :func:`register_features` (the CNN extractor registers ``cnn``).
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+from rvdiag.errors import ParameterError
+from rvdiag.features._base import SignalTransformer, as_signal_matrix
+from rvdiag.features.eemd import EEMDFeatures, eemd, emd
+from rvdiag.features.spectrum import (
+    CharacteristicBandEnergy,
+    EnvelopeSpectrumFeatures,
+    SpectrumFeatures,
+    bearing_defect_frequencies,
+)
+from rvdiag.features.timedomain import TIME_FEATURE_NAMES, TimeDomainFeatures, time_features
+from rvdiag.features.wavelet import WaveletPacketEnergy
+
+
+class RawSignal(SignalTransformer):
+    """Identity transformer: the window's samples are the features (feature set ``none``)."""
+
+    def _features(self, X):
+        return X.copy()
+
+    def _feature_names(self):
+        return [f"x{i}" for i in range(self.n_features_in_)]
+
+
+_REGISTRY: dict[str, Callable[..., object]] = {
+    "time": TimeDomainFeatures,
+    "spectrum": SpectrumFeatures,
+    "wpd": WaveletPacketEnergy,
+    "eemd": EEMDFeatures,
+    "none": RawSignal,
+}
+
+
+def register_features(name: str, factory: Callable[..., object]) -> None:
+    """Add a feature-set name for :func:`make_features` (``factory(**kw)`` returns a transformer)."""
+    _REGISTRY[name] = factory
+
+
+def feature_names() -> list[str]:
+    """Names :func:`make_features` knows."""
+    if "cnn" not in _REGISTRY:  # the CNN module registers itself on import, if it exists
+        try:
+            import rvdiag.models.cnn  # noqa: F401
+        except ImportError:
+            pass
+    return sorted(_REGISTRY)
+
+
+def make_features(name: str, **kw):
+    """A new, unfitted feature transformer by name (``time|spectrum|wpd|eemd|none``, ``cnn`` when present).
+
+    Keyword arguments go to the transformer's constructor.
+    """
+    names = feature_names()
+    if name not in _REGISTRY:
+        raise ParameterError(f"unknown feature set {name!r}; use one of {'|'.join(names)}")
+    try:
+        return _REGISTRY[name](**kw)
+    except TypeError as exc:
+        raise ParameterError(f"bad options for feature set {name!r}: {exc}") from None
+
+
+__all__ = [
+    "CharacteristicBandEnergy", "EEMDFeatures", "EnvelopeSpectrumFeatures", "RawSignal", "SignalTransformer",
+    "SpectrumFeatures", "TIME_FEATURE_NAMES", "TimeDomainFeatures", "WaveletPacketEnergy",
+    "as_signal_matrix", "bearing_defect_frequencies", "eemd", "emd", "feature_names", "make_features",
+    "register_features", "time_features",
+]

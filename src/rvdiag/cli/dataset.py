@@ -1,0 +1,111 @@
+"""``rvdiag dataset``: build sample stores from measured files, list a file's channels, describe a store."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+from rvdiag.errors import ParameterError
+
+
+def _parse_scalars(items: list[str]) -> dict[str, str]:
+    out: dict[str, str] = {}
+    for item in items:
+        name, sep, regex = item.partition("=")
+        if not sep or not name or not regex:
+            raise ParameterError(f"--scalar {item!r}: expected NAME=REGEX, e.g. rpm=RPM")
+        out[name.strip()] = regex
+    return out
+
+
+def register(app: typer.Typer) -> None:
+    ds_app = typer.Typer(help="Measured datasets: build a sample store from files, describe stores.",
+                         no_args_is_help=True)
+    app.add_typer(ds_app, name="dataset")
+
+    @ds_app.command("from-files")
+    def from_files(
+        folder: Path = typer.Argument(..., help="Folder holding the measured files (not searched recursively)."),
+        label_regex: str = typer.Option(..., "--label-regex",
+                                        help="Regex with a named group (?P<label>...) matched against each file name."),
+        channel: Optional[str] = typer.Option(None, "--channel",
+                                              help="Regex matching exactly one channel (column, variable) per file."),
+        window: int = typer.Option(..., "--window", help="Window length in samples (one sample per window)."),
+        hop: Optional[int] = typer.Option(None, "--hop", help="Step between windows in samples (default: --window)."),
+        fs: Optional[float] = typer.Option(None, "--fs", help="Sampling rate in Hz (default: from the files, if stated)."),
+        meta_regex: Optional[str] = typer.Option(None, "--meta-regex",
+                                                 help="Regex whose named groups become metadata columns, e.g. 'hz(?P<load>\\d+)'."),
+        include: Optional[str] = typer.Option(None, "--include", help="Keep only files whose names match this regex."),
+        test_fraction: Optional[float] = typer.Option(None, "--test-fraction",
+                                                      help="Put this fraction of each class in split 'test' (default: all 'train')."),
+        seed: int = typer.Option(0, "--seed", help="Seed of the --test-fraction split."),
+        scalar: List[str] = typer.Option([], "--scalar",
+                                         help="NAME=REGEX: record the file's scalar matching REGEX as column NAME (e.g. rpm=RPM)."),
+        out: Path = typer.Option(..., "--out", help="Store to write (PATH.zarr)."),
+        overwrite: bool = typer.Option(False, "--overwrite", help="Replace an existing store."),
+        as_json: bool = typer.Option(False, "--json", help="Print the summary as one JSON object."),
+    ) -> None:
+        """Window, label and store every matching file of FOLDER (kind "measured", written atomically)."""
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+        from rvdiag.datasets.from_files import build_from_files
+
+        scalars = _parse_scalars(scalar)
+        with Progress(TextColumn("[bold]reading[/bold] {task.description}"), BarColumn(), MofNCompleteColumn(),
+                      TimeElapsedColumn(), transient=True, console=_stderr_console()) as bar:
+            task = bar.add_task("", total=None)
+
+            def progress(done: int, total: int, name: str) -> None:
+                bar.update(task, completed=done, total=total, description=name)
+
+            summary = build_from_files(
+                folder, out, label_regex=label_regex, channel=channel, window_length=window, hop=hop, fs=fs,
+                meta_regex=meta_regex, include=include, test_fraction=test_fraction, seed=seed,
+                scalars=scalars, overwrite=overwrite, progress=progress,
+            )
+        if as_json:
+            typer.echo(json.dumps(summary))
+            return
+        counts = ", ".join(f"{c}: {n}" for c, n in summary["counts"].items())
+        fs_text = "not stated" if summary["fs"] is None else f"{summary['fs']:g} Hz"
+        typer.echo(f"wrote {summary['path']}: {summary['n_samples']} windows of {summary['length']} "
+                   f"from {summary['files']} file(s), fs {fs_text}")
+        typer.echo(f"classes: {counts}")
+        if summary["skipped"]:
+            typer.echo(f"skipped {len(summary['skipped'])} file(s) not matching --label-regex: "
+                       + ", ".join(summary["skipped"][:5]) + (" ..." if len(summary["skipped"]) > 5 else ""))
+
+    @ds_app.command("info")
+    def info(
+        path: Path = typer.Argument(..., help="Sample store (PATH.zarr)."),
+        as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+    ) -> None:
+        """Describe a sample store: kind, classes, counts per split, length, fs, metadata columns."""
+        from rvdiag.datasets import SampleStore
+
+        s = SampleStore.open(path).summary()
+        if as_json:
+            typer.echo(json.dumps(s, default=str))
+            return
+        fs_text = "not stated" if s["fs"] is None else f"{s['fs']:g} Hz"
+        typer.echo(f"{s['path']}: {s['kind']} store, {s['n_samples']} samples of {s['length']} points, fs {fs_text}")
+        for cls_name, per_split in s["counts"].items():
+            typer.echo(f"  {cls_name}: " + ", ".join(f"{k} {v}" for k, v in per_split.items()))
+        typer.echo("metadata: " + ", ".join(s["meta_columns"]))
+
+    @ds_app.command("channels")
+    def channels(path: Path = typer.Argument(..., help="A measured file.")) -> None:
+        """List the channels of a measured file (the names --channel is matched against)."""
+        from rvdiag.io import list_channels
+
+        for name in list_channels(path):
+            typer.echo(name)
+
+
+def _stderr_console():
+    from rich.console import Console
+
+    return Console(stderr=True)

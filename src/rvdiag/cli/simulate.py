@@ -1,0 +1,90 @@
+"""``rvdiag simulate``: simulate the housing vibration of the reducer in a fault state, write an .npz."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from rvdiag.errors import ParameterError
+
+
+def _mm(name: str, value: Optional[float]) -> Optional[float]:
+    if value is None:
+        return None
+    if not math.isfinite(value):
+        raise ParameterError(f"--{name} must be finite, got {value}")
+    return value * 1e-3
+
+
+def register(app: typer.Typer) -> None:
+    """Add the ``simulate`` command to ``app``."""
+
+    @app.command("simulate")
+    def simulate_cmd(
+        state: str = typer.Option("T1", "--state", help="Fault state T1..T6 (healthy, wear, crack, broken, broken+wear, broken+wear+crack)."),
+        wear_depth_mm: Optional[float] = typer.Option(None, "--wear-depth", help="Maximum wear depth (mm)."),
+        crack_depth_mm: Optional[float] = typer.Option(None, "--crack-depth", help="Crack depth (mm)."),
+        crack_angle: Optional[float] = typer.Option(None, "--crack-angle", help="Crack angle from the tooth centreline (deg)."),
+        broken_fraction: Optional[float] = typer.Option(None, "--broken-fraction", help="Lost fraction of the tooth height, (0, 1]."),
+        params: Optional[Path] = typer.Option(None, "--params", help="Reducer parameter TOML (default: built-in RV-20E)."),
+        input_speed: Optional[float] = typer.Option(None, "--input-speed", help="Motor (sun) speed, rpm."),
+        output_speed: Optional[float] = typer.Option(None, "--output-speed", help="Output (carrier) speed, deg/s."),
+        load: Optional[float] = typer.Option(None, "--load", help="Output load torque, N m (default: rated torque)."),
+        duration: float = typer.Option(1.0, "--duration", help="Recorded signal length, s (after the transient)."),
+        fs: float = typer.Option(48000.0, "--fs", help="Sampling rate, Hz."),
+        noise_snr: Optional[float] = typer.Option(None, "--noise-snr", help="Add white Gaussian noise at this SNR (dB)."),
+        seed: int = typer.Option(0, "--seed", help="Seed of the noise."),
+        substeps: int = typer.Option(4, "--substeps", help="RK4 steps per output sample."),
+        transient: float = typer.Option(0.1, "--transient", help="Discarded start-up time, s."),
+        out: Path = typer.Option(..., "--out", help="Output .npz (signal, fs, settings)."),
+        quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
+    ) -> None:
+        """Simulate the housing acceleration (x, y) of the reducer; write signal, fs and settings to an .npz."""
+        from rvdiag.dynamics import ModelSettings, simulate
+        from rvdiag.gears import ToothFaults
+        from rvdiag.params import ReducerParams
+
+        if input_speed is not None and output_speed is not None:
+            raise ParameterError("give either --input-speed or --output-speed, not both")
+        if input_speed is None and output_speed is None:
+            raise ParameterError("give --input-speed RPM or --output-speed DEG_S")
+        if out.suffix != ".npz":
+            raise ParameterError(f"--out must name a .npz file, got {out}")
+        if not out.parent.exists():
+            raise ParameterError(f"--out directory does not exist: {out.parent}")
+        severities = {}
+        for key, value in (("wear_depth", _mm("wear-depth", wear_depth_mm)),
+                           ("crack_depth", _mm("crack-depth", crack_depth_mm)),
+                           ("crack_angle_deg", crack_angle),
+                           ("broken_fraction", broken_fraction)):
+            if value is not None:
+                severities[key] = value
+        fault = ToothFaults.for_state(state, **severities)
+        p = ReducerParams.load(params)
+        settings = ModelSettings(substeps=substeps, transient_s=transient)
+        kw = dict(input_speed_rpm=input_speed, output_speed_deg_s=output_speed, load_Nm=load,
+                  duration_s=duration, fs=fs, noise_snr_db=noise_snr, seed=seed, settings=settings)
+        if quiet:
+            res = simulate(p, None if fault.is_healthy else fault, **kw)
+        else:
+            from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+            with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
+                          TimeRemainingColumn(), transient=True) as bar:
+                task = bar.add_task("sim", total=None)
+
+                def progress(done: int, total: int) -> None:
+                    bar.update(task, completed=done, total=total)
+
+                res = simulate(p, None if fault.is_healthy else fault, progress=progress, **kw)
+        res.settings["state"] = state.upper()
+        res.settings["severities_SI"] = severities
+        res.settings["params_file"] = str(params) if params is not None else None
+        try:
+            res.to_npz(out)
+        except OSError as exc:
+            raise ParameterError(f"cannot write --out {out}: {exc}") from None
+        typer.echo(f"wrote {out}: {res.signal.shape[0]} channels x {res.signal.shape[1]} samples at {fs:g} Hz")

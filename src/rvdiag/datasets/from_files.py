@@ -1,0 +1,299 @@
+"""Build a measured-data sample store from a folder of files (``rvdiag dataset from-files``).
+
+Each file of the folder whose name matches ``label_regex`` (and ``include``, when given) is read with
+:func:`rvdiag.io.read_signal`, cut into windows with :func:`rvdiag.io.window`, and its windows become
+samples labelled by the regex's named group ``label``.  The result is a store of the same layout as a
+simulated library (:mod:`rvdiag.datasets.store`, ``kind="measured"``), so ``train``, ``evaluate`` and
+``diagnose`` read both.
+
+Metadata columns of every sample:
+
+``split``    ``train`` (all samples), unless ``test_fraction`` asks for a seeded split stratified by label
+``unit``     index of the source file (sorted by name)
+``source``   the source file name
+``channel``  the channel read
+``start``    the window's first sample index in the source signal
+``<group>``  every named group of ``meta_regex`` (and of ``label_regex`` other than ``label``): numbers when
+             every file's value parses as a number (int, else float), text otherwise
+``<name>``   every ``scalars`` entry: the value of the file's one scalar matching the given regex
+             (e.g. ``rpm`` from CWRU's ``X105RPM``)
+
+The store is written in one go into a temporary folder and renamed into place
+(:func:`rvdiag.datasets.store.write_store`): a failure at any file leaves nothing behind.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from rvdiag.datasets.store import write_store
+from rvdiag.errors import DataFileError, ParameterError, StoreError
+from rvdiag.io import SUPPORTED_SUFFIXES, read_signal, window, window_starts
+
+
+@dataclass
+class FileEntry:
+    """One selected file: its path, class label and metadata parsed from its name."""
+
+    path: Path
+    label: str
+    meta: dict[str, str]
+
+
+def _compile(regex: str | None, what: str) -> re.Pattern | None:
+    if regex is None:
+        return None
+    try:
+        return re.compile(regex)
+    except re.error as exc:
+        raise ParameterError(f"invalid {what} {regex!r}: {exc}") from None
+
+
+def select_files(
+    folder: str | Path,
+    label_regex: str,
+    meta_regex: str | None = None,
+    include: str | None = None,
+) -> tuple[list[FileEntry], list[str]]:
+    """The files of ``folder`` that make the dataset, and the names skipped.
+
+    A file is used when its name matches ``include`` (if given; ``re.search``) and ``label_regex``
+    (``re.search``, must have a named group ``label``).  Hidden files and sub-folders are ignored; other
+    names that do not match are returned as skipped.  ``meta_regex`` must match every used file.
+
+    Raises
+    ------
+    ParameterError
+        A regex is invalid or ``label_regex`` lacks the group ``label``.
+    DataFileError
+        The folder is missing, no file is selected, or a selected file does not match ``meta_regex``.
+    """
+    folder = Path(folder)
+    lab = _compile(label_regex, "--label-regex")
+    if lab is None or "label" not in lab.groupindex:
+        raise ParameterError(f"--label-regex {label_regex!r} needs a named group (?P<label>...)")
+    meta = _compile(meta_regex, "--meta-regex")
+    if meta is not None and not meta.groupindex:
+        raise ParameterError(f"--meta-regex {meta_regex!r} has no named group (?P<name>...)")
+    inc = _compile(include, "--include")
+    if not folder.is_dir():
+        raise DataFileError(f"{folder}: no such folder")
+    entries: list[FileEntry] = []
+    skipped: list[str] = []
+    for p in sorted(folder.iterdir(), key=lambda q: q.name):
+        name = p.name
+        if name.startswith(".") or not p.is_file():
+            continue
+        if inc is not None and not inc.search(name):
+            continue
+        m = lab.search(name)
+        if m is None or not m.group("label"):
+            skipped.append(name)
+            continue
+        values = {k: v for k, v in m.groupdict().items() if k != "label" and v is not None}
+        if meta is not None:
+            mm = meta.search(name)
+            if mm is None:
+                raise DataFileError(f"{p}: the name does not match --meta-regex {meta_regex!r}")
+            values.update({k: v for k, v in mm.groupdict().items() if v is not None})
+        entries.append(FileEntry(path=p, label=m.group("label"), meta=values))
+    if not entries:
+        what = f"match --label-regex {label_regex!r}" + (f" and --include {include!r}" if include else "")
+        raise DataFileError(f"{folder}: no file name {what} ({len(skipped)} other file(s))")
+    return entries, skipped
+
+
+def _typed_column(values: list[str]) -> np.ndarray:
+    """Strings -> int64 if all parse as ints, float64 if all parse as floats, else str objects."""
+    try:
+        return np.asarray([int(v) for v in values], dtype=np.int64)
+    except ValueError:
+        pass
+    try:
+        col = np.asarray([float(v) for v in values], dtype=np.float64)
+        if np.all(np.isfinite(col)):
+            return col
+    except ValueError:
+        pass
+    return np.asarray(values, dtype=object)
+
+
+def build_from_files(
+    folder: str | Path,
+    out: str | Path,
+    *,
+    label_regex: str,
+    channel: str | None,
+    window_length: int,
+    hop: int | None = None,
+    fs: float | None = None,
+    meta_regex: str | None = None,
+    include: str | None = None,
+    test_fraction: float | None = None,
+    seed: int = 0,
+    scalars: Mapping[str, str] | None = None,
+    overwrite: bool = False,
+    progress: Callable[[int, int, str], None] | None = None,
+) -> dict[str, Any]:
+    """Read, window and label every selected file of ``folder``; write the store ``out``.
+
+    Parameters
+    ----------
+    folder, label_regex, meta_regex, include
+        See :func:`select_files`.
+    channel : str or None
+        Channel regex (:func:`rvdiag.io.read_signal`); None when each file holds one channel.
+    window_length, hop : int
+        Window length and step in samples (hop defaults to the window length: no overlap).
+    fs : float, optional
+        Sampling rate in Hz, for files that do not state it (and overriding those that do).  Every file
+        must end up with the same fs (or none at all).
+    test_fraction : float in (0, 1), optional
+        Fraction of each class's windows put in split ``test`` (seeded by ``seed``).
+    scalars : mapping name -> regex, optional
+        Scalars of each file to record as metadata columns (e.g. ``{"rpm": "RPM"}``).
+    overwrite : bool
+        Replace an existing store at ``out``.
+    progress : callable(done, total, file name), optional
+
+    Returns
+    -------
+    dict
+        The summary: path, n_samples, classes, counts per class, files used and skipped.
+    """
+    out = Path(out)
+    if out.exists() and not overwrite:
+        raise StoreError(f"{out} already exists (remove it, choose another --out, or pass --overwrite)")
+    if test_fraction is not None and not (0.0 < float(test_fraction) < 1.0):
+        raise ParameterError(f"--test-fraction must be between 0 and 1 (exclusive), got {test_fraction}")
+    if not isinstance(window_length, (int, np.integer)) or window_length < 2:
+        raise ParameterError(f"--window must be an integer of at least 2, got {window_length!r}")
+    if hop is not None and (not isinstance(hop, (int, np.integer)) or hop < 1):
+        raise ParameterError(f"--hop must be a positive integer, got {hop!r}")
+    scalar_pats = {k: v for k, v in (scalars or {}).items()}
+    for k, v in scalar_pats.items():
+        _compile(v, f"scalar regex for {k!r}")
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", k):
+            raise ParameterError(f"scalar column name {k!r} must be an identifier")
+    entries, skipped = select_files(folder, label_regex, meta_regex, include)
+
+    blocks: list[np.ndarray] = []
+    labels: list[str] = []
+    cols: dict[str, list[Any]] = {"unit": [], "source": [], "channel": [], "start": []}
+    file_meta: dict[str, list[str]] = {k: [] for k in entries[0].meta}
+    scalar_vals: dict[str, list[float]] = {k: [] for k in scalar_pats}
+    rows_per_file: list[int] = []
+    fs_seen: float | None | str = "unset"
+    first_fs_file = None
+    for i, entry in enumerate(entries):
+        if progress is not None:
+            progress(i, len(entries), entry.path.name)
+        sig = read_signal(entry.path, channel, fs=fs)
+        if fs_seen == "unset":
+            fs_seen, first_fs_file = sig.fs, entry.path.name
+        elif not _same_fs(fs_seen, sig.fs):
+            raise DataFileError(
+                f"{entry.path}: sampling rate {sig.fs} differs from {fs_seen} of {first_fs_file}; "
+                "give --fs to set one rate for all files"
+            )
+        W = window(sig, int(window_length), hop)
+        starts = window_starts(sig.n_samples, int(window_length), hop)
+        n = W.shape[0]
+        blocks.append(W.astype(np.float32))
+        labels.extend([entry.label] * n)
+        cols["unit"].extend([i] * n)
+        cols["source"].extend([entry.path.name] * n)
+        cols["channel"].extend([sig.channel] * n)
+        cols["start"].extend(starts.tolist())
+        if set(entry.meta) != set(file_meta):
+            raise DataFileError(f"{entry.path}: its name gives metadata {sorted(entry.meta)}, "
+                                f"other files {sorted(file_meta)}")
+        for k, v in entry.meta.items():
+            file_meta[k].extend([v] * n)
+        for k, pat in scalar_pats.items():
+            scalar_vals[k].extend([sig.scalar(pat)] * n)
+        rows_per_file.append(n)
+    if progress is not None:
+        progress(len(entries), len(entries), "")
+
+    X = np.concatenate(blocks, axis=0)
+    y = np.asarray(labels, dtype=object)
+    meta: dict[str, Any] = {
+        "unit": np.asarray(cols["unit"], dtype=np.int64),
+        "source": np.asarray(cols["source"], dtype=object),
+        "channel": np.asarray(cols["channel"], dtype=object),
+        "start": np.asarray(cols["start"], dtype=np.int64),
+    }
+    for k, v in file_meta.items():
+        if k in meta or k == "split":
+            raise ParameterError(f"metadata group name {k!r} is reserved; rename the regex group")
+        meta[k] = _typed_column(v)
+    for k, v in scalar_vals.items():
+        if k in meta or k == "split":
+            raise ParameterError(f"scalar column name {k!r} is reserved or used twice")
+        meta[k] = np.asarray(v, dtype=np.float64)
+    meta["split"] = _split(y, test_fraction, seed)
+
+    config = {
+        "source": "files",
+        "folder": str(Path(folder).resolve()),
+        "files": [e.path.name for e in entries],
+        "label_regex": label_regex,
+        "meta_regex": meta_regex,
+        "include": include,
+        "channel": channel,
+        "window": int(window_length),
+        "hop": int(hop) if hop is not None else int(window_length),
+        "fs": fs,
+        "test_fraction": test_fraction,
+        "seed": int(seed),
+        "scalars": dict(scalar_pats),
+    }
+    file_fs = None if fs_seen == "unset" else fs_seen
+    write_store(out, X, y.tolist(), meta, kind="measured", fs=file_fs, config=config,
+                overwrite=overwrite, extra_attrs={"params": None})
+    classes = sorted(set(labels))
+    counts = {c: int(np.sum(y == c)) for c in classes}
+    return {
+        "path": str(out),
+        "n_samples": int(X.shape[0]),
+        "length": int(window_length),
+        "fs": file_fs,
+        "classes": classes,
+        "counts": counts,
+        "files": len(entries),
+        "skipped": skipped,
+        "rows_per_file": rows_per_file,
+    }
+
+
+def _same_fs(a: float | None, b: float | None) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    return math.isclose(a, b, rel_tol=1e-9)
+
+
+def _split(y: np.ndarray, test_fraction: float | None, seed: int) -> np.ndarray:
+    """``train`` everywhere, or a seeded split with ``round(f * n_c)`` test windows per class ``c``."""
+    split = np.full(y.shape[0], "train", dtype=object)
+    if test_fraction is None:
+        return split
+    rng = np.random.default_rng(seed)
+    for c in sorted(set(y.tolist())):
+        idx = np.flatnonzero(y == c)
+        n_test = int(round(float(test_fraction) * idx.size))
+        if idx.size >= 2:
+            n_test = min(max(n_test, 1), idx.size - 1)
+        else:
+            n_test = 0
+        split[rng.permutation(idx)[:n_test]] = "test"
+    return split
+
+
+__all__ = ["FileEntry", "build_from_files", "select_files", "SUPPORTED_SUFFIXES"]

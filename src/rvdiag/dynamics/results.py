@@ -1,0 +1,91 @@
+"""Result of a simulation: the sensor signal, its sampling rate and every setting that produced it."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rvdiag.errors import DataFileError
+
+
+@dataclass
+class SimulationResult:
+    """Simulated housing acceleration.
+
+    Attributes
+    ----------
+    signal : ndarray, shape (channels, samples)
+        Acceleration at the sensor point along each sensor direction, m/s^2.
+    fs : float
+        Sampling rate, Hz.
+    settings : dict
+        Every setting (operating point, model settings, fault, seed, parameter set): JSON-able, enough
+        to repeat the run with :func:`rvdiag.dynamics.simulate`.
+    channel_names : list of str
+    """
+
+    signal: np.ndarray
+    fs: float
+    settings: dict[str, Any] = field(default_factory=dict)
+    channel_names: list[str] = field(default_factory=list)
+
+    @property
+    def time_s(self) -> np.ndarray:
+        """Sample times (s) from the end of the discarded transient."""
+        return np.arange(self.signal.shape[-1]) / self.fs
+
+    def spectrum(self, channel: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """One-sided amplitude spectrum (Hann window) of one channel: (frequency Hz, amplitude m/s^2)."""
+        x = self.signal[channel] - np.mean(self.signal[channel])
+        w = np.hanning(x.size)
+        amp = 2.0 * np.abs(np.fft.rfft(x * w)) / np.sum(w)
+        return np.fft.rfftfreq(x.size, 1.0 / self.fs), amp
+
+    def plot(self, channel: int = 0, ax: Any = None, fmax_hz: float | None = None) -> Any:
+        """Plot the waveform and its amplitude spectrum; returns the matplotlib Figure."""
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 6))
+        else:
+            a1, a2 = ax
+            fig = a1.figure
+        name = self.channel_names[channel] if channel < len(self.channel_names) else f"channel {channel}"
+        a1.plot(self.time_s, self.signal[channel], lw=0.6)
+        a1.set_xlabel("time (s)")
+        a1.set_ylabel(f"{name} (m/s$^2$)")
+        f, amp = self.spectrum(channel)
+        a2.plot(f, amp, lw=0.6)
+        a2.set_xlim(0, fmax_hz or self.fs / 2)
+        a2.set_xlabel("frequency (Hz)")
+        a2.set_ylabel("amplitude (m/s$^2$)")
+        fig.tight_layout()
+        return fig
+
+    def to_npz(self, path: str | Path) -> None:
+        """Write ``signal``, ``fs``, ``settings`` (JSON string) and ``channel_names`` to an ``.npz``."""
+        np.savez(
+            Path(path),
+            signal=np.asarray(self.signal, dtype=np.float64),
+            fs=np.float64(self.fs),
+            settings=np.array(json.dumps(self.settings, sort_keys=True)),
+            channel_names=np.array(self.channel_names, dtype=str),
+        )
+
+    @classmethod
+    def from_npz(cls, path: str | Path) -> "SimulationResult":
+        """Read a file written by :meth:`to_npz` (no pickles are loaded)."""
+        try:
+            with np.load(Path(path), allow_pickle=False) as z:
+                return cls(
+                    np.array(z["signal"]),
+                    float(z["fs"]),
+                    json.loads(str(z["settings"])),
+                    [str(s) for s in z["channel_names"]] if "channel_names" in z else [],
+                )
+        except (OSError, KeyError, ValueError) as exc:
+            raise DataFileError(f"{path}: not a simulation result file ({exc})") from None

@@ -1,0 +1,354 @@
+"""Tooth faults that enter the mesh stiffness: flank wear, root crack, broken tooth, and combinations.
+
+Each fault changes the loaded half of a tooth section (``x_loaded``) in the tooth frame of
+:mod:`rvdiag.gears.geometry` (``y`` along the centreline, ``x`` half thickness), or, for a broken
+tooth, removes the part of the flank above a cut radius.  The potential-energy integrals of
+:mod:`rvdiag.gears.tvms` then run over the damaged section.
+
+Models
+------
+Wear (Archard)
+    Archard's law gives the depth worn per pass, dh = k p s, with p the contact pressure and s the
+    sliding distance (Flodin & Andersson 1997, Wear 207, eq. (2)).  Over a Hertz half width a the
+    sliding distance of a flank point of gear i is s_i = 2 a |v1 - v2| / v_i and the mean pressure is
+    F / (2 a L), so the depth per pass is proportional to F |1 - v_j / v_i|, with the rolling speeds
+    v_i = omega_i rho_i (rho_i the roll length, i.e. the radius of curvature of the involute).  This
+    is zero at the pitch point, where rolling is pure.  F is the load share: the full load in single
+    contact, half in double contact (equal sharing).  The profile is scaled so its maximum equals
+    the severity ``depth``.  A normal depth h removes h / cos(tau) of half thickness, tau being the
+    angle between the flank normal and the section (the load angle alpha_1 of Tian 2004); the seed
+    paper writes h cos(alpha), which differs by less than 10 % on an RV-20E flank.
+Root crack
+    A straight crack from the loaded flank at the base circle (at the root circle when that lies
+    above the base circle), of depth q and angle nu measured from the tooth centreline, running
+    towards and possibly past the centreline (Chen & Shao 2011, Eng. Fail. Anal. 18, sec. 2.2;
+    Mohammed, Rantatalo & Aidanpaa 2013, Eng. Fail. Anal. 34).  Its tip lies h_q = h_c - q sin(nu)
+    from the centreline (negative: past the centreline) and q cos(nu) above the crack start.  Below
+    the tip height the loaded side of the section reaches only to the tip, x_loaded = min(x, h_q);
+    above it the section is whole.  The four cases of those papers (crack before / past the
+    centreline, load point above / below the crack tip) follow from the sign of h_q and from where
+    the integral over the section stops; :meth:`RootCrack.case` names them.
+Broken tooth
+    A fraction ``fraction`` of the tooth height (tip to root circle) is lost; contact points above
+    the cut carry nothing (REFERENCE.md sec. 3).  ``fraction = 1`` is a missing tooth: where it
+    would be the only pair in contact the mesh stiffness is zero.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Iterable, Mapping
+
+import numpy as np
+
+from rvdiag.errors import GeometryError, ParameterError
+from rvdiag.gears.geometry import Gear, GearPair
+
+
+def _finite(name: str, value: float) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ParameterError(f"{name} must be a number, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise ParameterError(f"{name} must be finite, got {value!r}")
+    return value
+
+
+@dataclass(frozen=True)
+class Wear:
+    """Archard flank wear of maximum depth ``depth`` (m), zero at the pitch point."""
+
+    depth: float
+
+    def __post_init__(self) -> None:
+        d = _finite("wear depth", self.depth)
+        if d < 0:
+            raise ParameterError(f"wear depth must be >= 0, got {d!r} m")
+        object.__setattr__(self, "depth", d)
+
+
+@dataclass(frozen=True)
+class RootCrack:
+    """Straight root crack of depth ``depth`` (m) at ``angle_deg`` from the tooth centreline."""
+
+    depth: float
+    angle_deg: float = 45.0
+
+    def __post_init__(self) -> None:
+        d = _finite("crack depth", self.depth)
+        a = _finite("crack angle", self.angle_deg)
+        if d < 0:
+            raise ParameterError(f"crack depth must be >= 0, got {d!r} m")
+        if not 0.0 < a < 90.0:
+            raise ParameterError(f"crack angle must lie in (0, 90) degrees, got {a!r}")
+        object.__setattr__(self, "depth", d)
+        object.__setattr__(self, "angle_deg", a)
+
+    def start(self, gear: Gear) -> tuple[float, float]:
+        """Crack start (y_c, h_c) on the loaded flank: at the base circle, or at the root
+        circle when the base circle lies below it (Chen & Shao 2011)."""
+        prof = gear.profile()
+        radius = np.hypot(prof.x, prof.y)
+        r_start = max(gear.base_radius, radius[0])
+        y_c = float(np.interp(r_start, radius, prof.y))
+        h_c = float(np.interp(y_c, prof.y, prof.x))
+        return y_c, h_c
+
+    def tip(self, gear: Gear) -> tuple[float, float]:
+        """Crack tip (y_t, h_q): height along the centreline and signed distance from it (m)."""
+        y_c, h_c = self.start(gear)
+        nu = math.radians(self.angle_deg)
+        return y_c + self.depth * math.cos(nu), h_c - self.depth * math.sin(nu)
+
+    def case(self, gear: Gear, load_point_y: float) -> int:
+        """Case 1..4 of Mohammed et al. (2013) / Chen & Shao (2011):
+        1 before the centreline, load above the crack tip; 2 before, load below;
+        3 past the centreline, load above; 4 past, load below."""
+        y_t, h_q = self.tip(gear)
+        past = h_q < 0
+        below = load_point_y <= y_t
+        return 1 + int(below) + 2 * int(past)
+
+
+@dataclass(frozen=True)
+class BrokenTooth:
+    """Loss of ``fraction`` (0 < f <= 1) of the tooth height, measured from the tip."""
+
+    fraction: float = 1.0
+
+    def __post_init__(self) -> None:
+        f = _finite("broken fraction", self.fraction)
+        if not 0.0 < f <= 1.0:
+            raise ParameterError(f"broken fraction must lie in (0, 1], got {f!r}")
+        object.__setattr__(self, "fraction", f)
+
+    def cut_radius(self, gear: Gear) -> float:
+        """Radius above which the tooth is gone: r_a - f (r_a - r_f) (m)."""
+        return gear.tip_radius - self.fraction * (gear.tip_radius - gear.root_radius)
+
+
+Fault = Wear | RootCrack | BrokenTooth
+
+#: physically sensible default severities for the T1..T6 states (SI)
+DEFAULT_WEAR_DEPTH = 20e-6       # 20 um: moderate wear, about 1.5 % of the RV-20E module
+DEFAULT_CRACK_DEPTH = 0.8e-3     # 0.8 mm at 45 deg: about half way from the RV-20E sun flank to its centreline
+DEFAULT_CRACK_ANGLE_DEG = 45.0   # the angle used by Chen & Shao (2011) and Tian (2004)
+DEFAULT_BROKEN_FRACTION = 1.0    # whole tooth lost (REFERENCE.md sec. 3)
+
+STATES = {
+    "T1": "healthy",
+    "T2": "wear",
+    "T3": "crack",
+    "T4": "broken",
+    "T5": "broken+wear",
+    "T6": "broken+wear+crack",
+}
+
+
+@dataclass(frozen=True)
+class ToothFaults:
+    """Faults on chosen teeth of one gear of a pair.
+
+    Parameters
+    ----------
+    teeth : mapping int -> sequence of faults
+        Faults of individual teeth (tooth 0 is the driver tooth entering contact at angle 0;
+        on the driven gear, tooth j is the one meeting driver engagement j).  At most one fault of
+        each kind per tooth.
+    wear : Wear, optional
+        Wear of every tooth of the gear (wear is distributed, not local); a per-tooth ``Wear`` in
+        ``teeth`` overrides it for that tooth.
+    gear : {"driver", "driven"}
+        Which gear carries the faults (default the driver, the sun in the seed papers).
+
+    Examples
+    --------
+    >>> f = ToothFaults.for_state("T5")
+    >>> f.wear.depth, f.teeth[0]
+    (2e-05, (BrokenTooth(fraction=1.0),))
+    """
+
+    teeth: Mapping[int, tuple[Fault, ...]] = field(default_factory=dict)
+    wear: Wear | None = None
+    gear: str = "driver"
+    label: str = field(default="", compare=False)
+
+    def __post_init__(self) -> None:
+        if self.gear not in ("driver", "driven"):
+            raise ParameterError(f"fault gear must be 'driver' or 'driven', got {self.gear!r}")
+        if self.wear is not None and not isinstance(self.wear, Wear):
+            raise ParameterError(f"wear must be a Wear, got {self.wear!r}")
+        clean: dict[int, tuple[Fault, ...]] = {}
+        for tooth, faults in dict(self.teeth).items():
+            if isinstance(tooth, bool) or not isinstance(tooth, (int, np.integer)) or tooth < 0:
+                raise ParameterError(f"tooth index must be an integer >= 0, got {tooth!r}")
+            if isinstance(faults, (Wear, RootCrack, BrokenTooth)):
+                faults = (faults,)
+            faults = tuple(faults)
+            kinds = [type(f) for f in faults]
+            for f in faults:
+                if not isinstance(f, (Wear, RootCrack, BrokenTooth)):
+                    raise ParameterError(f"tooth {tooth}: not a fault: {f!r}")
+            if len(set(kinds)) != len(kinds):
+                raise ParameterError(f"tooth {tooth}: at most one fault of each kind")
+            clean[int(tooth)] = faults
+        object.__setattr__(self, "teeth", clean)
+
+    @property
+    def is_healthy(self) -> bool:
+        """True when no fault is present."""
+        return (self.wear is None or self.wear.depth == 0.0) and not any(self.teeth.values())
+
+    def faults_of(self, tooth: int) -> tuple[Fault, ...]:
+        """All faults acting on ``tooth``, the gear-wide wear included."""
+        own = self.teeth.get(tooth, ())
+        if self.wear is not None and not any(isinstance(f, Wear) for f in own):
+            own = own + (self.wear,)
+        return own
+
+    def validate(self, pair: GearPair) -> None:
+        """Check tooth indices and severities against the gear geometry (raises GeometryError)."""
+        gear = pair.driver if self.gear == "driver" else pair.driven
+        for tooth in self.teeth:
+            if tooth >= gear.teeth:
+                raise ParameterError(
+                    f"tooth index {tooth} out of range for the {gear.name} with {gear.teeth} teeth")
+        for tooth in set(self.teeth) | {0}:
+            damaged_profile(pair, self.gear, self.faults_of(tooth))
+
+    @classmethod
+    def for_state(cls, state: str, *, wear_depth: float = DEFAULT_WEAR_DEPTH,
+                  crack_depth: float = DEFAULT_CRACK_DEPTH,
+                  crack_angle_deg: float = DEFAULT_CRACK_ANGLE_DEG,
+                  broken_fraction: float = DEFAULT_BROKEN_FRACTION,
+                  tooth: int = 0, crack_tooth: int | None = None,
+                  gear: str = "driver") -> "ToothFaults":
+        """The seed paper's states: T1 healthy, T2 wear, T3 crack, T4 broken, T5 broken + wear,
+        T6 broken + wear + crack.
+
+        Wear acts on every tooth; the broken tooth is ``tooth``; the crack is on ``tooth`` in T3
+        and, in T6, on ``crack_tooth`` (default: the tooth after ``tooth``, so the crack is not
+        hidden by a fully broken tooth).
+        """
+        key = str(state).upper()
+        if key not in STATES:
+            raise ParameterError(f"unknown fault state {state!r}; choose one of {', '.join(STATES)}")
+        kinds = STATES[key].split("+")
+        wear = Wear(wear_depth) if "wear" in kinds else None
+        teeth: dict[int, list[Fault]] = {}
+        if "broken" in kinds:
+            teeth.setdefault(tooth, []).append(BrokenTooth(broken_fraction))
+        if "crack" in kinds:
+            ct = tooth if key == "T3" else (tooth + 1 if crack_tooth is None else crack_tooth)
+            teeth.setdefault(ct, []).append(RootCrack(crack_depth, crack_angle_deg))
+        return cls({k: tuple(v) for k, v in teeth.items()}, wear=wear, gear=gear, label=key)
+
+    @classmethod
+    def from_name(cls, name: str, **severities: float) -> "ToothFaults":
+        """Build from a name ``healthy``, ``wear``, ``crack``, ``broken``, ``broken+wear``,
+        ``broken+wear+crack`` (or T1..T6)."""
+        lookup = {v: k for k, v in STATES.items()}
+        key = str(name).strip().lower()
+        if key.upper() in STATES:
+            return cls.for_state(key.upper(), **severities)
+        parts = sorted(key.split("+"))
+        for label, kinds in lookup.items():
+            if sorted(label.split("+")) == parts:
+                return cls.for_state(kinds, **severities)
+        raise ParameterError(
+            f"unknown fault {name!r}; choose one of {', '.join(STATES.values())} or T1..T6")
+
+    def describe(self) -> dict:
+        """JSON-ready description of the faults (SI units)."""
+        out: dict = {"gear": self.gear, "label": self.label,
+                     "wear_depth_m": None if self.wear is None else self.wear.depth, "teeth": {}}
+        for tooth, faults in self.teeth.items():
+            out["teeth"][str(tooth)] = [
+                {"kind": type(f).__name__, **{k: getattr(f, k) for k in f.__dataclass_fields__}}
+                for f in faults]
+        return out
+
+
+# ---------------------------------------------------------------------- profile modifications
+@dataclass(frozen=True)
+class DamagedProfile:
+    """A tooth section table after damage: loaded and unloaded half thickness over ``y``, and the
+    radius above which the flank is missing (``inf`` when whole)."""
+
+    y: np.ndarray
+    x_loaded: np.ndarray
+    x_other: np.ndarray
+    cut_radius: float
+
+
+def archard_wear_profile(pair: GearPair, gear: str, roll: np.ndarray, depth: float) -> np.ndarray:
+    """Wear depth (m) at path-of-contact positions ``roll`` (m) on the ``gear`` flank.
+
+    h_i(rho) = depth * g / max(g), g = F_share |1 - v_j / v_i| with v_i = omega_i rho_i
+    (Flodin & Andersson 1997, eq. (2) with the sliding distance 2 a |v1 - v2| / v_i).
+    """
+    roll = np.asarray(roll, dtype=float)
+    rho1, rho2 = pair.roll_lengths(roll)
+    rb1, rb2 = pair.driver.base_radius, pair.driven.base_radius
+    # omega2 / omega1 = rb1 / rb2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if gear == "driver":
+            slip = np.abs(1.0 - (rb1 * rho2) / (rb2 * rho1))
+        else:
+            slip = np.abs(1.0 - (rb2 * rho1) / (rb1 * rho2))
+    pb, path = pair.base_pitch, pair.path_of_contact
+    double = (roll <= path - pb) | (roll >= pb)
+    share = np.where(double, 0.5, 1.0)
+    g = np.nan_to_num(share * slip)
+    s = np.linspace(0.0, path, 2001)
+    r1, r2 = pair.roll_lengths(s)
+    if gear == "driver":
+        gs = np.abs(1.0 - (rb1 * r2) / (rb2 * r1))
+    else:
+        gs = np.abs(1.0 - (rb2 * r1) / (rb1 * r2))
+    gs = gs * np.where((s <= path - pb) | (s >= pb), 0.5, 1.0)
+    gmax = float(np.max(gs))
+    return depth * g / gmax if gmax > 0 else np.zeros_like(roll)
+
+
+def damaged_profile(pair: GearPair, gear: str, faults: Iterable[Fault]) -> DamagedProfile:
+    """Section table of one tooth of ``gear`` ("driver"/"driven") carrying ``faults``."""
+    g = pair.driver if gear == "driver" else pair.driven
+    prof = g.profile()
+    y, x = prof.y, prof.x
+    xl = x.copy()
+    cut = math.inf
+    for f in faults:
+        if isinstance(f, Wear) and f.depth > 0:
+            r = np.hypot(x, y)
+            rho = np.sqrt(np.maximum(r**2 - g.base_radius**2, 0.0))
+            if gear == "driver":
+                roll = rho - pair.start_roll_length_driver
+            else:
+                roll = (pair.line_of_action_length - rho) - pair.start_roll_length_driver
+            active = (roll >= 0) & (roll <= pair.path_of_contact) & (np.arange(len(y)) >= prof.n_fillet)
+            h = np.zeros_like(y)
+            h[active] = archard_wear_profile(pair, gear, roll[active], f.depth)
+            tau = rho / g.base_radius - g.base_half_angle     # flank normal vs. section (load angle)
+            xl = xl - h / np.cos(tau)
+    for f in faults:
+        if isinstance(f, RootCrack) and f.depth > 0:
+            y_t, h_q = f.tip(g)
+            if y_t >= y[-1]:
+                raise GeometryError(
+                    f"crack of depth {f.depth * 1e3:.3f} mm at {f.angle_deg} deg reaches above the "
+                    f"{g.name} tooth tip")
+            y_c, _ = f.start(g)
+            zone = (y >= y_c) & (y <= y_t)
+            xl = np.where(zone, np.minimum(xl, h_q), xl)
+    for f in faults:
+        if isinstance(f, BrokenTooth):
+            cut = min(cut, f.cut_radius(g))
+    thickness = xl + x
+    if np.any(thickness <= 0.02 * g.module):
+        worst = "crack" if any(isinstance(f, RootCrack) for f in faults) else "wear"
+        raise GeometryError(
+            f"{worst} deeper than the {g.name} tooth: the remaining section falls to "
+            f"{max(float(thickness.min()), 0.0) * 1e3:.3f} mm")
+    return DamagedProfile(y=y, x_loaded=xl, x_other=x, cut_radius=cut)

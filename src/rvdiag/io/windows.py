@@ -1,0 +1,68 @@
+"""Cut a long signal into fixed-length windows (the samples of a dataset)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rvdiag.errors import DataFileError, ParameterError
+
+
+def window(signal, length: int, hop: int | None = None) -> np.ndarray:
+    """Cut ``signal`` into windows of ``length`` points, one every ``hop`` points.
+
+    Parameters
+    ----------
+    signal : MeasuredSignal or array-like, 1-D
+    length : int
+        Points per window (>= 2).
+    hop : int, optional
+        Step between window starts; default ``length`` (adjacent windows, no overlap).  The tail shorter
+        than a window is dropped.
+
+    Returns
+    -------
+    ndarray, float64, shape (n_windows, length)
+        A copy; window ``k`` is ``x[k * hop : k * hop + length]``.
+
+    Raises
+    ------
+    DataFileError
+        The signal is shorter than one window (names the file when ``signal`` is a MeasuredSignal).
+    ParameterError
+        ``length`` or ``hop`` is not a positive integer.
+
+    Examples
+    --------
+    >>> window(np.arange(10.0), 4, hop=3)
+    array([[0., 1., 2., 3.],
+           [3., 4., 5., 6.],
+           [6., 7., 8., 9.]])
+    """
+    data = getattr(signal, "data", signal)
+    where = f"{signal.path}: channel {signal.channel!r}" if hasattr(signal, "path") else "signal"
+    x = np.asarray(data, dtype=np.float64)
+    if x.ndim != 1:
+        raise ParameterError(f"window needs a 1-D signal, got shape {x.shape}")
+    length = _positive_int(length, "window length", minimum=2)
+    hop = length if hop is None else _positive_int(hop, "hop", minimum=1)
+    if length > x.size:
+        raise DataFileError(f"{where} has {x.size} points, shorter than the window of {length}")
+    n = (x.size - length) // hop + 1
+    view = np.lib.stride_tricks.sliding_window_view(x, length)[::hop]
+    return np.array(view[:n], dtype=np.float64, copy=True)
+
+
+def window_starts(n_points: int, length: int, hop: int | None = None) -> np.ndarray:
+    """Start index of every window :func:`window` cuts from a signal of ``n_points`` points."""
+    hop = length if hop is None else hop
+    if length > n_points:
+        return np.zeros(0, dtype=np.int64)
+    return np.arange((n_points - length) // hop + 1, dtype=np.int64) * hop
+
+
+def _positive_int(value, what: str, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ParameterError(f"{what} must be an integer, got {value!r}")
+    if value < minimum:
+        raise ParameterError(f"{what} must be at least {minimum}, got {value}")
+    return int(value)

@@ -1,0 +1,496 @@
+"""Build a sample library: a plan of simulations, run on Dask, written unit by unit into a sample store.
+
+The plan
+--------
+A *unit* is one simulation.  Units are numbered state by state (T-number order), simulation by
+simulation.  Unit ``u`` gets its own seed from the config's master seed::
+
+    children = numpy.random.SeedSequence(seed).spawn(n_units)
+    unit_seed = 63-bit integer from children[u].generate_state
+
+and every random draw of the unit comes from ``SeedSequence(unit_seed)``, split into four independent
+streams: the draws (severities, operating point, SNR, parameter scales, in that fixed order), the
+simulator's seed, the noise, and (paper mode) the assignment of segments to train/test.  The recorded
+``seed`` column therefore reproduces any one simulation alone, and the arrays do not depend on how many
+workers ran the build, nor on the order in which units finished.
+
+Running
+-------
+By default a :class:`distributed.LocalCluster` with one single-threaded worker process per core runs the
+units; ``scheduler=ADDRESS`` sends the same tasks to an existing Dask cluster instead; ``workers=0`` runs
+them in this process without Dask (debugging).  The client keeps at most one task per worker thread in
+flight and fetches each result as soon as it completes (``as_completed``), so a worker never holds more
+than one simulation's signal; the client writes each result with :class:`rvdiag.datasets.StoreBuilder`,
+which commits the unit atomically.  Re-running the same build skips committed units (resume after a
+crash, SIGKILL or Ctrl-C); a store built from another config is refused.
+
+Each unit's output: the kept signal (after ``transient_s``) of the configured channel, plus white Gaussian
+noise at the drawn SNR (``awgn(x, snr, 'measured')`` of MATLAB: noise power = mean(x^2) / 10^(SNR/10)),
+cut into segments of ``segment_length`` points every ``hop`` points.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterator, Mapping
+
+import numpy as np
+
+from rvdiag import __version__
+from rvdiag.datasets import StoreBuilder, config_hash
+from rvdiag.errors import ConfigError, RvdiagError, SimulationError
+from rvdiag.library.config import LibraryConfig, scaled_keys
+from rvdiag.library.states import STATES, FaultSpec
+
+#: Key added to the stored config so that its hash also covers the reducer parameter values.
+PARAMS_HASH_KEY = "reducer_params_hash"
+
+
+# ---------------------------------------------------------------------- plan
+@dataclass(frozen=True)
+class Unit:
+    """One simulation of the plan, with every value drawn for it.
+
+    Attributes
+    ----------
+    index : unit id (row block in the store)
+    state : health state ("T1".."T6")
+    sim_index : index of the simulation within its state
+    seed : the unit's seed (all its random streams derive from it)
+    severity : severity parameter -> value
+    speed : input speed (rpm) or output speed (deg/s), see ``LibraryConfig.speed_key``
+    load_Nm : output load torque (N m)
+    noise_snr_db : SNR of the added noise (dB), ``None`` = no noise
+    scales : ``"section.key"`` -> factor applied to that reducer parameter
+    split : "train"/"test" for the whole unit (independent mode), ``None`` in paper mode (per segment)
+    rows : samples the unit writes
+    """
+
+    index: int
+    state: str
+    sim_index: int
+    seed: int
+    severity: Mapping[str, float]
+    speed: float
+    load_Nm: float
+    noise_snr_db: float | None
+    scales: Mapping[str, float]
+    split: str | None
+    rows: int
+
+
+def _streams(unit_seed: int) -> list[np.random.SeedSequence]:
+    """The four independent streams of a unit: draws, simulator seed, noise, split."""
+    return np.random.SeedSequence(unit_seed).spawn(4)
+
+
+def unit_seeds(seed: int, n_units: int) -> list[int]:
+    """Per-unit 63-bit seeds spawned from the master seed (``SeedSequence(seed).spawn(n_units)``)."""
+    out = []
+    for child in np.random.SeedSequence(seed).spawn(n_units):
+        hi, lo = child.generate_state(2, np.uint32).tolist()
+        out.append(((hi << 32) | lo) & 0x7FFF_FFFF_FFFF_FFFF)
+    return out
+
+
+def make_plan(cfg: LibraryConfig) -> list[Unit]:
+    """Every unit of the library with its drawn values (deterministic in ``cfg``)."""
+    seeds = unit_seeds(cfg.seed, cfg.n_simulations)
+    keys = scaled_keys(cfg)
+    units = []
+    u = 0
+    for state, sweeps in cfg.states.items():
+        for k in range(cfg.simulations_per_state):
+            rng = np.random.default_rng(_streams(seeds[u])[0])
+            severity = {p: sw.draw(rng) for p, sw in sweeps.items()}
+            speed = cfg.speed.draw(rng)
+            load = cfg.load_Nm.draw(rng)
+            snr = None if cfg.noise_snr_db is None else cfg.noise_snr_db.draw(rng)
+            scales = {f"{s}.{key}": float(1.0 + pct / 100.0 * rng.uniform(-1.0, 1.0)) for s, key, pct in keys}
+            split = None
+            if cfg.mode == "independent":
+                split = "test" if k >= cfg.simulations_per_state - cfg.test_simulations_per_state else "train"
+            units.append(Unit(u, state, k, seeds[u], severity, speed, load, snr, scales, split,
+                              cfg.rows_per_simulation(state)))
+            u += 1
+    return units
+
+
+# ---------------------------------------------------------------------- one unit (runs on a worker)
+@dataclass(frozen=True)
+class Job:
+    """What a worker needs besides the unit: small and picklable."""
+
+    simulator: str
+    params: Mapping[str, Any]
+    mode: str
+    fs: float
+    duration_s: float
+    transient_s: float
+    samples_per_signal: int
+    segment_length: int
+    hop: int
+    channel: int | str
+    speed_key: str
+    train_per_state: int
+    test_per_state: int
+    assign: str
+    severity_columns: tuple[str, ...]
+    scale_columns: tuple[str, ...] = field(default_factory=tuple)
+    model: Mapping[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def from_config(cls, cfg: LibraryConfig, params: Any) -> "Job":
+        return cls(
+            simulator=cfg.simulator, params=params.to_dict(), mode=cfg.mode, fs=cfg.fs,
+            duration_s=cfg.duration_s, transient_s=cfg.transient_s, samples_per_signal=cfg.samples_per_signal,
+            segment_length=cfg.segment_length, hop=cfg.hop, channel=cfg.channel, speed_key=cfg.speed_key,
+            train_per_state=cfg.train_per_state, test_per_state=cfg.test_per_state, assign=cfg.assign,
+            severity_columns=tuple(cfg.severity_parameters()),
+            scale_columns=tuple(f"{s}.{k}" for s, k, _ in scaled_keys(cfg)), model=dict(cfg.model),
+        )
+
+
+@dataclass
+class UnitResult:
+    """A unit's samples (float32, rows x segment_length) and metadata columns (one value per row)."""
+
+    index: int
+    X: np.ndarray
+    labels: list[str]
+    meta: dict[str, list[Any]]
+    wall_s: float
+
+
+def resolve_simulator(path: str, model: Mapping[str, Any] | None = None) -> Callable[..., Any]:
+    """Import ``"package.module:function"`` (:class:`ConfigError` if it cannot be found); with ``model``,
+    also validate the ``[model]`` table with the module's ``check_options`` when it has one."""
+    module_name, _, attr = path.partition(":")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as exc:
+        raise ConfigError(f"simulator {path!r}: cannot import module {module_name!r} ({exc})") from None
+    fn = getattr(module, attr, None)
+    if not callable(fn):
+        raise ConfigError(f"simulator {path!r}: module {module_name!r} has no function {attr!r}")
+    check = getattr(module, "check_options", None)
+    if model is not None and callable(check):
+        check(dict(model))
+    return fn
+
+
+def _channel(result: Any, channel: int | str) -> np.ndarray:
+    sig = np.asarray(result.signal, dtype=np.float64)
+    if sig.ndim == 1:
+        sig = sig[None, :]
+    if isinstance(channel, str):
+        names = list(getattr(result, "channel_names", None) or [])
+        if channel not in names:
+            raise ConfigError(f"channel {channel!r}: the simulator's channels are {names}")
+        channel = names.index(channel)
+    if channel >= sig.shape[0]:
+        raise ConfigError(f"channel {channel}: the simulator returned {sig.shape[0]} channel(s)")
+    return sig[channel]
+
+
+def segment_starts(n_points: int, length: int, hop: int) -> np.ndarray:
+    """Start index of every segment of ``length`` points every ``hop`` points in ``n_points``."""
+    return np.arange(0, n_points - length + 1, hop, dtype=np.int64)
+
+
+def add_noise(x: np.ndarray, snr_db: float, rng: np.random.Generator) -> np.ndarray:
+    """``x`` plus white Gaussian noise of power mean(x^2) / 10^(snr_db/10) (MATLAB ``awgn(x, snr, 'measured')``)."""
+    power = float(np.mean(np.square(x)))
+    return x + np.sqrt(power / 10.0 ** (snr_db / 10.0)) * rng.standard_normal(x.shape[0])
+
+
+def run_unit(unit: Unit, job: Job) -> UnitResult:
+    """Simulate one unit and cut it into samples (the Dask task; pure function of its arguments)."""
+    from rvdiag.params import ReducerParams
+
+    t0 = time.perf_counter()
+    params = ReducerParams.from_dict(dict(job.params), source="<library>")
+    if unit.scales:
+        changes: dict[str, dict[str, float]] = {}
+        for name, factor in unit.scales.items():
+            section, key = name.split(".")
+            changes.setdefault(section, {})[key] = getattr(getattr(params, section), key) * factor
+        params = params.replace(**changes)
+    spec = FaultSpec(unit.state, unit.severity)
+    sim = resolve_simulator(job.simulator)
+    fault = spec if getattr(sim, "accepts_fault_spec", False) else spec.to_tooth_faults()
+    _, sim_ss, noise_ss, split_ss = _streams(unit.seed)
+    sim_seed = int(sim_ss.generate_state(1, np.uint32)[0])
+    result = sim(
+        params, fault, **{job.speed_key: unit.speed}, load_Nm=unit.load_Nm, duration_s=job.duration_s,
+        transient_s=job.transient_s, fs=job.fs, seed=sim_seed, model=dict(job.model),
+    )
+    if abs(float(getattr(result, "fs", job.fs)) - job.fs) > 1e-9 * job.fs:
+        raise SimulationError(f"simulator returned fs = {result.fs} Hz, asked for {job.fs} Hz")
+    x = _channel(result, job.channel)
+    del result  # keep only the one channel
+    if x.shape[0] < job.samples_per_signal:
+        raise SimulationError(f"simulator returned {x.shape[0]} points, expected {job.samples_per_signal}")
+    x = x[: job.samples_per_signal]
+    if not np.all(np.isfinite(x)):
+        raise SimulationError(f"unit {unit.index} ({unit.state}): the simulated signal contains NaN or Inf")
+    if unit.noise_snr_db is not None:
+        x = add_noise(x, unit.noise_snr_db, np.random.default_rng(noise_ss))
+    starts = segment_starts(x.shape[0], job.segment_length, job.hop)
+    if job.mode == "paper":
+        n = starts.shape[0]
+        if job.assign == "random":
+            perm = np.random.default_rng(split_ss).permutation(n)
+            train_idx, test_idx = perm[: job.train_per_state], perm[job.train_per_state: job.train_per_state + job.test_per_state]
+        else:  # "ordered": the first segments train, the last ones test
+            train_idx = np.arange(job.train_per_state)
+            test_idx = np.arange(n - job.test_per_state, n)
+        chosen = np.sort(np.concatenate([train_idx, test_idx])).astype(np.int64)
+        test_set = set(test_idx.tolist())
+        splits = ["test" if i in test_set else "train" for i in chosen.tolist()]
+    else:
+        chosen = np.arange(starts.shape[0])
+        splits = [unit.split] * chosen.shape[0]
+    X = np.stack([x[s: s + job.segment_length] for s in starts[chosen]]).astype(np.float32)
+    rows = X.shape[0]
+    meta: dict[str, list[Any]] = {
+        "split": splits,
+        "state": [unit.state] * rows,
+        "simulation": [unit.sim_index] * rows,
+        "seed": [unit.seed] * rows,
+        "segment": chosen.tolist(),
+        "t_start_s": (starts[chosen] / job.fs).tolist(),
+        job.speed_key: [unit.speed] * rows,
+        "load_Nm": [unit.load_Nm] * rows,
+        "noise_snr_db": [unit.noise_snr_db] * rows,
+    }
+    for p in job.severity_columns:
+        meta[p] = [unit.severity.get(p)] * rows
+    for name in job.scale_columns:
+        meta["scale." + name] = [unit.scales[name]] * rows
+    return UnitResult(unit.index, X, [unit.state] * rows, meta, time.perf_counter() - t0)
+
+
+# ---------------------------------------------------------------------- the build
+@dataclass
+class BuildReport:
+    """What a build did: units in the plan, built now, found committed, wall time, throughput."""
+
+    path: Path
+    n_units: int
+    built: int
+    skipped: int
+    n_samples: int
+    samples_built: int
+    wall_s: float
+    workers: int
+
+    @property
+    def samples_per_s(self) -> float:
+        return self.samples_built / self.wall_s if self.wall_s > 0 else float("nan")
+
+
+def default_workers() -> int:
+    """One worker per core available to this process."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def stored_config(cfg: LibraryConfig, params: Any) -> dict[str, Any]:
+    """The config the store keeps (and hashes): the canonical library config plus the parameters' hash."""
+    out = cfg.to_dict()
+    out[PARAMS_HASH_KEY] = config_hash(params.to_dict())
+    return out
+
+
+def config_from_store(attrs: Mapping[str, Any]) -> LibraryConfig:
+    """The :class:`LibraryConfig` a library store was built from (``SampleStore.attrs``)."""
+    data = dict(attrs["config"])
+    data.pop(PARAMS_HASH_KEY, None)
+    return LibraryConfig.from_dict(data, source="<store>")
+
+
+@contextmanager
+def _dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
+    import logging
+
+    from distributed import Client, LocalCluster
+
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout="10s")
+        except (OSError, TimeoutError) as exc:
+            raise RvdiagError(f"cannot reach the Dask scheduler at {scheduler!r} ({type(exc).__name__}: {exc})") from None
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    cluster = LocalCluster(
+        n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+        silence_logs=logging.ERROR,
+    )
+    try:
+        client = Client(cluster)
+        try:
+            yield client
+        finally:
+            client.close()
+    finally:
+        cluster.close()
+
+
+def build_library(
+    config: LibraryConfig | str | Path,
+    out: str | Path,
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    client: Any = None,
+    simulator: str | None = None,
+    progress: bool = True,
+    console: Any = None,
+) -> BuildReport:
+    """Build (or resume, or find complete) the library of ``config`` in the store ``out``.
+
+    Parameters
+    ----------
+    config : a :class:`LibraryConfig` or the path of a library TOML file
+    out : the store folder (``PATH.zarr``)
+    workers : worker processes of the local cluster (default: one per core); 0 = no Dask, in this process
+    scheduler : address of an existing Dask scheduler (``tcp://host:8786``) instead of a local cluster
+    client : an existing ``distributed.Client`` to use (then ``workers``/``scheduler`` are ignored)
+    simulator : ``"module:function"`` overriding the config's simulator (part of the stored config)
+    progress : show a rich progress bar with simulations done and the ETA
+    console : the ``rich.console.Console`` to draw on (default: stderr)
+
+    Returns
+    -------
+    BuildReport
+    """
+    cfg = config if isinstance(config, LibraryConfig) else LibraryConfig.load(config)
+    if simulator is not None:
+        cfg = cfg.replace(simulator=simulator)
+    if workers is not None and workers < 0:
+        raise ConfigError(f"--workers must be >= 0, got {workers}")
+    if scheduler and workers is not None:
+        raise ConfigError("give --workers or --scheduler, not both (a scheduler's cluster has its own workers)")
+    params = cfg.reducer_params()
+    resolve_simulator(cfg.simulator, cfg.model)  # fail early, here, with a clear message
+    plan = make_plan(cfg)
+    for unit in plan:  # validate every drawn severity before anything is written
+        FaultSpec(unit.state, unit.severity)
+    job = Job.from_config(cfg, params)
+    out = Path(out)
+    extra = {
+        "params": params.to_dict(),
+        "library": {
+            "mode": cfg.mode, "seed": cfg.seed, "simulator": cfg.simulator,
+            "states": {s: STATES[s].description for s in cfg.classes},
+            "n_simulations": len(plan), "rvdiag_version": __version__,
+        },
+    }
+    builder = StoreBuilder(
+        out, unit_rows=[u.rows for u in plan], length=cfg.segment_length, classes=cfg.classes,
+        config=stored_config(cfg, params), fs=cfg.fs, kind="simulated", extra_attrs=extra,
+    )
+    done = builder.committed_units()
+    todo = [u for u in plan if u.index not in done]
+    t0 = time.perf_counter()
+    n_workers = 0 if (workers == 0 and client is None and not scheduler) else (workers or default_workers())
+    built = 0
+    samples_built = 0
+
+    def write(res: UnitResult) -> None:
+        nonlocal built, samples_built
+        builder.write_unit(res.index, res.X, res.labels, res.meta)
+        built += 1
+        samples_built += res.X.shape[0]
+
+    with _progress(progress, console, len(plan), len(done), cfg.name) as advance:
+        if todo:
+            if n_workers == 0:
+                for unit in todo:
+                    write(_run_checked(unit, job))
+                    advance()
+            elif client is not None:
+                n_workers = _run_on_client(client, todo, job, write, advance)
+            else:
+                with _dask_client(n_workers, scheduler) as c:
+                    n_workers = _run_on_client(c, todo, job, write, advance)
+    builder.finalize()
+    return BuildReport(
+        path=out, n_units=len(plan), built=built, skipped=len(plan) - len(todo), n_samples=builder.n_samples,
+        samples_built=samples_built, wall_s=time.perf_counter() - t0, workers=n_workers,
+    )
+
+
+def _run_checked(unit: Unit, job: Job) -> UnitResult:
+    try:
+        return run_unit(unit, job)
+    except RvdiagError as exc:
+        raise type(exc)(f"simulation {unit.index} ({unit.state} #{unit.sim_index}): {exc}") from None
+
+
+def _run_on_client(client: Any, todo: list[Unit], job: Job, write: Callable[[UnitResult], None],
+                   advance: Callable[[], None]) -> int:
+    """Submit units with at most one in flight per worker thread; write results as they complete."""
+    from distributed import as_completed
+
+    nthreads = sum(client.nthreads().values())
+    if nthreads == 0:
+        client.wait_for_workers(1, timeout=60)
+        nthreads = sum(client.nthreads().values())
+    window = max(1, nthreads)
+    pending = iter(todo)
+    job_future = client.scatter(job, broadcast=True)
+    futures = as_completed()
+
+    def submit_next() -> bool:
+        unit = next(pending, None)
+        if unit is None:
+            return False
+        futures.add(client.submit(_run_checked, unit, job_future, pure=False, key=f"rvdiag-unit-{unit.index}-{time.time_ns()}"))
+        return True
+
+    for _ in range(window):
+        if not submit_next():
+            break
+    try:
+        for fut in futures:
+            res = fut.result()
+            fut.release()
+            write(res)
+            del res
+            advance()
+            submit_next()
+    except BaseException:
+        for fut in list(futures.futures):
+            fut.cancel()
+        raise
+    return len(client.nthreads())
+
+
+@contextmanager
+def _progress(enabled: bool, console: Any, total: int, completed: int, name: str) -> Iterator[Callable[[], None]]:
+    if not enabled:
+        yield lambda: None
+        return
+    from rich.console import Console
+    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn,
+                               TimeRemainingColumn)
+
+    columns = (
+        TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("simulations"),
+        TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
+    )
+    with Progress(*columns, console=console or Console(stderr=True)) as prog:
+        task = prog.add_task(name, total=total, completed=completed)
+        yield lambda: prog.advance(task)

@@ -1,0 +1,519 @@
+"""Library configs: a typed, validated view of a library TOML file (see ``docs/library.md``).
+
+A config says which health states to simulate with which severities, at which operating points, with
+how much noise and parameter randomisation, how each simulated signal is cut into samples and how the
+samples are split into training and test sets.  Two modes:
+
+``paper``
+    One long simulation per state (the seed paper on dynamics-model driven diagnosis: 60 s at 48 kHz per
+    state, cut into non-overlapping 8000-point samples, 260 training and 100 test samples per state).
+    The split is by segment: training and test samples come from the same simulation.
+``independent``
+    ``simulations_per_state`` independent simulations per state, each drawing its own severity, operating
+    point, noise level and model parameters.  The split is by simulation: the last
+    ``test_simulations_per_state`` simulations of each state form the test set, so no test sample shares
+    a simulation with a training sample (the honest test).  The simulations of a state are exchangeable
+    (independent draws), so taking the last ones is as random as any other choice.
+
+Sweeps
+------
+Every severity, operating and noise value may be written three ways:
+
+- a number: fixed, ``load_Nm = 167.0``;
+- a list: each simulation draws one element with equal probability, ``input_speed_rpm = [1000, 1500]``;
+- a table ``{min = a, max = b}``: each simulation draws uniformly in [a, b].
+
+Every error names the file and the key: ``ConfigError("demo.toml: [signal] hop: must be > 0, got -1")``.
+
+Examples
+--------
+>>> cfg = LibraryConfig.from_dict({"mode": "paper", "seed": 1, "states": {"T1": {}, "T2": {}},
+...     "signal": {"fs": 1000.0, "duration_s": 1.0, "segment_length": 100},
+...     "operation": {"input_speed_rpm": 1500.0, "load_Nm": 100.0},
+...     "split": {"train_per_state": 7, "test_per_state": 3}})
+>>> cfg.segments_per_simulation, cfg.rows_per_simulation("T1")
+(10, 10)
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from rvdiag.errors import ConfigError, ParameterError
+from rvdiag.library.states import SEVERITY_PARAMETERS, STATES
+
+MODES = ("paper", "independent")
+SPLIT_ASSIGN = ("random", "ordered")
+DEFAULT_SIMULATOR = "rvdiag.library.simulators:dynamics"
+
+#: Parameters scaled by ``[randomise] stiffness_pct``: every support stiffness and Young's modulus (the
+#: mesh stiffness of the potential-energy method is proportional to E, REFERENCE.md section 2).
+STIFFNESS_KEYS: tuple[tuple[str, str], ...] = (
+    ("material", "youngs_modulus"),
+    ("bearings", "sun_support"),
+    ("bearings", "crank_carrier"),
+    ("bearings", "crank_cycloid"),
+    ("bearings", "carrier_support"),
+    ("bearings", "pin_wheel_housing"),
+    ("bearings", "planet_crank_torsional"),
+    ("bearings", "input_torsional"),
+    ("bearings", "output_torsional"),
+)
+#: Parameters scaled by ``[randomise] damping_pct``.
+DAMPING_KEYS: tuple[tuple[str, str], ...] = (
+    ("damping", "mesh_damping_ratio"),
+    ("damping", "bearing_damping_ratio"),
+)
+
+_TOP_KEYS = {"name", "mode", "seed", "simulator", "params", "channel", "model",
+             "signal", "operation", "randomise", "split", "states"}
+_SECTION_KEYS = {
+    "signal": {"fs", "duration_s", "transient_s", "segment_length", "hop"},
+    "operation": {"input_speed_rpm", "output_speed_deg_s", "load_Nm", "noise_snr_db"},
+    "randomise": {"stiffness_pct", "damping_pct"},
+    "split": {"train_per_state", "test_per_state", "assign",
+              "simulations_per_state", "test_simulations_per_state"},
+}
+
+
+# ---------------------------------------------------------------------- sweeps
+@dataclass(frozen=True)
+class Sweep:
+    """A value drawn per simulation: fixed, one of a list, or uniform in ``[lo, hi]``.
+
+    ``kind`` is "fixed" (``values`` has one element), "choice" or "uniform" (``values = (lo, hi)``).
+    """
+
+    kind: str
+    values: tuple[float, ...]
+
+    @classmethod
+    def parse(cls, raw: Any, where: str) -> "Sweep":
+        """Parse a TOML value (number, list of numbers, or ``{min, max}`` table)."""
+        if isinstance(raw, Mapping):
+            unknown = set(raw) - {"min", "max"}
+            if unknown or not {"min", "max"} <= set(raw):
+                raise ConfigError(f"{where}: a range must be a table {{min = ..., max = ...}}, got {dict(raw)!r}")
+            lo, hi = _number(raw["min"], f"{where}.min"), _number(raw["max"], f"{where}.max")
+            if not lo <= hi:
+                raise ConfigError(f"{where}: min ({lo:g}) must not exceed max ({hi:g})")
+            return cls("fixed", (lo,)) if lo == hi else cls("uniform", (lo, hi))
+        if isinstance(raw, (list, tuple)):
+            if not raw:
+                raise ConfigError(f"{where}: an empty list gives nothing to draw from")
+            vals = tuple(_number(v, f"{where}[{i}]") for i, v in enumerate(raw))
+            return cls("fixed", vals) if len(vals) == 1 else cls("choice", vals)
+        return cls("fixed", (_number(raw, where),))
+
+    @property
+    def lo(self) -> float:
+        return min(self.values)
+
+    @property
+    def hi(self) -> float:
+        return max(self.values)
+
+    def draw(self, rng: np.random.Generator) -> float:
+        """One value.  Always consumes exactly one draw of ``rng`` so streams stay aligned."""
+        u = rng.random()
+        if self.kind == "fixed":
+            return float(self.values[0])
+        if self.kind == "choice":
+            return float(self.values[min(int(u * len(self.values)), len(self.values) - 1)])
+        lo, hi = self.values
+        return float(lo + u * (hi - lo))
+
+    def to_toml(self) -> Any:
+        """The TOML value this sweep was parsed from (canonical form)."""
+        if self.kind == "fixed":
+            return self.values[0]
+        if self.kind == "choice":
+            return list(self.values)
+        return {"min": self.values[0], "max": self.values[1]}
+
+
+def _number(raw: Any, where: str) -> float:
+    if isinstance(raw, bool) or not isinstance(raw, (int, float)):
+        raise ConfigError(f"{where}: expected a number, got {raw!r}")
+    value = float(raw)
+    if not math.isfinite(value):
+        raise ConfigError(f"{where}: must be finite, got {raw!r}")
+    return value
+
+
+def _int(raw: Any, where: str, minimum: int) -> int:
+    value = _number(raw, where)
+    if value != int(value):
+        raise ConfigError(f"{where}: expected a whole number, got {raw!r}")
+    if value < minimum:
+        raise ConfigError(f"{where}: must be >= {minimum}, got {int(value)}")
+    return int(value)
+
+
+def _positive(raw: Any, where: str) -> float:
+    value = _number(raw, where)
+    if value <= 0:
+        raise ConfigError(f"{where}: must be > 0, got {value:g}")
+    return value
+
+
+# ---------------------------------------------------------------------- the config
+@dataclass(frozen=True)
+class LibraryConfig:
+    """A validated library config.  Build with :meth:`load` (TOML file) or :meth:`from_dict`.
+
+    Attributes mirror the TOML keys (``docs/library.md`` documents each); ``states`` maps each state
+    name, in T-number order, to its severity sweeps (every parameter of the state present).
+    """
+
+    name: str
+    mode: str
+    seed: int
+    fs: float
+    duration_s: float
+    transient_s: float
+    segment_length: int
+    hop: int
+    states: dict[str, dict[str, Sweep]]
+    speed_key: str  # "input_speed_rpm" or "output_speed_deg_s"
+    speed: Sweep
+    load_Nm: Sweep
+    noise_snr_db: Sweep | None
+    stiffness_pct: float = 0.0
+    damping_pct: float = 0.0
+    train_per_state: int = 0
+    test_per_state: int = 0
+    assign: str = "random"
+    simulations_per_state: int = 1
+    test_simulations_per_state: int = 0
+    simulator: str = DEFAULT_SIMULATOR
+    params: str = ""
+    channel: int | str = 0
+    model: Mapping[str, Any] = field(default_factory=dict)
+    source: str = field(default="<dict>", compare=False)
+    base_dir: str = field(default="", compare=False)  # folder a relative ``params`` path is relative to
+
+    # ------------------------------------------------------------------ derived sizes
+    @property
+    def classes(self) -> list[str]:
+        """Class names in label order (T-number order)."""
+        return list(self.states)
+
+    @property
+    def samples_per_signal(self) -> int:
+        """Points kept per simulation (after the transient): ``round(duration_s * fs)``."""
+        return int(round(self.duration_s * self.fs))
+
+    @property
+    def transient_samples(self) -> int:
+        return int(round(self.transient_s * self.fs))
+
+    @property
+    def segments_per_simulation(self) -> int:
+        """Segments cut from one simulation: ``floor((N - L) / hop) + 1``."""
+        return (self.samples_per_signal - self.segment_length) // self.hop + 1
+
+    def rows_per_simulation(self, state: str) -> int:
+        """Samples a simulation of ``state`` contributes to the store."""
+        if self.mode == "paper":
+            return self.train_per_state + self.test_per_state
+        return self.segments_per_simulation
+
+    @property
+    def n_simulations(self) -> int:
+        return len(self.states) * self.simulations_per_state
+
+    @property
+    def n_samples(self) -> int:
+        return sum(self.rows_per_simulation(s) * self.simulations_per_state for s in self.states)
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def load(cls, path: str | Path) -> "LibraryConfig":
+        """Read and validate a library TOML file; :class:`ConfigError` names the file and key."""
+        path = Path(path)
+        try:
+            text = path.read_text("utf-8")
+        except FileNotFoundError:
+            raise ConfigError(f"library config not found: {path}") from None
+        except IsADirectoryError:
+            raise ConfigError(f"library config {path} is a directory, expected a TOML file") from None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ConfigError(f"cannot read library config {path}: {exc}") from None
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"{path}: not valid TOML ({exc})") from None
+        cfg = cls.from_dict(data, source=str(path))
+        object.__setattr__(cfg, "base_dir", str(path.resolve().parent))
+        return cfg
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], source: str = "<dict>") -> "LibraryConfig":
+        """Validate a nested dict (as read from TOML)."""
+        if not isinstance(data, Mapping):
+            raise ConfigError(f"{source}: a library config must be a table")
+        unknown = set(data) - _TOP_KEYS
+        if unknown:
+            raise ConfigError(f"{source}: unknown key {sorted(unknown)[0]!r} (known: {', '.join(sorted(_TOP_KEYS))})")
+        sections = {}
+        for sec, keys in _SECTION_KEYS.items():
+            raw = data.get(sec, {})
+            if not isinstance(raw, Mapping):
+                raise ConfigError(f"{source}: [{sec}] must be a table")
+            bad = set(raw) - keys
+            if bad:
+                raise ConfigError(f"{source}: [{sec}] unknown key {sorted(bad)[0]!r} (known: {', '.join(sorted(keys))})")
+            sections[sec] = raw
+        sig, op, rnd, spl = sections["signal"], sections["operation"], sections["randomise"], sections["split"]
+
+        mode = data.get("mode", "paper")
+        if mode not in MODES:
+            raise ConfigError(f"{source}: mode: must be one of {', '.join(MODES)}, got {mode!r}")
+        if "seed" not in data:
+            raise ConfigError(f"{source}: seed: missing (every random draw derives from it)")
+        seed = _int(data["seed"], f"{source}: seed", 0)
+        name = data.get("name", Path(source).stem if source != "<dict>" else "library")
+        if not isinstance(name, str):
+            raise ConfigError(f"{source}: name: expected a string, got {name!r}")
+        simulator = data.get("simulator", DEFAULT_SIMULATOR)
+        if not isinstance(simulator, str) or ":" not in simulator:
+            raise ConfigError(f"{source}: simulator: expected 'module.path:function', got {simulator!r}")
+        params = data.get("params", "")
+        if not isinstance(params, str):
+            raise ConfigError(f"{source}: params: expected a path string ('' = built-in RV-20E), got {params!r}")
+        channel = data.get("channel", 0)
+        if isinstance(channel, bool) or not isinstance(channel, (int, str)) or (isinstance(channel, int) and channel < 0):
+            raise ConfigError(f"{source}: channel: expected a channel index >= 0 or name, got {channel!r}")
+
+        model = data.get("model", {})
+        if not isinstance(model, Mapping):
+            raise ConfigError(f"{source}: [model] must be a table of simulator settings")
+        model = dict(model)
+
+        # --- signal
+        w = f"{source}: [signal]"
+        for key in ("fs", "duration_s", "segment_length"):
+            if key not in sig:
+                raise ConfigError(f"{w} {key}: missing")
+        fs = _positive(sig["fs"], f"{w} fs")
+        duration_s = _positive(sig["duration_s"], f"{w} duration_s")
+        transient_s = _number(sig.get("transient_s", 0.0), f"{w} transient_s")
+        if transient_s < 0:
+            raise ConfigError(f"{w} transient_s: must be >= 0, got {transient_s:g}")
+        segment_length = _int(sig["segment_length"], f"{w} segment_length", 16)
+        hop = _int(sig.get("hop", segment_length), f"{w} hop", 1)
+        n_keep = int(round(duration_s * fs))
+        if segment_length > n_keep:
+            raise ConfigError(
+                f"{w} segment_length: {segment_length} points exceed the {n_keep} points of one simulation "
+                f"(duration_s x fs = {duration_s:g} x {fs:g})"
+            )
+
+        # --- operation
+        w = f"{source}: [operation]"
+        speeds = [k for k in ("input_speed_rpm", "output_speed_deg_s") if k in op]
+        if len(speeds) != 1:
+            raise ConfigError(f"{w}: give exactly one of input_speed_rpm or output_speed_deg_s")
+        speed_key = speeds[0]
+        speed = Sweep.parse(op[speed_key], f"{w} {speed_key}")
+        if speed.lo <= 0:
+            raise ConfigError(f"{w} {speed_key}: must be > 0, got {speed.lo:g}")
+        if "load_Nm" not in op:
+            raise ConfigError(f"{w} load_Nm: missing (output load torque in N m)")
+        load = Sweep.parse(op["load_Nm"], f"{w} load_Nm")
+        if load.lo < 0:
+            raise ConfigError(f"{w} load_Nm: must be >= 0, got {load.lo:g}")
+        noise = None
+        if "noise_snr_db" in op:
+            noise = Sweep.parse(op["noise_snr_db"], f"{w} noise_snr_db")
+            if not (-40.0 <= noise.lo and noise.hi <= 120.0):
+                raise ConfigError(f"{w} noise_snr_db: must lie in [-40, 120] dB, got {noise.lo:g}..{noise.hi:g}")
+
+        # --- randomise
+        w = f"{source}: [randomise]"
+        pct = {}
+        for key in ("stiffness_pct", "damping_pct"):
+            pct[key] = _number(rnd.get(key, 0.0), f"{w} {key}")
+            if not 0.0 <= pct[key] < 100.0:
+                raise ConfigError(f"{w} {key}: must lie in [0, 100) percent, got {pct[key]:g}")
+
+        # --- states
+        raw_states = data.get("states")
+        if not isinstance(raw_states, Mapping) or not raw_states:
+            raise ConfigError(f"{source}: [states]: missing; add a table per state, e.g. [states.T1]")
+        states: dict[str, dict[str, Sweep]] = {}
+        for sname in raw_states:
+            if sname not in STATES:
+                raise ConfigError(f"{source}: [states.{sname}]: unknown state; known: {', '.join(STATES)}")
+        for sname, st in STATES.items():  # T-number order = label order
+            if sname not in raw_states:
+                continue
+            raw = raw_states[sname]
+            w = f"{source}: [states.{sname}]"
+            if not isinstance(raw, Mapping):
+                raise ConfigError(f"{w}: must be a table of severity values")
+            bad = set(raw) - set(st.parameters)
+            if bad:
+                raise ConfigError(
+                    f"{w} {sorted(bad)[0]}: not a severity parameter of {sname} ({st.description}); "
+                    f"it has: {', '.join(st.parameters) or 'none'}"
+                )
+            sweeps = {}
+            for pname in st.parameters:
+                sp = SEVERITY_PARAMETERS[pname]
+                sweep = Sweep.parse(raw.get(pname, sp.default), f"{w} {pname}")
+                for v in (sweep.lo, sweep.hi):
+                    try:
+                        sp.check(v)
+                    except ParameterError as exc:
+                        raise ConfigError(f"{w} {pname}: {exc}") from None
+                sweeps[pname] = sweep
+            states[sname] = sweeps
+        if len(states) < 2:
+            raise ConfigError(f"{source}: [states]: a classifier library needs at least two states")
+
+        # --- split
+        w = f"{source}: [split]"
+        n_seg = (n_keep - segment_length) // hop + 1
+        kw: dict[str, Any] = {}
+        if mode == "paper":
+            for key in ("simulations_per_state", "test_simulations_per_state"):
+                if key in spl:
+                    raise ConfigError(f"{w} {key}: only for mode = 'independent' (paper mode has one simulation per state)")
+            for key in ("train_per_state", "test_per_state"):
+                if key not in spl:
+                    raise ConfigError(f"{w} {key}: missing (paper mode splits each state's segments)")
+            train = _int(spl["train_per_state"], f"{w} train_per_state", 1)
+            test = _int(spl["test_per_state"], f"{w} test_per_state", 0)
+            if train + test > n_seg:
+                raise ConfigError(
+                    f"{w}: train_per_state + test_per_state = {train + test} exceeds the {n_seg} segments of one "
+                    f"simulation ({n_keep} points, segment_length {segment_length}, hop {hop}); "
+                    f"lengthen [signal] duration_s or shorten the hop"
+                )
+            assign = spl.get("assign", "random")
+            if assign not in SPLIT_ASSIGN:
+                raise ConfigError(f"{w} assign: must be one of {', '.join(SPLIT_ASSIGN)}, got {assign!r}")
+            kw.update(train_per_state=train, test_per_state=test, assign=assign, simulations_per_state=1)
+        else:
+            for key in ("train_per_state", "test_per_state", "assign"):
+                if key in spl:
+                    raise ConfigError(
+                        f"{w} {key}: only for mode = 'paper'; independent mode splits by simulation "
+                        f"(simulations_per_state, test_simulations_per_state)"
+                    )
+            if "simulations_per_state" not in spl:
+                raise ConfigError(f"{w} simulations_per_state: missing")
+            n_sim = _int(spl["simulations_per_state"], f"{w} simulations_per_state", 1)
+            n_test = _int(spl.get("test_simulations_per_state", 0), f"{w} test_simulations_per_state", 0)
+            if n_test >= n_sim:
+                raise ConfigError(
+                    f"{w} test_simulations_per_state: {n_test} leaves no training simulation out of "
+                    f"simulations_per_state = {n_sim}"
+                )
+            kw.update(simulations_per_state=n_sim, test_simulations_per_state=n_test)
+
+        return cls(
+            name=name, mode=mode, seed=seed, fs=fs, duration_s=duration_s, transient_s=transient_s,
+            segment_length=segment_length, hop=hop, states=states, speed_key=speed_key, speed=speed,
+            load_Nm=load, noise_snr_db=noise, stiffness_pct=pct["stiffness_pct"], damping_pct=pct["damping_pct"],
+            simulator=simulator, params=params, channel=channel, model=model, source=source, **kw,
+        )
+
+    # ------------------------------------------------------------------ output
+    def to_dict(self) -> dict[str, Any]:
+        """Canonical nested dict (every default filled in); ``from_dict(to_dict())`` is equal.
+
+        This is what the store keeps in its ``config`` attribute, and what its ``config_hash`` covers.
+        """
+        split: dict[str, Any]
+        if self.mode == "paper":
+            split = {"train_per_state": self.train_per_state, "test_per_state": self.test_per_state,
+                     "assign": self.assign}
+        else:
+            split = {"simulations_per_state": self.simulations_per_state,
+                     "test_simulations_per_state": self.test_simulations_per_state}
+        operation: dict[str, Any] = {self.speed_key: self.speed.to_toml(), "load_Nm": self.load_Nm.to_toml()}
+        if self.noise_snr_db is not None:
+            operation["noise_snr_db"] = self.noise_snr_db.to_toml()
+        return {
+            "name": self.name,
+            "mode": self.mode,
+            "seed": self.seed,
+            "simulator": self.simulator,
+            "params": self.params,
+            "channel": self.channel,
+            "model": dict(self.model),
+            "signal": {"fs": self.fs, "duration_s": self.duration_s, "transient_s": self.transient_s,
+                       "segment_length": self.segment_length, "hop": self.hop},
+            "operation": operation,
+            "randomise": {"stiffness_pct": self.stiffness_pct, "damping_pct": self.damping_pct},
+            "split": split,
+            "states": {s: {k: v.to_toml() for k, v in sw.items()} for s, sw in self.states.items()},
+        }
+
+    def replace(self, **changes: Any) -> "LibraryConfig":
+        """Copy with top-level or section keys changed, re-validated: ``cfg.replace(seed=2)``,
+        ``cfg.replace(signal={"duration_s": 2.0})``."""
+        data = self.to_dict()
+        for key, value in changes.items():
+            if isinstance(value, Mapping) and isinstance(data.get(key), dict) and key != "states":
+                data[key] = {**data[key], **value}
+            else:
+                data[key] = value
+        new = type(self).from_dict(data, source=self.source)
+        object.__setattr__(new, "base_dir", self.base_dir)
+        return new
+
+    def reducer_params(self) -> Any:
+        """The reducer parameter set: ``params`` (relative to the config file's folder), or the built-in
+        RV-20E when ``params`` is empty."""
+        from rvdiag.params import ReducerParams
+
+        if not self.params:
+            return ReducerParams.default()
+        path = Path(self.params)
+        if not path.is_absolute() and self.base_dir:
+            path = Path(self.base_dir) / path
+        return ReducerParams.load(path)
+
+    def severity_parameters(self) -> list[str]:
+        """Every severity parameter used by some configured state (metadata columns), in a fixed order."""
+        used = {p for sw in self.states.values() for p in sw}
+        return [p for p in SEVERITY_PARAMETERS if p in used]
+
+    def describe(self) -> str:
+        """One line: mode, states, simulations and samples."""
+        return (
+            f"{self.name}: mode {self.mode}, {len(self.states)} states, {self.n_simulations} simulations of "
+            f"{self.transient_s + self.duration_s:g} s, {self.n_samples} samples of {self.segment_length} points "
+            f"at {self.fs:g} Hz"
+        )
+
+
+def split_counts(cfg: LibraryConfig) -> dict[str, int]:
+    """Samples per state in each split (the same for every state)."""
+    if cfg.mode == "paper":
+        return {"train": cfg.train_per_state, "test": cfg.test_per_state}
+    n = cfg.segments_per_simulation
+    return {
+        "train": n * (cfg.simulations_per_state - cfg.test_simulations_per_state),
+        "test": n * cfg.test_simulations_per_state,
+    }
+
+
+def scaled_keys(cfg: LibraryConfig) -> Sequence[tuple[str, str, float]]:
+    """``(section, key, pct)`` of every parameter the config randomises."""
+    out = []
+    if cfg.stiffness_pct > 0:
+        out += [(s, k, cfg.stiffness_pct) for s, k in STIFFNESS_KEYS]
+    if cfg.damping_pct > 0:
+        out += [(s, k, cfg.damping_pct) for s, k in DAMPING_KEYS]
+    return out

@@ -1,0 +1,197 @@
+"""The six health states of the library (T1..T6) and their severity parameters.
+
+The states are those of the seed paper on dynamics-model driven diagnosis (REFERENCE.md section 3):
+
+====  ==============================  ===============================================
+name  description                     severity parameters (SI units, angles in degrees)
+====  ==============================  ===============================================
+T1    healthy                         none
+T2    broken tooth                    ``broken_fraction``
+T3    wear                            ``wear_depth``
+T4    root crack                      ``crack_depth``, ``crack_angle_deg``
+T5    broken tooth + wear             ``broken_fraction``, ``wear_depth``
+T6    broken tooth + wear + crack     ``broken_fraction``, ``wear_depth``, ``crack_depth``, ``crack_angle_deg``
+====  ==============================  ===============================================
+
+Each severity parameter has a physical validity interval (``lo``, ``hi``) that a library config must stay
+inside, and a default value used when a config names a state without giving its severities.  The mapping
+to the gear model is :func:`tooth_faults`, which calls ``rvdiag.gears.ToothFaults.for_state`` (the
+mesh-stiffness model of the faults lives there: Archard wear thins the section, Chen & Shao 2011 /
+Mohammed et al. 2013 crack model, broken tooth carries no load).
+
+Examples
+--------
+>>> [s.name for s in STATES.values()]
+['T1', 'T2', 'T3', 'T4', 'T5', 'T6']
+>>> STATES["T6"].parameters
+('broken_fraction', 'wear_depth', 'crack_depth', 'crack_angle_deg')
+>>> FaultSpec("T4", {"crack_depth": 5e-4, "crack_angle_deg": 45.0}).is_healthy
+False
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+from rvdiag.errors import ParameterError
+
+
+@dataclass(frozen=True)
+class SeverityParameter:
+    """One severity parameter of a fault.
+
+    Attributes
+    ----------
+    name : key in configs, metadata columns and ``ToothFaults.for_state`` keyword
+    unit : unit of the value ("m", "deg" or "1")
+    lo, hi : closed interval of physically valid values
+    default : value used when a config does not give one
+    description : one line for docs and ``rvdiag library info``
+    """
+
+    name: str
+    unit: str
+    lo: float
+    hi: float
+    default: float
+    description: str
+
+    def check(self, value: float, where: str = "") -> float:
+        """Return ``value`` as float or raise :class:`ParameterError` if outside ``[lo, hi]``."""
+        value = float(value)
+        if not self.lo <= value <= self.hi:
+            prefix = f"{where}: " if where else ""
+            raise ParameterError(
+                f"{prefix}{self.name} = {value:g} {self.unit} is outside its valid range "
+                f"[{self.lo:g}, {self.hi:g}] {self.unit}"
+            )
+        return value
+
+
+#: Severity parameters.  Ranges for the RV-20E sun gear (module 1.25 mm, tooth whole depth 2.81 mm,
+#: root half-thickness about 1.1 mm with the +0.4 profile shift of ``rv20e.toml``):
+#: a root crack deeper than about 1 mm would cross the tooth centreline far enough to leave no section
+#: (the crack cases of Mohammed, Rantatalo & Aidanpaa 2013 assume q < tooth thickness); wear depths of
+#: 5..100 um span the mild to severe wear of Flodin & Andersson 1997 / Chen & Shao; crack angles of
+#: 30..75 deg cover the propagation paths of Chen & Shao 2011 (45 deg is their reference case).
+SEVERITY_PARAMETERS: dict[str, SeverityParameter] = {
+    p.name: p
+    for p in (
+        SeverityParameter(
+            "broken_fraction", "1", 0.05, 1.0, 1.0,
+            "fraction of the tooth that has broken off (1 = the whole tooth is missing)",
+        ),
+        SeverityParameter(
+            "wear_depth", "m", 1.0e-6, 2.0e-4, 2.0e-5,
+            "maximum uniform-Archard wear depth of the tooth flank (m)",
+        ),
+        SeverityParameter(
+            "crack_depth", "m", 5.0e-5, 1.0e-3, 5.0e-4,
+            "root crack depth q measured along the crack (m)",
+        ),
+        SeverityParameter(
+            "crack_angle_deg", "deg", 15.0, 80.0, 45.0,
+            "root crack angle to the tooth centreline (deg)",
+        ),
+    )
+}
+
+
+@dataclass(frozen=True)
+class HealthState:
+    """A health state: name (class label), description and its severity parameters."""
+
+    name: str
+    description: str
+    parameters: tuple[str, ...] = field(default_factory=tuple)
+
+    def defaults(self) -> dict[str, float]:
+        """Default severity values of this state."""
+        return {p: SEVERITY_PARAMETERS[p].default for p in self.parameters}
+
+
+STATES: dict[str, HealthState] = {
+    s.name: s
+    for s in (
+        HealthState("T1", "healthy"),
+        HealthState("T2", "broken tooth", ("broken_fraction",)),
+        HealthState("T3", "wear", ("wear_depth",)),
+        HealthState("T4", "root crack", ("crack_depth", "crack_angle_deg")),
+        HealthState("T5", "broken tooth + wear", ("broken_fraction", "wear_depth")),
+        HealthState(
+            "T6", "broken tooth + wear + crack",
+            ("broken_fraction", "wear_depth", "crack_depth", "crack_angle_deg"),
+        ),
+    )
+}
+
+
+def get_state(name: str) -> HealthState:
+    """The state called ``name`` ("T1".."T6"); :class:`ParameterError` otherwise."""
+    try:
+        return STATES[name]
+    except KeyError:
+        raise ParameterError(f"unknown health state {name!r}; known: {', '.join(STATES)}") from None
+
+
+@dataclass(frozen=True)
+class FaultSpec:
+    """The fault of one simulation: a state and its severity values (validated on construction).
+
+    This is what the library draws per simulation.  :meth:`to_tooth_faults` turns it into the gear
+    model's fault object; a simulator with attribute ``accepts_fault_spec = True`` receives the
+    :class:`FaultSpec` itself instead (the synthetic test simulator does).
+    """
+
+    state: str
+    severity: Mapping[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        st = get_state(self.state)
+        extra = set(self.severity) - set(st.parameters)
+        if extra:
+            raise ParameterError(
+                f"state {self.state} ({st.description}) has no severity parameter {sorted(extra)[0]!r}; "
+                f"it has: {', '.join(st.parameters) or 'none'}"
+            )
+        values = st.defaults()
+        for key, value in self.severity.items():
+            values[key] = SEVERITY_PARAMETERS[key].check(value, where=f"state {self.state}")
+        object.__setattr__(self, "severity", values)
+
+    @property
+    def is_healthy(self) -> bool:
+        return not STATES[self.state].parameters
+
+    def to_tooth_faults(self) -> Any:
+        """The ``rvdiag.gears.ToothFaults`` of this spec (``None`` for the healthy state)."""
+        return tooth_faults(self.state, **self.severity)
+
+
+#: The fault kinds of each state, in the names ``rvdiag.gears.ToothFaults.from_name`` understands.  The
+#: library maps by kind, not by T-number, so it does not depend on the gear module's own numbering.
+FAULT_KINDS: dict[str, str] = {
+    "T1": "healthy",
+    "T2": "broken",
+    "T3": "wear",
+    "T4": "crack",
+    "T5": "broken+wear",
+    "T6": "broken+wear+crack",
+}
+
+
+def tooth_faults(state: str, **severity: float) -> Any:
+    """Map a state and its severities to ``rvdiag.gears.ToothFaults`` (``None`` for T1, healthy).
+
+    The faults sit on the sun gear (the driver of the sun-planet mesh): the broken tooth on tooth 0,
+    wear on every tooth, the crack on tooth 0 (T4) or, with a broken tooth (T6), on the next tooth so
+    that the broken tooth does not hide it (``ToothFaults.for_state``).  The gear model is imported
+    lazily so that configs can be validated without loading it.
+    """
+    spec = FaultSpec(state, severity)
+    if spec.is_healthy:
+        return None
+    from rvdiag.gears import ToothFaults  # noqa: PLC0415 (lazy import)
+
+    return ToothFaults.from_name(FAULT_KINDS[state], **spec.severity)

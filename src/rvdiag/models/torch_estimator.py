@@ -1,0 +1,368 @@
+"""scikit-learn-compatible wrapper around the 1-D CNNs of :mod:`rvdiag.models.cnn`.
+
+:class:`CNNClassifier` follows the scikit-learn estimator conventions (``sklearn/svm/_classes.py``):
+``__init__`` only stores its keyword arguments, ``fit`` validates and returns ``self``, learned
+attributes end in ``_``, ``get_params``/``set_params``/``clone`` work, so it fits into pipelines and
+``GridSearchCV``.
+
+Samples longer than the network input (explicit, never silent)
+--------------------------------------------------------------
+A sample of ``L`` points and a network input of ``W <= L`` points (e.g. 8000-point library samples and
+the paper's 6400-point CNN): each sample is cut into ``k = ceil(L / W)`` windows of ``W`` points whose
+starts are spread evenly from ``0`` to ``L - W`` (:func:`window_starts`), so together they cover every
+point (for 8000/6400: windows at 0 and 1600).  In ``fit`` each window is a training example with the
+sample's label; in ``predict_proba`` the class probabilities of a sample are the mean over its windows.
+``long_input="crop"`` instead keeps only the centred window.  ``L < W`` is an error.
+The chosen policy and the window starts are stored in the model (``window_starts_``) and its card.
+
+Input normalisation (stored in the model)
+-----------------------------------------
+``normalize="window"`` (default): every window is standardised to zero mean, unit variance, so the
+classifier sees waveform shape, not amplitude — simulated accelerations and measured signals in other
+units or gains become comparable.  ``"global"``: subtract the training mean and divide by the training
+standard deviation (``norm_mean_``, ``norm_std_``), keeping the amplitude information.  ``"none"``.
+
+Training
+--------
+Adam (Kingma & Ba 2015) on the cross-entropy loss, mini-batches, a stratified validation split of
+*samples* (never of windows of one sample, which would leak), early stopping on the validation loss with
+the best weights restored.  Seeded: ``torch.manual_seed``, a NumPy generator for the split and the batch
+order, and ``torch.use_deterministic_algorithms(True)`` during ``fit``: two fits with one seed on one
+device give identical weights.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+import time
+from typing import Callable
+
+import numpy as np
+import torch
+from sklearn.base import BaseEstimator, ClassifierMixin
+from sklearn.utils.multiclass import check_classification_targets
+from sklearn.utils.validation import check_is_fitted, validate_data
+
+from rvdiag.errors import ParameterError
+from rvdiag.models.cnn import ARCHITECTURES, DEFAULT_INPUT_LENGTH, build_network
+
+NORMALIZATIONS = ("window", "global", "none")
+LONG_INPUT = ("window", "crop")
+
+
+def resolve_device(device: str) -> torch.device:
+    """``"auto"`` -> CUDA when available, else CPU; ``"cpu"``; ``"cuda"`` (error if unavailable)."""
+    if device == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if device == "cpu":
+        return torch.device("cpu")
+    if device.startswith("cuda"):
+        if not torch.cuda.is_available():
+            raise ParameterError("device 'cuda' requested but no CUDA GPU is available (use --device cpu or auto)")
+        return torch.device(device)
+    raise ParameterError(f"unknown device {device!r}; choose auto, cpu or cuda")
+
+
+def window_starts(length: int, window: int, policy: str = "window") -> np.ndarray:
+    """Start indices of the windows cut from a sample of ``length`` points (see module docstring).
+
+    >>> window_starts(8000, 6400).tolist()
+    [0, 1600]
+    >>> window_starts(8000, 6400, "crop").tolist()
+    [800]
+    >>> window_starts(4096, 4096).tolist()
+    [0]
+    """
+    if window > length:
+        raise ParameterError(f"samples of {length} points are shorter than the network input of {window} points")
+    if policy == "crop":
+        return np.array([(length - window) // 2], dtype=np.int64)
+    if policy != "window":
+        raise ParameterError(f"long_input must be one of {LONG_INPUT}, got {policy!r}")
+    k = -(-length // window)
+    if k == 1:
+        return np.array([0], dtype=np.int64)
+    return np.round(np.linspace(0, length - window, k)).astype(np.int64)
+
+
+class CNNClassifier(ClassifierMixin, BaseEstimator):
+    """A 1-D CNN classifier of raw signal windows with the scikit-learn API.
+
+    Parameters
+    ----------
+    architecture : {"cnn1d", "cnn1d-lean", "mcsa-cnn"}
+        Network, see :mod:`rvdiag.models.cnn`.
+    input_length : int or None
+        Network input in points.  None: the architecture's native length (6400 for ``cnn1d``, 4096 for
+        ``mcsa-cnn``) or, for ``cnn1d-lean``, the sample length; it is capped at the sample length only
+        for ``cnn1d-lean``, the others raise if samples are shorter.
+    long_input : {"window", "crop"}
+        What to do with samples longer than the input (module docstring).
+    normalize : {"window", "global", "none"}
+        Input normalisation (module docstring).
+    max_epochs : int
+        Upper bound on epochs.
+    batch_size : int
+    learning_rate : float
+        Adam step size.
+    weight_decay : float
+        L2 penalty (Adam ``weight_decay``).
+    validation_fraction : float
+        Share of the training samples held out for early stopping (0: none; the training loss is
+        monitored instead).
+    n_iter_no_change : int
+        Early-stopping patience in epochs.
+    device : str
+        ``"auto"``, ``"cpu"`` or ``"cuda"``.
+    random_state : int
+        Seed of the weights, the validation split and the batch order.
+    net_kwargs : dict or None
+        Extra arguments of the network constructor (e.g. ``{"fc_hidden": (64, 32)}`` for tests).
+
+    Attributes
+    ----------
+    classes_ : ndarray of class labels
+    n_features_in_ : int, the sample length
+    net_ : torch.nn.Module, the trained network (on CPU after ``fit``)
+    net_input_length_ : int
+    window_starts_ : ndarray of int
+    norm_mean_, norm_std_ : float, used when ``normalize="global"``
+    history_ : list of dict per epoch (loss, val_loss, val_accuracy, seconds)
+    best_epoch_ : int, the epoch whose weights were kept
+    """
+
+    def __init__(self, architecture: str = "cnn1d-lean", input_length: int | None = None,
+                 long_input: str = "window", normalize: str = "window", max_epochs: int = 30,
+                 batch_size: int = 32, learning_rate: float = 1e-3, weight_decay: float = 0.0,
+                 validation_fraction: float = 0.2, n_iter_no_change: int = 5, device: str = "auto",
+                 random_state: int = 0, net_kwargs: dict | None = None):
+        self.architecture = architecture
+        self.input_length = input_length
+        self.long_input = long_input
+        self.normalize = normalize
+        self.max_epochs = max_epochs
+        self.batch_size = batch_size
+        self.learning_rate = learning_rate
+        self.weight_decay = weight_decay
+        self.validation_fraction = validation_fraction
+        self.n_iter_no_change = n_iter_no_change
+        self.device = device
+        self.random_state = random_state
+        self.net_kwargs = net_kwargs
+
+    # ------------------------------------------------------------------ validation
+    def _check_params(self, length: int) -> int:
+        if self.architecture not in ARCHITECTURES:
+            raise ParameterError(f"unknown architecture {self.architecture!r}; choose one of {', '.join(ARCHITECTURES)}")
+        if self.normalize not in NORMALIZATIONS:
+            raise ParameterError(f"normalize must be one of {NORMALIZATIONS}, got {self.normalize!r}")
+        if self.long_input not in LONG_INPUT:
+            raise ParameterError(f"long_input must be one of {LONG_INPUT}, got {self.long_input!r}")
+        for name in ("max_epochs", "batch_size", "n_iter_no_change"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, np.integer)) and value >= 1):
+                raise ParameterError(f"{name} must be an integer >= 1, got {value!r}")
+        if not (0.0 <= float(self.validation_fraction) < 1.0):
+            raise ParameterError(f"validation_fraction must be in [0, 1), got {self.validation_fraction}")
+        if not float(self.learning_rate) > 0:
+            raise ParameterError(f"learning_rate must be > 0, got {self.learning_rate}")
+        W = self.input_length if self.input_length is not None else DEFAULT_INPUT_LENGTH[self.architecture]
+        if W is None:
+            W = length
+        W = int(W)
+        if W < 1:
+            raise ParameterError(f"input_length must be >= 1, got {W}")
+        if W > length:
+            if self.architecture == "cnn1d-lean":
+                W = length
+            else:
+                raise ParameterError(
+                    f"{self.architecture} takes windows of {W} points but the samples have only {length}; "
+                    f"give a shorter input_length or use cnn1d-lean"
+                )
+        return W
+
+    # ------------------------------------------------------------------ preprocessing
+    def _windows(self, X: np.ndarray) -> np.ndarray:
+        """(n, L) -> (n * k, W) windows, sample-major."""
+        W = self.net_input_length_
+        idx = self.window_starts_[:, None] + np.arange(W)[None, :]
+        return X[:, idx].reshape(-1, W)
+
+    def _normalise(self, Xw: np.ndarray) -> np.ndarray:
+        if self.normalize == "window":
+            mu = Xw.mean(axis=1, keepdims=True)
+            sd = Xw.std(axis=1, keepdims=True)
+            return ((Xw - mu) / np.where(sd > 0, sd, 1.0)).astype(np.float32)
+        if self.normalize == "global":
+            return ((Xw - self.norm_mean_) / self.norm_std_).astype(np.float32)
+        return Xw.astype(np.float32)
+
+    def _prepare(self, X: np.ndarray) -> np.ndarray:
+        return self._normalise(self._windows(np.asarray(X, dtype=np.float32)))
+
+    # ------------------------------------------------------------------ training
+    def fit(self, X, y, callback: Callable[[dict], None] | None = None):
+        """Train the network.
+
+        Parameters
+        ----------
+        X : array-like (n_samples, n_points)
+        y : array-like (n_samples,) of class labels
+        callback : callable, optional
+            Called after every epoch with a dict ``epoch, max_epochs, loss, val_loss, val_accuracy,
+            seconds`` (``val_*`` are None without a validation split).
+
+        Returns
+        -------
+        self
+        """
+        X, y = validate_data(self, X, y, dtype=np.float32, ensure_min_samples=2)
+        check_classification_targets(y)
+        W = self._check_params(X.shape[1])
+        self.classes_, y_idx = np.unique(y, return_inverse=True)
+        if len(self.classes_) < 2:
+            raise ParameterError(f"need at least 2 classes to train, got {len(self.classes_)}")
+        self.net_input_length_ = W
+        self.window_starts_ = window_starts(X.shape[1], W, self.long_input)
+        device = resolve_device(self.device)
+        self.device_ = str(device)
+        rng = np.random.default_rng(self.random_state)
+
+        tr, va = _split(y_idx, float(self.validation_fraction), rng)
+        k = len(self.window_starts_)
+        if self.normalize == "global":
+            self.norm_mean_ = float(X[tr].mean())
+            sd = float(X[tr].std())
+            self.norm_std_ = sd if sd > 0 else 1.0
+        else:
+            self.norm_mean_, self.norm_std_ = 0.0, 1.0
+        Xtr = torch.from_numpy(self._prepare(X[tr])).unsqueeze(1)
+        ytr = torch.from_numpy(np.repeat(y_idx[tr], k)).long()
+        Xva = torch.from_numpy(self._prepare(X[va])).unsqueeze(1) if len(va) else None
+        yva = y_idx[va]
+
+        deterministic_before = torch.are_deterministic_algorithms_enabled()
+        os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
+        torch.use_deterministic_algorithms(True)
+        try:
+            torch.manual_seed(int(self.random_state))
+            net = build_network(self.architecture, len(self.classes_), W, **(self.net_kwargs or {}))
+            net.to(device)
+            opt = torch.optim.Adam(net.parameters(), lr=float(self.learning_rate),
+                                   weight_decay=float(self.weight_decay))
+            loss_fn = torch.nn.CrossEntropyLoss()
+            best, best_state, best_epoch, stale = np.inf, None, 0, 0
+            self.history_ = []
+            Xtr_d, ytr_d = Xtr.to(device), ytr.to(device)
+            n = len(ytr)
+            for epoch in range(1, int(self.max_epochs) + 1):
+                t0 = time.perf_counter()
+                net.train()
+                order = torch.from_numpy(rng.permutation(n)).to(device)
+                total = 0.0
+                for start in range(0, n, int(self.batch_size)):
+                    b = order[start:start + int(self.batch_size)]
+                    opt.zero_grad()
+                    loss = loss_fn(net(Xtr_d[b]), ytr_d[b])
+                    loss.backward()
+                    opt.step()
+                    total += float(loss.detach()) * len(b)
+                train_loss = total / n
+                val_loss = val_acc = None
+                if Xva is not None:
+                    proba = _predict_windows(net, Xva, device, k)
+                    val_loss = float(-np.mean(np.log(np.clip(proba[np.arange(len(yva)), yva], 1e-12, None))))
+                    val_acc = float(np.mean(proba.argmax(1) == yva))
+                monitor = val_loss if val_loss is not None else train_loss
+                record = {"epoch": epoch, "max_epochs": int(self.max_epochs), "loss": train_loss,
+                          "val_loss": val_loss, "val_accuracy": val_acc,
+                          "seconds": time.perf_counter() - t0}
+                self.history_.append(record)
+                if callback is not None:
+                    callback(dict(record))
+                if monitor < best - 1e-6:
+                    best, best_epoch, stale = monitor, epoch, 0
+                    best_state = copy.deepcopy({k_: v.detach().cpu() for k_, v in net.state_dict().items()})
+                else:
+                    stale += 1
+                    if stale >= int(self.n_iter_no_change):
+                        break
+        finally:
+            torch.use_deterministic_algorithms(deterministic_before)
+        net = net.cpu()
+        if best_state is not None:
+            net.load_state_dict(best_state)
+        net.eval()
+        self.net_ = net
+        self.best_epoch_ = best_epoch
+        self.n_epochs_ = len(self.history_)
+        return self
+
+    # ------------------------------------------------------------------ inference
+    def _check_X(self, X) -> np.ndarray:
+        check_is_fitted(self, "net_")
+        return validate_data(self, X, dtype=np.float32, reset=False)
+
+    def predict_proba(self, X) -> np.ndarray:
+        """Class probabilities (softmax), averaged over the windows of each sample; shape (n, n_classes)."""
+        X = self._check_X(X)
+        dev = resolve_device(self.device) if self.device != "auto" else torch.device("cpu")
+        Xw = torch.from_numpy(self._prepare(X)).unsqueeze(1)
+        return _predict_windows(self.net_, Xw, dev, len(self.window_starts_))
+
+    def predict(self, X) -> np.ndarray:
+        """Most probable class of each sample."""
+        proba = self.predict_proba(X)
+        return self.classes_[proba.argmax(axis=1)]
+
+    def embed(self, X) -> np.ndarray:
+        """Learned features (last hidden layer), averaged over windows; shape (n, n_hidden)."""
+        X = self._check_X(X)
+        Xw = torch.from_numpy(self._prepare(X)).unsqueeze(1)
+        k = len(self.window_starts_)
+        net = self.net_.cpu().eval()
+        out = []
+        with torch.no_grad():
+            for s in range(0, len(Xw), 256):
+                out.append(net.features(Xw[s:s + 256]).numpy())
+        F = np.concatenate(out) if out else np.zeros((0, 1), np.float32)
+        return F.reshape(len(X), k, -1).mean(axis=1)
+
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.non_deterministic = False
+        return tags
+
+
+def _split(y_idx: np.ndarray, fraction: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Stratified split of sample indices: about ``fraction`` of every class (at least one sample per
+    class stays in training) goes to validation.  Returns (train, validation)."""
+    n = len(y_idx)
+    if fraction <= 0:
+        return np.arange(n), np.zeros(0, dtype=np.int64)
+    va = []
+    for c in np.unique(y_idx):
+        members = rng.permutation(np.flatnonzero(y_idx == c))
+        m = int(round(fraction * len(members)))
+        m = min(m, len(members) - 1)
+        va.extend(members[:m].tolist())
+    va = np.sort(np.array(va, dtype=np.int64))
+    tr = np.setdiff1d(np.arange(n), va)
+    return tr, va
+
+
+def _predict_windows(net: torch.nn.Module, Xw: torch.Tensor, device: torch.device, k: int) -> np.ndarray:
+    """Softmax probabilities of windows, averaged over each sample's ``k`` consecutive windows."""
+    net = net.to(device)
+    was_training = net.training
+    net.eval()
+    out = []
+    with torch.no_grad():
+        for s in range(0, len(Xw), 256):
+            out.append(torch.softmax(net(Xw[s:s + 256].to(device)), dim=1).cpu().numpy())
+    if was_training:
+        net.train()
+    P = np.concatenate(out) if out else np.zeros((0, 1), np.float32)
+    return P.reshape(-1, k, P.shape[1]).mean(axis=1).astype(np.float64)
