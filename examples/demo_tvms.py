@@ -51,6 +51,7 @@ def run(out_dir: pathlib.Path) -> dict:
             "min_N_per_m": res.min_N_per_m,
             "max_N_per_m": res.max_N_per_m,
             "mean_change_vs_healthy": res.mean_N_per_m / healthy.mean_N_per_m - 1.0,
+            "max_profile_error_m": float(res.profile_error_m.max()),
             "faults": faults.describe(),
         }
         # the first three mesh cycles show the damaged teeth (0 and 1) entering contact

@@ -43,7 +43,7 @@ def test_forces_are_minus_gradient_of_independent_potential():
     Ma = f[m.n_dof:] * m.mass
     grad = np.empty(m.n_dof)
     for i in range(m.n_dof):
-        h = 1e-10 if i % 3 == 2 else 1e-9
+        h = 1e-13 if i % 3 == 2 else 1e-12  # small: no pin contact may change state within the step
         dq = np.zeros(m.n_dof)
         dq[i] = h
         grad[i] = (potential_energy(m, t, q + dq) - potential_energy(m, t, q - dq)) / (2 * h)
@@ -170,7 +170,7 @@ def test_gears_tvms_is_the_default_mesh_and_broken_tooth_zeroes_it():
     healthy = mesh_table(P0)
     assert healthy.source == "rvdiag.gears.mesh_stiffness"
     assert 1e8 < healthy.mean() < 5e8
-    broken = mesh_table(P0, ToothFaults.for_state("T4"))
+    broken = mesh_table(P0, ToothFaults.from_name("broken"))
     assert broken.stiffness_N_per_m.min() == 0.0 < healthy.stiffness_N_per_m.min()
 
 

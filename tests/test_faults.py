@@ -135,3 +135,24 @@ def test_geometry_dependent_validation(pair):
         mesh_stiffness(pair, ToothFaults(wear=Wear(2e-3)), cycles=1)
     with pytest.raises(ParameterError, match="out of range"):
         mesh_stiffness(pair, ToothFaults({11: (BrokenTooth(),)}), cycles=1)
+
+
+def test_wear_profile_error_output(pair):
+    """Wear gives a load-shared profile deviation; zero at the pitch point, bounded by the depth."""
+    healthy = mesh_stiffness(pair, cycles=1)
+    assert np.all(healthy.profile_error_m == 0)
+    res = mesh_stiffness(pair, ToothFaults(wear=Wear(30e-6)), cycles=1, points_per_cycle=720)
+    e = res.profile_error_m
+    assert 0 <= e.min() and e.max() <= 30e-6 * (1 + 1e-9)
+    # single contact: the error is that pair's wear depth at its contact point
+    single = res.pairs_in_contact == 1
+    k = res.pair_stiffness_N_per_m
+    i = np.argmax(k[:, single], axis=0)
+    np.testing.assert_allclose(e[single], res.pair_profile_error_m[:, single][i, np.arange(single.sum())])
+    # the pitch point lies in the single zone of the RV-20E mesh: error near zero there
+    rho_p = pair.driver.base_radius * np.tan(pair.operating_pressure_angle)
+    s_p = rho_p - pair.start_roll_length_driver
+    _, roll, inc = pair.contact_state(res.angle_rad)
+    j = np.argmin(np.abs(np.where(inc, roll, np.inf) - s_p).min(axis=0))
+    assert e[j] < 0.02 * 30e-6
+    assert "profile_error_m" in res.to_dict()

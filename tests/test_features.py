@@ -19,6 +19,7 @@ from rvdiag.features import (
     bearing_defect_frequencies,
     feature_names,
     make_features,
+    time_features,
 )
 
 N = 4000
@@ -226,3 +227,26 @@ def test_make_features_names_and_errors():
         make_features("time", nonsense=1)
     with pytest.raises(ParameterError):
         WaveletPacketEnergy(wavelet="nope").fit(np.ones((1, 64)))
+
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+
+@settings(max_examples=40, deadline=None)
+@given(x=arrays(np.float64, 64, elements=st.floats(-1e3, 1e3, allow_subnormal=False)),
+       a=st.floats(0.01, 100.0))
+def test_time_features_scale_as_their_definitions_say(x, a):
+    """Ratios and kurtosis are scale-free; mean, rms, p-p, x_r scale with a; variance with a^2."""
+    F = time_features(x[None, :])[0]
+    G = time_features(a * x[None, :])[0]
+    idx = {k: i for i, k in enumerate(TIME_FEATURE_NAMES)}
+    for k in ("peak_to_peak", "mean", "rms", "sqrt_amplitude"):
+        assert_allclose(G[idx[k]], a * F[idx[k]], rtol=1e-9, atol=1e-9 * a * (1 + abs(F[idx[k]])))
+    assert_allclose(G[idx["variance"]], a * a * F[idx["variance"]], rtol=1e-8, atol=1e-6)
+    if F[idx["variance"]] > 1e-6 * (1 + F[idx["rms"]] ** 2):
+        for k in ("kurtosis", "pulse_factor", "margin_factor", "crest_factor", "shape_factor"):
+            assert_allclose(G[idx[k]], F[idx[k]], rtol=1e-6)
+    assert F[idx["crest_factor"]] >= 1 - 1e-12 or F[idx["rms"]] == 0
+    assert F[idx["shape_factor"]] >= 1 - 1e-12 or F[idx["rms"]] == 0

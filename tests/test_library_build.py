@@ -147,11 +147,12 @@ def test_two_workers_on_a_scheduler_equal_serial(tmp_path, reference, cluster):
 
     cfg_file = tmp_path / "tiny.toml"
     _write_toml(tiny(), cfg_file)
-    with pytest.raises(SystemExit) as exc:
+    try:
         main(["library", "build", str(cfg_file), "--out", str(tmp_path / "two.zarr"),
               "--scheduler", cluster.scheduler_address, "--quiet"])
-    assert exc.value.code in (0, None)
-    assert len(cluster.scheduler_info()["workers"]) == 2
+    except SystemExit as exc:  # main() exits only on errors
+        pytest.fail(f"rvdiag exited with {exc.code}")
+    assert len(cluster.scheduler_info["workers"]) == 2
     assert_same_store(reference, tmp_path / "two.zarr")
 
 
@@ -241,9 +242,16 @@ def test_sigkill_mid_build_then_resume_equals_uninterrupted(tmp_path):
     assert 1 <= committed < cfg.n_simulations == 32
     with pytest.raises(StoreError, match="unfinished build"):
         SampleStore.open(out)
-    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stderr
-    assert f"{32 - committed} built" in done.stdout or "were already committed" in done.stdout
+    # the same command again (in this interpreter, to save a start-up): it skips the committed units
+    from rvdiag.cli import main
+
+    t0 = time.monotonic()
+    try:
+        main(cmd[3:])
+    except SystemExit as exc:
+        pytest.fail(f"resume exited with {exc.code}")
+    assert not units.exists()  # finalised
+    print(f"resumed {32 - committed} units in {time.monotonic() - t0:.1f} s")
     build_library(cfg, tmp_path / "straight.zarr", workers=0, progress=False)
     assert_same_store(tmp_path / "straight.zarr", out)
 
@@ -258,12 +266,12 @@ def test_paper_mode_splits_segments_of_one_simulation(tmp_path):
     for u in range(4):
         seg = m["segment"][m["unit"] == u]
         assert len(set(seg)) == 7 and np.all(np.diff(seg) > 0) and seg.max() < cfg.segments_per_simulation
-    ordered = cfg.replace(split={"assign": "ordered"})
+    ordered = cfg.replace(split={"assign": "ordered", "train_per_state": 4})
     build_library(ordered, tmp_path / "o.zarr", workers=0, progress=False)
     mo = SampleStore.open(tmp_path / "o.zarr").meta
     first = mo["unit"] == 0
-    np.testing.assert_array_equal(mo["segment"][first], [0, 1, 2, 3, 4, 6, 7])
-    np.testing.assert_array_equal(mo["split"][first], ["train"] * 5 + ["test"] * 2)
+    np.testing.assert_array_equal(mo["segment"][first], [0, 1, 2, 3, 5, 6])  # segment 4 dropped: a gap
+    np.testing.assert_array_equal(mo["split"][first], ["train"] * 4 + ["test"] * 2)
     # overlapping segments of one simulation share their samples: the signal is cut, not re-simulated
     X = SampleStore.open(tmp_path / "o.zarr").load(index=np.flatnonzero(first)).X
     np.testing.assert_array_equal(X[0, 250:], X[1, :250])

@@ -61,7 +61,7 @@ def test_every_pipeline_fits_and_predicts(model, features, split):
 def test_svm_grid_option(split):
     X, y, Xt, yt = split
     p = make_classical_model("svm", "spectrum", grid=True).fit(X, y)
-    assert p.named_steps["clf"].estimator.best_params_["C"] in (1.0, 10.0, 100.0, 1000.0)
+    assert p.named_steps["clf"].calibrated_classifiers_[0].estimator.best_params_["C"] in (1.0, 10.0, 100.0, 1000.0)
     assert p.score(Xt, yt) > 0.9
 
 

@@ -187,3 +187,38 @@ def test_healthy_tvms_matches_ross(z1, z2):
         assert ours_beam["bending"][i] == pytest.approx(g1._inv_kb(tau), rel=1e-3)
         assert ours_beam["shear"][i] == pytest.approx(g1._inv_ks(tau), rel=1e-3)
         assert ours_beam["axial"][i] == pytest.approx(g1._inv_ka(tau), rel=2e-3)
+
+
+def test_golden_rv20e():
+    """Regression against tests/golden/tvms_rv20e.json (written by this model on 2026-11-23)."""
+    import json
+    from pathlib import Path
+
+    from rvdiag.gears import ToothFaults
+
+    gold = json.loads((Path(__file__).parent / "golden" / "tvms_rv20e.json").read_text())
+    pair = GearPair.sun_planet(ReducerParams.default())
+    h = mesh_stiffness(pair, cycles=1, points_per_cycle=36)
+    f = mesh_stiffness(pair, ToothFaults.for_state("T6"), cycles=11, points_per_cycle=12)
+    np.testing.assert_allclose(h.stiffness_N_per_m, gold["healthy_1x36"], rtol=1e-7)
+    np.testing.assert_allclose(f.stiffness_N_per_m, gold["T6_11x12"], rtol=1e-7, atol=1e-3)
+    assert pair.contact_ratio == pytest.approx(gold["contact_ratio"], rel=1e-12)
+
+
+def test_demo_tvms_writes_figure_and_summary(tmp_path):
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    path = Path(__file__).parents[1] / "examples" / "demo_tvms.py"
+    spec = importlib.util.spec_from_file_location("demo_tvms_under_test", path)
+    demo = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(demo)
+    summary = demo.run(tmp_path)
+    assert (tmp_path / "tvms.png").read_bytes()[:4] == b"\x89PNG"
+    assert json.loads((tmp_path / "tvms_summary.json").read_text()) == summary
+    states = summary["states"]
+    assert list(states) == ["T1", "T2", "T3", "T4", "T5", "T6"]
+    assert states["T2"]["min_N_per_m"] == 0.0 and states["T1"]["min_N_per_m"] > 0
+    assert states["T6"]["mean_N_per_m"] < states["T5"]["mean_N_per_m"] < states["T1"]["mean_N_per_m"]
+    assert states["T3"]["max_profile_error_m"] > 0 and states["T1"]["max_profile_error_m"] == 0

@@ -51,9 +51,10 @@ def register(app: typer.Typer) -> None:
         simulation is committed atomically; re-running the same command after a crash or Ctrl-C skips
         committed simulations.  A store built from another config is refused.
         """
-        from rvdiag.library.build import build_library
+        from rvdiag.library.build import build_library, check_run_options
         from rvdiag.library.config import LibraryConfig
 
+        check_run_options(workers, scheduler)
         cfg = LibraryConfig.load(config)
         if not quiet:
             typer.echo(cfg.describe(), err=True)
@@ -102,7 +103,7 @@ def _print_summary(summary: dict) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    console = Console()
+    console = Console(soft_wrap=True)
     fs = summary["fs"]
     lib = summary.get("library") or {}
     cfg = summary.get("config") or {}

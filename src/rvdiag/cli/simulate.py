@@ -19,12 +19,41 @@ def _mm(name: str, value: Optional[float]) -> Optional[float]:
     return value * 1e-3
 
 
+_USES = {"wear_depth": "wear", "crack_depth": "crack", "crack_angle_deg": "crack", "broken_fraction": "broken"}
+_OPTION = {"wear_depth": "--wear-depth", "crack_depth": "--crack-depth", "crack_angle_deg": "--crack-angle",
+           "broken_fraction": "--broken-fraction"}
+
+
+def _check_severities(state: str, severities: dict) -> None:
+    """Validate every given severity and refuse one the state does not use (it would be ignored)."""
+    from rvdiag.gears import BrokenTooth, RootCrack, Wear
+    from rvdiag.gears.faults import STATES
+
+    kinds = STATES.get(state, "").split("+")
+    for key, value in severities.items():
+        if _USES[key] not in kinds:
+            raise ParameterError(f"{_OPTION[key]} does not apply to state {state} ({STATES.get(state, '?')})")
+    if "wear_depth" in severities:
+        Wear(severities["wear_depth"])
+    if "crack_depth" in severities or "crack_angle_deg" in severities:
+        RootCrack(severities.get("crack_depth", 0.0), severities.get("crack_angle_deg", 45.0))
+    if "broken_fraction" in severities:
+        BrokenTooth(severities["broken_fraction"])
+
+
 def register(app: typer.Typer) -> None:
     """Add the ``simulate`` command to ``app``."""
 
+    try:
+        from rvdiag.gears.faults import STATES
+
+        states_help = ", ".join(f"{k} {v}" for k, v in STATES.items())
+    except ImportError:  # pragma: no cover - gears is part of rvdiag
+        states_help = "T1..T6"
+
     @app.command("simulate")
     def simulate_cmd(
-        state: str = typer.Option("T1", "--state", help="Fault state T1..T6 (healthy, wear, crack, broken, broken+wear, broken+wear+crack)."),
+        state: str = typer.Option("T1", "--state", help=f"Fault state: {states_help}."),
         wear_depth_mm: Optional[float] = typer.Option(None, "--wear-depth", help="Maximum wear depth (mm)."),
         crack_depth_mm: Optional[float] = typer.Option(None, "--crack-depth", help="Crack depth (mm)."),
         crack_angle: Optional[float] = typer.Option(None, "--crack-angle", help="Crack angle from the tooth centreline (deg)."),
@@ -37,7 +66,7 @@ def register(app: typer.Typer) -> None:
         fs: float = typer.Option(48000.0, "--fs", help="Sampling rate, Hz."),
         noise_snr: Optional[float] = typer.Option(None, "--noise-snr", help="Add white Gaussian noise at this SNR (dB)."),
         seed: int = typer.Option(0, "--seed", help="Seed of the noise."),
-        substeps: int = typer.Option(4, "--substeps", help="RK4 steps per output sample."),
+        substeps: int = typer.Option(10, "--substeps", help="RK4 steps per output sample (see ModelSettings)."),
         transient: float = typer.Option(0.1, "--transient", help="Discarded start-up time, s."),
         out: Path = typer.Option(..., "--out", help="Output .npz (signal, fs, settings)."),
         quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
@@ -63,6 +92,7 @@ def register(app: typer.Typer) -> None:
             if value is not None:
                 severities[key] = value
         fault = ToothFaults.for_state(state, **severities)
+        _check_severities(fault.label or state.upper(), severities)
         p = ReducerParams.load(params)
         settings = ModelSettings(substeps=substeps, transient_s=transient)
         kw = dict(input_speed_rpm=input_speed, output_speed_deg_s=output_speed, load_Nm=load,

@@ -36,6 +36,8 @@ def register(app: typer.Typer) -> None:
         face_width_mm: float = typer.Option(10.0, "--face-width", help="Face width (mm) of a custom pair."),
         youngs_modulus: float = typer.Option(2.06e11, "--youngs-modulus", help="Young's modulus (Pa) of a custom pair."),
         poisson: float = typer.Option(0.3, "--poisson", help="Poisson ratio of a custom pair."),
+        x1: float = typer.Option(0.0, "--x1", help="Profile shift coefficient of the driver (custom pair)."),
+        x2: float = typer.Option(0.0, "--x2", help="Profile shift coefficient of the driven gear (custom pair)."),
         fault: str = typer.Option("healthy", "--fault", help="healthy|wear|crack|broken|broken+wear|broken+wear+crack (or T1..T6)."),
         wear_depth_mm: Optional[float] = typer.Option(None, "--wear-depth", help="Maximum wear depth (mm)."),
         crack_depth_mm: Optional[float] = typer.Option(None, "--crack-depth", help="Crack depth (mm)."),
@@ -59,7 +61,7 @@ def register(app: typer.Typer) -> None:
             gp = GearPair.from_dimensions(
                 z1, z2, _mm("module", module_mm), _mm("face-width", face_width_mm),
                 pressure_angle_deg=pressure_angle, youngs_modulus=youngs_modulus,
-                poisson_ratio=poisson)
+                poisson_ratio=poisson, x1=x1, x2=x2)
         else:
             if pair != "sun-planet":
                 raise ParameterError(f"unknown --pair {pair!r}; the only involute pair is sun-planet")

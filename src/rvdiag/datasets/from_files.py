@@ -14,7 +14,8 @@ Metadata columns of every sample:
 ``channel``  the channel read
 ``start``    the window's first sample index in the source signal
 ``<group>``  every named group of ``meta_regex`` (and of ``label_regex`` other than ``label``): numbers when
-             every file's value parses as a number (int, else float), text otherwise
+             every file's value parses as a number (int, else float), text otherwise; an optional group
+             that did not take part in a file's match gives "" (so the column is text)
 ``<name>``   every ``scalars`` entry: the value of the file's one scalar matching the given regex
              (e.g. ``rpm`` from CWRU's ``X105RPM``)
 
@@ -96,12 +97,12 @@ def select_files(
         if m is None or not m.group("label"):
             skipped.append(name)
             continue
-        values = {k: v for k, v in m.groupdict().items() if k != "label" and v is not None}
+        values = {k: ("" if v is None else v) for k, v in m.groupdict().items() if k != "label"}
         if meta is not None:
             mm = meta.search(name)
             if mm is None:
                 raise DataFileError(f"{p}: the name does not match --meta-regex {meta_regex!r}")
-            values.update({k: v for k, v in mm.groupdict().items() if v is not None})
+            values.update({k: ("" if v is None else v) for k, v in mm.groupdict().items()})
         entries.append(FileEntry(path=p, label=m.group("label"), meta=values))
     if not entries:
         what = f"match --label-regex {label_regex!r}" + (f" and --include {include!r}" if include else "")

@@ -30,7 +30,7 @@ from rvdiag.errors import SimulationError
 OK, NONFINITE, UNBOUNDED = 0, 1, 2
 
 
-@numba.njit(cache=True, fastmath=False)
+@numba.njit(cache=True, fastmath=False, error_model="numpy")
 def rk4_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms, cosk, sink, sensor, out,
             geo0, rot0, geo1, rot1, geo2, rot2, Q, k1, k2, k3, k4, ytmp):
     """Advance ``y`` in place over ``n_samples`` output samples starting at sample index ``k_start``.
@@ -48,14 +48,16 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms, 
     lim = P[mdl.I_DISPLIM]
     limr = P[mdl.I_ROTLIM]
     nch = sensor.shape[0]
-    t = k_start / fs
-    mdl.pin_geometry(t, P, cosk, sink, geo0, rot0)
+    # every time is an integer number of half steps times h/2, so a chunk boundary changes nothing
+    hh = 0.5 * h
+    mdl.pin_geometry((2 * k_start * substeps) * hh, P, cosk, sink, geo0, rot0)
     for s in range(n_samples):
         kk = k_start + s
         for sub in range(substeps):
-            t = (kk * substeps + sub) * h
-            th = t + 0.5 * h
-            t1 = t + h
+            idx = kk * substeps + sub
+            t = (2 * idx) * hh
+            th = (2 * idx + 1) * hh
+            t1 = (2 * idx + 2) * hh
             mdl.rhs_with_geometry(t, y, P, mass, planet, tvms, geo0, rot0, Q, k1)
             if sub == 0 and record:
                 ax = k1[n + iR] - k1[n + iR + 2] * sy

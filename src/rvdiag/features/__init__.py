@@ -58,9 +58,9 @@ def register_features(name: str, factory: Callable[..., object]) -> None:
 
 def feature_names() -> list[str]:
     """Names :func:`make_features` knows."""
-    if "cnn" not in _REGISTRY:  # the CNN module registers itself on import, if it exists
+    if "cnn" not in _REGISTRY:  # rvdiag.features.cnn registers "cnn" on import, when it exists
         try:
-            import rvdiag.models.cnn  # noqa: F401
+            import rvdiag.features.cnn  # noqa: F401
         except ImportError:
             pass
     return sorted(_REGISTRY)

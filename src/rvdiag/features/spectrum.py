@@ -240,9 +240,10 @@ class _CentredBands(SignalTransformer):
         h = np.arange(1, self.harmonics + 1)
         f = (c[:, None] * h[None, :]).ravel()
         if np.any(f * (1 + self.rel_width) > 0.5):
+            unit = "Hz" if self.fs is not None else "cycles/sample"
+            top = f.max() * (float(self.fs) if self.fs is not None else 1.0)
             raise ParameterError(
-                "a characteristic frequency harmonic lies above the Nyquist frequency "
-                f"(highest {f.max() * (1 / self._unit_scale()) if self.centers is not None else f.max():.4g}); "
+                f"a characteristic frequency harmonic ({top:.4g} {unit}) lies above the Nyquist frequency; "
                 "lower `harmonics` or check fs"
             )
         return np.column_stack([f * (1 - self.rel_width), f * (1 + self.rel_width)])

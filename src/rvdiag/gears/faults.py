@@ -136,11 +136,12 @@ DEFAULT_CRACK_DEPTH = 0.8e-3     # 0.8 mm at 45 deg: about half way from the RV-
 DEFAULT_CRACK_ANGLE_DEG = 45.0   # the angle used by Chen & Shao (2011) and Tian (2004)
 DEFAULT_BROKEN_FRACTION = 1.0    # whole tooth lost (REFERENCE.md sec. 3)
 
+#: the health states of issue 4 (and of the seed paper on dynamics-model driving)
 STATES = {
     "T1": "healthy",
-    "T2": "wear",
-    "T3": "crack",
-    "T4": "broken",
+    "T2": "broken",
+    "T3": "wear",
+    "T4": "crack",
     "T5": "broken+wear",
     "T6": "broken+wear+crack",
 }
@@ -224,10 +225,10 @@ class ToothFaults:
                   broken_fraction: float = DEFAULT_BROKEN_FRACTION,
                   tooth: int = 0, crack_tooth: int | None = None,
                   gear: str = "driver") -> "ToothFaults":
-        """The seed paper's states: T1 healthy, T2 wear, T3 crack, T4 broken, T5 broken + wear,
-        T6 broken + wear + crack.
+        """The health states of issue 4: T1 healthy, T2 broken tooth, T3 wear, T4 root crack,
+        T5 broken + wear, T6 broken + wear + crack.
 
-        Wear acts on every tooth; the broken tooth is ``tooth``; the crack is on ``tooth`` in T3
+        Wear acts on every tooth; the broken tooth is ``tooth``; the crack is on ``tooth`` in T4
         and, in T6, on ``crack_tooth`` (default: the tooth after ``tooth``, so the crack is not
         hidden by a fully broken tooth).
         """
@@ -240,7 +241,7 @@ class ToothFaults:
         if "broken" in kinds:
             teeth.setdefault(tooth, []).append(BrokenTooth(broken_fraction))
         if "crack" in kinds:
-            ct = tooth if key == "T3" else (tooth + 1 if crack_tooth is None else crack_tooth)
+            ct = tooth if key == "T4" else (tooth + 1 if crack_tooth is None else crack_tooth)
             teeth.setdefault(ct, []).append(RootCrack(crack_depth, crack_angle_deg))
         return cls({k: tuple(v) for k, v in teeth.items()}, wear=wear, gear=gear, label=key)
 
@@ -332,6 +333,10 @@ def damaged_profile(pair: GearPair, gear: str, faults: Iterable[Fault]) -> Damag
             h[active] = archard_wear_profile(pair, gear, roll[active], f.depth)
             tau = rho / g.base_radius - g.base_half_angle     # flank normal vs. section (load angle)
             xl = xl - h / np.cos(tau)
+            if np.any(xl[active] <= 0.0):
+                raise GeometryError(
+                    f"wear deeper than the {g.name} tooth: a wear depth of {f.depth * 1e3:.3f} mm "
+                    f"wears the flank through to the tooth centreline")
     for f in faults:
         if isinstance(f, RootCrack) and f.depth > 0:
             y_t, h_q = f.tip(g)

@@ -25,7 +25,7 @@ Examples
 (20.0, 18.7939)
 >>> p = GearPair(g, Gear(teeth=40, module=2e-3, face_width=0.02))
 >>> round(p.contact_ratio, 4)
-1.6363
+1.6352
 """
 
 from __future__ import annotations

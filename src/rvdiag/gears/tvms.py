@@ -34,13 +34,14 @@ teeth.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from rvdiag.errors import ParameterError
-from rvdiag.gears.faults import DamagedProfile, ToothFaults, damaged_profile
+from rvdiag.gears.faults import DamagedProfile, ToothFaults, Wear, archard_wear_profile, damaged_profile
 from rvdiag.gears.geometry import Gear, GearPair
 
 # Sainsot, Velex & Duverger (2004), Table 1 (REFERENCE.md sec. 2): rows L*, M*, P*, Q*;
@@ -153,6 +154,14 @@ def _healthy_table(pair: GearPair, which: str) -> _SectionTable:
     return cache
 
 
+@functools.lru_cache(maxsize=512)
+def _damaged_table(pair: GearPair, which: str, faults: tuple) -> _SectionTable:
+    """Section table of a damaged tooth, cached: fault libraries ask for the same shapes often
+    (GearPair, Gear and the faults are frozen, hashable dataclasses)."""
+    gear = pair.driver if which == "driver" else pair.driven
+    return _SectionTable.build(damaged_profile(pair, which, faults), gear.face_width)
+
+
 def tooth_pair_components(pair: GearPair, roll: np.ndarray,
                           tables: tuple[_SectionTable, _SectionTable] | None = None) -> dict:
     """Every compliance term (m/N) of one tooth pair at path positions ``roll`` (m).
@@ -210,6 +219,23 @@ class MeshStiffnessResult:
     points_per_cycle: int
     pair: GearPair = field(repr=False)
     fault: ToothFaults | None = None
+    pair_profile_error_m: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def profile_error_m(self) -> np.ndarray:
+        """Mesh profile deviation (m) from wear along the line of action, one value per angle.
+
+        Pairs in contact share the load as F = sum k_i (delta - e_i) = k (delta - e) with
+        e = sum k_i e_i / sum k_i [derived from the force balance], e_i the wear depth at pair i's
+        contact point; zero without wear.  A dynamic model can add it to the mesh deflection as a
+        displacement excitation (the transmission error caused by wear).
+        """
+        if self.pair_profile_error_m is None:
+            return np.zeros_like(self.stiffness_N_per_m)
+        k = self.pair_stiffness_N_per_m
+        tot = k.sum(axis=0)
+        num = (k * self.pair_profile_error_m).sum(axis=0)
+        return np.divide(num, tot, out=np.zeros_like(tot), where=tot > 0)
 
     @property
     def mean_N_per_m(self) -> float:
@@ -248,6 +274,7 @@ class MeshStiffnessResult:
             "cycles": self.cycles,
             "points_per_cycle": self.points_per_cycle,
             "fault": None if self.fault is None else self.fault.describe(),
+            "profile_error_m": self.profile_error_m.tolist(),
         }
 
     def plot(self, ax=None, label: str | None = None, **kwargs):
@@ -297,6 +324,9 @@ def mesh_stiffness(pair: GearPair, fault: ToothFaults | None = None, cycles: int
     n = cycles * points_per_cycle
     angle = np.arange(n) * (pair.mesh_period_rad / points_per_cycle)
     k_pairs, in_contact = pair_stiffness_at(pair, angle, fault)
+    errors = None
+    if fault is not None and not fault.is_healthy:
+        errors = _wear_errors(pair, angle, fault, in_contact)
 
     return MeshStiffnessResult(
         angle_rad=angle,
@@ -308,7 +338,27 @@ def mesh_stiffness(pair: GearPair, fault: ToothFaults | None = None, cycles: int
         points_per_cycle=int(points_per_cycle),
         pair=pair,
         fault=fault,
+        pair_profile_error_m=errors,
     )
+
+
+def _wear_errors(pair: GearPair, angle: np.ndarray, fault: ToothFaults,
+                 in_contact: np.ndarray) -> np.ndarray | None:
+    """Wear depth at each pair's contact point (m), shape (n_candidates, n_angles), or None."""
+    gear = pair.driver if fault.gear == "driver" else pair.driven
+    depth_of = {t: next((f.depth for f in fault.faults_of(t) if isinstance(f, Wear)), 0.0)
+                for t in list(fault.teeth) + [-1]}
+    if not any(d > 0 for d in depth_of.values()):
+        return None
+    pair_index, roll, _ = pair.contact_state(angle)
+    tooth = np.mod(pair_index, gear.teeth)
+    depth = np.full(roll.shape, depth_of[-1])
+    for t in fault.teeth:
+        depth[tooth == t] = depth_of[t]
+    out = np.zeros_like(roll)
+    unit = archard_wear_profile(pair, fault.gear, roll[in_contact], 1.0)
+    out[in_contact] = unit * depth[in_contact]
+    return out
 
 
 def pair_stiffness_at(pair: GearPair, angle_rad: np.ndarray,
@@ -322,29 +372,29 @@ def pair_stiffness_at(pair: GearPair, angle_rad: np.ndarray,
 
     healthy = (_healthy_table(pair, "driver"), _healthy_table(pair, "driven"))
     k_pairs = np.zeros_like(roll)
-    k_pairs[in_contact] = tooth_pair_components(pair, roll[in_contact], healthy)["stiffness"]
+    if fault is None or fault.is_healthy:
+        k_pairs[in_contact] = tooth_pair_components(pair, roll[in_contact], healthy)["stiffness"]
+        return k_pairs, in_contact
 
-    if fault is not None and not fault.is_healthy:
-        fault.validate(pair)
-        gear = pair.driver if fault.gear == "driver" else pair.driven
-        side = 0 if fault.gear == "driver" else 1
-        tooth = np.mod(pair_index, gear.teeth)
-        width = gear.face_width
-        base_faults = fault.faults_of(-1)  # gear-wide wear only
-        special = set(fault.teeth)
-        if base_faults:
-            table = _SectionTable.build(damaged_profile(pair, fault.gear, base_faults), width)
-            tables = list(healthy)
-            tables[side] = table
-            mask = in_contact & ~np.isin(tooth, list(special))
-            k_pairs[mask] = tooth_pair_components(pair, roll[mask], tuple(tables))["stiffness"]
-        for t in special:
-            mask = in_contact & (tooth == t)
-            if not mask.any():
-                continue
-            table = _SectionTable.build(damaged_profile(pair, fault.gear, fault.faults_of(t)), width)
-            tables = list(healthy)
-            tables[side] = table
-            k_pairs[mask] = tooth_pair_components(pair, roll[mask], tuple(tables))["stiffness"]
-
+    # one section table per distinct tooth shape of the faulty gear: the gear-wide shape (healthy
+    # or worn) and one per individually damaged tooth; each angle is evaluated once
+    gear = pair.driver if fault.gear == "driver" else pair.driven
+    side = 0 if fault.gear == "driver" else 1
+    for t in fault.teeth:
+        if t >= gear.teeth:
+            raise ParameterError(
+                f"tooth index {t} out of range for the {gear.name} with {gear.teeth} teeth")
+    base_faults = fault.faults_of(-1)  # the gear-wide wear only
+    shapes = {-1: _damaged_table(pair, fault.gear, base_faults) if base_faults else healthy[side]}
+    for t in fault.teeth:
+        shapes[t] = _damaged_table(pair, fault.gear, fault.faults_of(t))
+    tooth = np.mod(pair_index, gear.teeth)
+    label = np.where(np.isin(tooth, list(fault.teeth)), tooth, -1)
+    for key, table in shapes.items():
+        mask = in_contact & (label == key)
+        if not mask.any():
+            continue
+        tables = list(healthy)
+        tables[side] = table
+        k_pairs[mask] = tooth_pair_components(pair, roll[mask], tuple(tables))["stiffness"]
     return k_pairs, in_contact

@@ -324,8 +324,12 @@ def _dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
     from distributed import Client, LocalCluster
 
     if scheduler:
+        import dask
+
+        # connect timeout: dask's distributed.comm.timeouts.connect (30 s by default; set
+        # DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT to change it)
         try:
-            client = Client(scheduler, timeout="10s")
+            client = Client(scheduler, timeout=dask.config.get("distributed.comm.timeouts.connect"))
         except (OSError, TimeoutError) as exc:
             raise RvdiagError(f"cannot reach the Dask scheduler at {scheduler!r} ({type(exc).__name__}: {exc})") from None
         try:
@@ -345,6 +349,14 @@ def _dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
             client.close()
     finally:
         cluster.close()
+
+
+def check_run_options(workers: int | None, scheduler: str | None) -> None:
+    """Validate ``--workers`` / ``--scheduler`` (:class:`ConfigError`)."""
+    if workers is not None and workers < 0:
+        raise ConfigError(f"--workers must be >= 0, got {workers}")
+    if scheduler and workers is not None:
+        raise ConfigError("give --workers or --scheduler, not both (a scheduler's cluster has its own workers)")
 
 
 def build_library(
@@ -378,10 +390,7 @@ def build_library(
     cfg = config if isinstance(config, LibraryConfig) else LibraryConfig.load(config)
     if simulator is not None:
         cfg = cfg.replace(simulator=simulator)
-    if workers is not None and workers < 0:
-        raise ConfigError(f"--workers must be >= 0, got {workers}")
-    if scheduler and workers is not None:
-        raise ConfigError("give --workers or --scheduler, not both (a scheduler's cluster has its own workers)")
+    check_run_options(workers, scheduler)
     params = cfg.reducer_params()
     resolve_simulator(cfg.simulator, cfg.model)  # fail early, here, with a clear message
     plan = make_plan(cfg)
@@ -442,7 +451,7 @@ def _run_checked(unit: Unit, job: Job) -> UnitResult:
 def _run_on_client(client: Any, todo: list[Unit], job: Job, write: Callable[[UnitResult], None],
                    advance: Callable[[], None]) -> int:
     """Submit units with at most one in flight per worker thread; write results as they complete."""
-    from distributed import as_completed
+    from distributed import KilledWorker, as_completed
 
     nthreads = sum(client.nthreads().values())
     if nthreads == 0:
@@ -465,7 +474,13 @@ def _run_on_client(client: Any, todo: list[Unit], job: Job, write: Callable[[Uni
             break
     try:
         for fut in futures:
-            res = fut.result()
+            try:
+                res = fut.result()
+            except KilledWorker as exc:
+                raise SimulationError(
+                    f"a Dask worker died running {exc.task} (out of memory?); the committed simulations are "
+                    "kept: re-run the same command to resume"
+                ) from None
             fut.release()
             write(res)
             del res

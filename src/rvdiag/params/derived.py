@@ -71,3 +71,60 @@ def body_properties(p: ReducerParams) -> BodyProperties:
     carrier = annulus(rho, b.carrier_outer_radius, b.cycloid_bore_radius, b.carrier_width)
     pin_wheel = annulus(rho, b.pin_wheel_outer_radius, s2.pin_circle_radius, b.pin_wheel_width)
     return BodyProperties(sun, planet, crank, cycloid, carrier, pin_wheel)
+
+
+# ---------------------------------------------------------------------- bearing stiffness estimates
+#: Assumed bearing geometry (no RV-20E drawing is public).  The crank-cycloid needle ring fills the
+#: gap between the crank journal (r_j = bodies.crank_shaft_radius) and the disc's crank hole of
+#: radius 1.33 r_j used above, so the needle diameter is 0.33 r_j and the needles sit side by side
+#: on the ring's mid circle with 5 % spacing; their effective length is 80 % of the disc face width
+#: (end chamfers).  The crank's carrier bearings are tapered roller bearings, assumed with 12 rollers
+#: of effective length 0.6 x the disc face width.
+NEEDLE_LENGTH_FRACTION = 0.8
+NEEDLE_SPACING = 1.05
+CRANK_CARRIER_ROLLERS = 12
+CRANK_CARRIER_ROLLER_LENGTH_FRACTION = 0.6
+
+
+def palmgren_roller_bearing_stiffness(radial_load: float, n_rollers: int, roller_length: float) -> float:
+    """Tangent radial stiffness (N/m) of a roller or needle bearing with zero clearance.
+
+    Palmgren's line-contact deflection per raceway contact, delta = 3.84e-5 Q^0.9 / l^0.8 (delta in
+    mm, Q in N, l in mm; Palmgren 1959, *Ball and Roller Bearing Engineering*, as given by Harris &
+    Kotzalas 2006, *Rolling Bearing Analysis*, 5th ed., vol. 1, ch. 6), two contacts per roller
+    (inner and outer ring), and Stribeck's load on the most loaded roller Q_max = 4.08 F_r / Z for
+    line contact (Harris & Kotzalas, ch. 7).  Since delta ~ F^0.9 the tangent stiffness is
+    k = F_r / (0.9 delta_r).
+
+    >>> round(palmgren_roller_bearing_stiffness(1000.0, 20, 8e-3) / 1e8, 2)
+    6.37
+    """
+    if not (radial_load > 0 and n_rollers > 0 and roller_length > 0):
+        raise ValueError("radial_load, n_rollers and roller_length must be > 0")
+    q_max = 4.08 * radial_load / n_rollers
+    delta_mm = 2.0 * 3.84e-5 * q_max**0.9 / (roller_length * 1e3) ** 0.8
+    return radial_load / (0.9 * delta_mm * 1e-3)
+
+
+def crank_bearing_load(p: ReducerParams) -> float:
+    """Radial load (N) on one crank bearing at rated output torque: the output torque passes from
+    the discs to the carrier through the crank journals at the crank circle radius a (the stage-1
+    centre distance), F = T / (n_discs n_cranks a), one bearing per crank and disc."""
+    s1, s2 = p.stage1, p.stage2
+    return p.operation.rated_torque / (s2.n_discs * s2.n_cranks * s1.centre_distance)
+
+
+def bearing_estimates(p: ReducerParams) -> dict[str, float]:
+    """Palmgren estimates (N/m) of the crank bearings at rated torque, for ``[bearings]`` values
+    ``crank_cycloid`` and ``crank_carrier`` (``rv20e.toml`` holds them rounded to 2 digits)."""
+    rj = p.bodies.crank_shaft_radius
+    needle_d = 0.33 * rj
+    ring_r = rj + 0.5 * needle_d
+    n_needles = int(2.0 * math.pi * ring_r // (NEEDLE_SPACING * needle_d))
+    load = crank_bearing_load(p)
+    width = p.stage2.cycloid_face_width
+    return {
+        "crank_cycloid": palmgren_roller_bearing_stiffness(load, n_needles, NEEDLE_LENGTH_FRACTION * width),
+        "crank_carrier": palmgren_roller_bearing_stiffness(
+            load, CRANK_CARRIER_ROLLERS, CRANK_CARRIER_ROLLER_LENGTH_FRACTION * width),
+    }

@@ -61,9 +61,30 @@ class Stage1:
     backlash: float = _nonnegative()
 
     @property
+    def operating_pressure_angle_deg(self) -> float:
+        """Operating pressure angle alpha_w (degrees) at zero backlash, from
+        inv(alpha_w) = inv(alpha_0) + 2 (x1 + x2) tan(alpha_0) / (Z1 + Z2) (ISO 21771, eq. 50).
+        Equals the rack's pressure angle for a V-zero pair (x1 + x2 = 0, the RV-20E default)."""
+        a0 = math.radians(self.pressure_angle_deg)
+        shift = self.sun_profile_shift + self.planet_profile_shift
+        target = math.tan(a0) - a0 + 2.0 * shift * math.tan(a0) / (self.sun_teeth + self.planet_teeth)
+        if shift == 0.0 or target <= 0.0:
+            return self.pressure_angle_deg
+        a = a0
+        for _ in range(60):  # Newton on inv(a) = target, inv'(a) = tan(a)^2
+            a_next = min(max(a - (math.tan(a) - a - target) / math.tan(a) ** 2, 1e-6), 1.5)
+            if abs(a_next - a) < 1e-15:
+                break
+            a = a_next
+        return math.degrees(a)
+
+    @property
     def centre_distance(self) -> float:
-        """Operating centre distance of the sun-planet pair (m), for a V-zero pair m (Z1 + Z2) / 2."""
-        return 0.5 * self.module * (self.sun_teeth + self.planet_teeth)
+        """Operating centre distance of the sun-planet pair (m):
+        a_w = m (Z1 + Z2) / 2 cos(alpha_0) / cos(alpha_w) (ISO 21771); m (Z1 + Z2) / 2 for a V-zero pair."""
+        a = 0.5 * self.module * (self.sun_teeth + self.planet_teeth)
+        return a * math.cos(math.radians(self.pressure_angle_deg)) / math.cos(
+            math.radians(self.operating_pressure_angle_deg))
 
 
 @dataclass(frozen=True)
@@ -293,30 +314,56 @@ def _check_consistency(p: ReducerParams, source: str) -> None:
     s1, s2, m = p.stage1, p.stage2, p.material
     if s2.pins != s2.cycloid_lobes + 1:
         raise ConfigError(
-            f"{source}: pins ({s2.pins}) must equal cycloid_lobes + 1 ({s2.cycloid_lobes + 1})"
+            f"{source}: [stage2] pins ({s2.pins}) must equal cycloid_lobes + 1 ({s2.cycloid_lobes + 1})"
         )
     if s2.n_cranks != s1.n_planets:
         raise ConfigError(
-            f"{source}: n_cranks ({s2.n_cranks}) must equal n_planets ({s1.n_planets}): "
+            f"{source}: [stage2] n_cranks ({s2.n_cranks}) must equal [stage1] n_planets ({s1.n_planets}): "
             "each planet sits on one crank shaft"
         )
     if not 0.0 < s1.pressure_angle_deg < 45.0:
-        raise ConfigError(f"{source}: pressure_angle_deg must lie in (0, 45), got {s1.pressure_angle_deg}")
+        raise ConfigError(f"{source}: [stage1] pressure_angle_deg must lie in (0, 45), got {s1.pressure_angle_deg}")
+    if s1.dedendum_coefficient <= s1.addendum_coefficient:
+        raise ConfigError(
+            f"{source}: [stage1] dedendum_coefficient ({s1.dedendum_coefficient}) must exceed "
+            f"addendum_coefficient ({s1.addendum_coefficient}) to leave tip clearance")
+    a0 = math.radians(s1.pressure_angle_deg)
+    rho_max = (s1.dedendum_coefficient - s1.addendum_coefficient) / (1.0 - math.sin(a0))
+    if s1.root_fillet_coefficient > 1.01 * rho_max:  # ISO 53 rounds 0.25/(1 - sin 20°) = 0.37998 to 0.38
+        raise ConfigError(
+            f"{source}: [stage1] root_fillet_coefficient {s1.root_fillet_coefficient} exceeds the "
+            f"largest rack tip radius that fits the clearance, {rho_max:.3f}")
+    # undercut limit of the basic rack (Litvin & Fuentes 2004, sec. 10.7):
+    # x >= (hf* - rho_f* (1 - sin a0)) - Z sin^2(a0) / 2
+    h_rack = s1.dedendum_coefficient - s1.root_fillet_coefficient * (1.0 - math.sin(a0))
+    for key, z, x in (("sun_profile_shift", s1.sun_teeth, s1.sun_profile_shift),
+                      ("planet_profile_shift", s1.planet_teeth, s1.planet_profile_shift)):
+        x_min = h_rack - 0.5 * z * math.sin(a0) ** 2
+        if x < x_min - 1e-12:
+            raise ConfigError(
+                f"{source}: [stage1] {key} = {x} undercuts the {z}-tooth gear; it must be >= {x_min:.3f}")
+    if not s2.pins >= 3:
+        raise ConfigError(f"{source}: [stage2] pins must be >= 3, got {s2.pins}")
+    if not 0.0 <= s2.disc_phase_deg < 360.0:
+        raise ConfigError(f"{source}: [stage2] disc_phase_deg must lie in [0, 360), got {s2.disc_phase_deg}")
+    if p.bodies.crank_shaft_radius >= 0.5 * s1.module * s1.planet_teeth - (
+            s1.dedendum_coefficient - s1.planet_profile_shift) * s1.module:
+        raise ConfigError(f"{source}: [bodies] crank_shaft_radius must be smaller than the planet's root radius")
     if not m.poisson_ratio < 0.5:
-        raise ConfigError(f"{source}: poisson_ratio must be < 0.5, got {m.poisson_ratio}")
+        raise ConfigError(f"{source}: [material] poisson_ratio must be < 0.5, got {m.poisson_ratio}")
     if s2.short_amplitude_coefficient >= 1.0:
         raise ConfigError(
-            f"{source}: eccentricity too large: K1 = e*pins/pin_circle_radius = "
+            f"{source}: [stage2] eccentricity too large: K1 = e*pins/pin_circle_radius = "
             f"{s2.short_amplitude_coefficient:.3f} must be < 1"
         )
     if s2.pin_radius >= s2.pin_circle_radius * math.sin(math.pi / s2.pins):
-        raise ConfigError(f"{source}: pin_radius {s2.pin_radius} m: neighbouring pins overlap")
+        raise ConfigError(f"{source}: [stage2] pin_radius {s2.pin_radius} m: neighbouring pins overlap")
     if s1.centre_distance >= s2.pin_circle_radius:
         raise ConfigError(
-            f"{source}: stage-1 centre distance {s1.centre_distance:.4g} m must lie inside the "
-            f"pin circle radius {s2.pin_circle_radius:.4g} m"
+            f"{source}: [stage1] module and teeth give a centre distance {s1.centre_distance:.4g} m that must lie inside the "
+            f"[stage2] pin_circle_radius {s2.pin_circle_radius:.4g} m"
         )
     if p.bodies.carrier_outer_radius >= s2.pin_circle_radius:
-        raise ConfigError(f"{source}: carrier_outer_radius must be smaller than pin_circle_radius")
+        raise ConfigError(f"{source}: [bodies] carrier_outer_radius must be smaller than pin_circle_radius")
     if p.bodies.pin_wheel_outer_radius <= s2.pin_circle_radius + s2.pin_radius:
-        raise ConfigError(f"{source}: pin_wheel_outer_radius must exceed pin_circle_radius + pin_radius")
+        raise ConfigError(f"{source}: [bodies] pin_wheel_outer_radius must exceed pin_circle_radius + pin_radius")

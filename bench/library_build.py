@@ -1,0 +1,92 @@
+"""Library build throughput: samples per second with 1 and 2 Dask workers, and their ratio.
+
+Usage::
+
+    .venv/bin/python bench/library_build.py                      # demo config, 4 simulations per state
+    .venv/bin/python bench/library_build.py --sims 2 --synthetic # the analytic stand-in (machinery only)
+    .venv/bin/python bench/library_build.py --log                # also append the result to bench/HISTORY.md
+
+Each run builds the same library into a fresh store, end to end as a user sees it: starting the local
+cluster, importing (and loading the compiled model) on the workers, simulating, writing.  ``workers = 0``
+(in-process, no Dask) is the baseline.  The 1-worker run shows the Dask overhead, the 2-worker run the
+parallel speed-up (ideal 2 on 2 free cores; less when other work shares the machine -- the load average
+is printed).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import os
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--config", default=str(ROOT / "configs" / "demo.toml"))
+    ap.add_argument("--sims", type=int, default=4, help="simulations per state (default 4)")
+    ap.add_argument("--synthetic", action="store_true", help="use rvdiag.library.synthetic:simulate")
+    ap.add_argument("--workers", default="0,1,2", help="comma-separated worker counts (0 = in-process)")
+    ap.add_argument("--log", action="store_true", help="append the result to bench/HISTORY.md")
+    args = ap.parse_args()
+
+    from rvdiag.library import LibraryConfig, build_library
+
+    cfg = LibraryConfig.load(args.config)
+    cfg = cfg.replace(split={"simulations_per_state": args.sims,
+                             "test_simulations_per_state": max(1, args.sims // 4)})
+    if args.synthetic:
+        cfg = cfg.replace(simulator="rvdiag.library.synthetic:simulate", model={})
+    counts = [int(w) for w in args.workers.split(",")]
+    rates: dict[int, float] = {}
+    walls: dict[int, float] = {}
+    tmp = Path(tempfile.mkdtemp(prefix="rvdiag-bench-"))
+    try:
+        # warm-up: compile / load the model once in this process so the baseline is not a compile time
+        build_library(cfg.replace(split={"simulations_per_state": 2, "test_simulations_per_state": 1},
+                                  states={"T1": {}, "T2": {}}), tmp / "warm.zarr", workers=0, progress=False)
+        for w in counts:
+            t0 = time.perf_counter()
+            report = build_library(cfg, tmp / f"w{w}.zarr", workers=w, progress=False)
+            walls[w] = time.perf_counter() - t0
+            rates[w] = report.n_samples / walls[w]
+            print(f"workers={w}: {report.n_samples} samples, {report.n_units} simulations in {walls[w]:.1f} s "
+                  f"-> {rates[w]:.1f} samples/s", flush=True)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    load = os.getloadavg()[0]
+    lines = [f"- {w} worker(s){' (in-process, no Dask)' if w == 0 else ''}: {rates[w]:.1f} samples/s "
+             f"({walls[w]:.1f} s)" for w in counts]
+    if 1 in rates and 2 in rates:
+        ratio = rates[2] / rates[1]
+        lines.append(f"- ratio 2 workers / 1 worker: {ratio:.2f}")
+        print(f"ratio 2/1 workers: {ratio:.2f}")
+    print(f"load average at the end: {load:.1f}")
+    if args.log:
+        sim = "synthetic stand-in" if args.synthetic else "26-DOF dynamic model"
+        block = "\n".join([
+            "",
+            f"## {dt.date.today().isoformat()} library build throughput ({sim})",
+            "",
+            f"Library: {Path(args.config).name} with {args.sims} simulations per state "
+            f"({cfg.n_simulations} simulations of {cfg.transient_s + cfg.duration_s:g} s, "
+            f"{cfg.n_samples} samples of {cfg.segment_length} points).  End to end: cluster start, worker "
+            f"imports, simulation, store writes.  Load average (1 min) at the end: {load:.1f} on "
+            f"{os.cpu_count()} cores.",
+            f"Command: `.venv/bin/python bench/library_build.py --sims {args.sims}"
+            f"{' --synthetic' if args.synthetic else ''} --log`",
+            "",
+            *lines,
+            "",
+        ])
+        with open(ROOT / "bench" / "HISTORY.md", "a", encoding="utf-8") as fh:
+            fh.write(block)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,105 @@
+"""``rvdiag diagnose MODEL_DIR FILE [--channel C] [--fs HZ] [--json]``: diagnose a measured or simulated signal.
+
+The signal (one channel, read by :func:`rvdiag.io.read_signal`) is cut into adjacent, non-overlapping
+windows of the model's input length (the training samples' length); the tail shorter than a window is
+not used (a warning says how many points).  Each window gets class probabilities; the overall
+probabilities are their mean, and the diagnosis is the most probable class overall.  A WARNING is
+printed when the file's sampling rate differs from the training rate, or is unknown.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import typer
+
+from rvdiag.errors import DataFileError
+
+MAX_ROWS = 40
+
+
+def diagnose_signal(loaded, x: np.ndarray, fs: float | None) -> dict:
+    """Window ``x`` to the model input, predict each window; returns the result dict of ``--json``."""
+    L = loaded.input_length
+    n = int(x.size)
+    warnings = []
+    if n < L:
+        raise DataFileError(f"the signal has {n} points, shorter than one window of {L} points (the model's "
+                            f"input length); give a longer recording")
+    train_fs = loaded.fs
+    if train_fs and fs is None:
+        warnings.append(f"WARNING: the file states no sampling rate; the model was trained at {train_fs:g} Hz "
+                        "(give --fs to check)")
+    elif train_fs and fs and abs(fs - train_fs) > 1e-6 * train_fs:
+        warnings.append(f"WARNING: the signal is sampled at {fs:g} Hz but the model was trained at {train_fs:g} Hz; "
+                        "frequencies are off by a factor {:.3g}: resample first for a trustworthy diagnosis".format(fs / train_fs))
+    k = n // L
+    rest = n - k * L
+    if rest:
+        warnings.append(f"WARNING: {n} points is not a multiple of the model's {L}-point window: "
+                        f"the last {rest} points are not used")
+    X = x[: k * L].reshape(k, L)
+    P = np.asarray(loaded.estimator.predict_proba(X), dtype=float)
+    classes = [str(c) for c in loaded.estimator.classes_]
+    overall = P.mean(axis=0)
+    return {
+        "diagnosis": classes[int(overall.argmax())],
+        "probabilities": {c: float(p) for c, p in zip(classes, overall)},
+        "n_windows": k,
+        "window_length": L,
+        "fs": fs,
+        "training_fs": train_fs,
+        "windows": [{"start": i * L, "prediction": classes[int(P[i].argmax())],
+                     "probabilities": {c: float(p) for c, p in zip(classes, P[i])}} for i in range(k)],
+        "warnings": warnings,
+    }
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("diagnose")
+    def diagnose(
+        model_dir: Path = typer.Argument(..., help="Model directory written by 'rvdiag train'."),
+        file: Path = typer.Argument(..., help="Signal file: CSV/CSV.gz, MAT, NPY, NPZ, WAV, TDMS."),
+        channel: str = typer.Option(None, "--channel", "-c", help="Regular expression picking one channel."),
+        fs: float = typer.Option(None, "--fs", help="Sampling rate in Hz (overrides the file's)."),
+        json_out: bool = typer.Option(False, "--json", help="Print the result as JSON."),
+    ) -> None:
+        """Diagnose the state of a reducer from one signal file."""
+        from rvdiag.io import read_signal
+        from rvdiag.models.persistence import load_model
+
+        loaded = load_model(model_dir)
+        sig = read_signal(file, channel_regex=channel, fs=fs)
+        res = diagnose_signal(loaded, np.asarray(sig.data, dtype=np.float64), sig.fs)
+        res.update({"file": str(file), "channel": sig.channel, "model": str(model_dir)})
+        for w in res["warnings"]:
+            typer.echo(w, err=True)
+        if json_out:
+            typer.echo(json.dumps(res, indent=2))
+            return
+        _print(res)
+
+
+def _print(res: dict) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    con = Console()
+    classes = list(res["probabilities"])
+    t = Table(title=f"{res['file']} [{res['channel']}]: {res['n_windows']} window(s) of {res['window_length']} points")
+    t.add_column("window")
+    t.add_column("start", justify="right")
+    t.add_column("diagnosis")
+    for c in classes:
+        t.add_column(c, justify="right")
+    rows = res["windows"]
+    for i, w in enumerate(rows[:MAX_ROWS]):
+        t.add_row(str(i), str(w["start"]), w["prediction"], *(f"{w['probabilities'][c]:.3f}" for c in classes))
+    if len(rows) > MAX_ROWS:
+        t.add_row("...", f"{len(rows) - MAX_ROWS} more (see --json)", "", *([""] * len(classes)))
+    t.add_row("overall", "", res["diagnosis"], *(f"{res['probabilities'][c]:.3f}" for c in classes), style="bold")
+    con.print(t)
+    p = res["probabilities"][res["diagnosis"]]
+    con.print(f"diagnosis: [bold]{res['diagnosis']}[/bold] (mean probability {p:.3f} over {res['n_windows']} windows)")

@@ -1,0 +1,64 @@
+"""``rvdiag evaluate MODEL_DIR DATA.zarr [--split test|train|all] [--json] [--report FILE.html]``."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import typer
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("evaluate")
+    def evaluate(
+        model_dir: Path = typer.Argument(..., help="Model directory written by 'rvdiag train'."),
+        data: Path = typer.Argument(..., help="Sample store (.zarr) to score."),
+        split: str = typer.Option("test", "--split", help="test | train | all (or any split of the store)."),
+        json_out: bool = typer.Option(False, "--json",
+                                      help="Print accuracy, precision_macro, recall_macro, f1_macro, kappa, "
+                                           "per_class, confusion as JSON."),
+        report: Path = typer.Option(None, "--report", help="Write a self-contained HTML report here."),
+    ) -> None:
+        """Score a saved model on a split of a sample store."""
+        from rvdiag.datasets import SampleStore
+        from rvdiag.evaluation.evaluate import evaluate_on_store, report_html
+        from rvdiag.evaluation.report import write_report
+        from rvdiag.models.persistence import load_model
+
+        loaded = load_model(model_dir)
+        store = SampleStore.open(data)
+        ev = evaluate_on_store(loaded, store, split)
+        for w in ev.warnings:
+            typer.echo(w, err=True)
+        if report is not None:
+            write_report(report, report_html(loaded, store, ev))
+        if json_out:
+            typer.echo(json.dumps(ev.metrics, indent=2))
+        else:
+            _print(ev, loaded, data)
+        if report is not None:
+            typer.echo(f"report: {report.resolve()}", err=json_out)
+
+
+def _print(ev, loaded, data) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    m = ev.metrics
+    con = Console()
+    con.print(f"{loaded.card.get('model')} on {data} [{ev.split}], {m['n_samples']} samples: "
+              f"accuracy {100 * m['accuracy']:.2f} %, macro F1 {100 * m['f1_macro']:.2f} %, kappa {m['kappa']:.4f}")
+    t = Table()
+    for col in ("class", "precision", "recall", "f1", "support"):
+        t.add_column(col, justify="left" if col == "class" else "right")
+    for c, v in m["per_class"].items():
+        t.add_row(c, f"{100 * v['precision']:.2f} %", f"{100 * v['recall']:.2f} %", f"{100 * v['f1']:.2f} %",
+                  str(v["support"]))
+    con.print(t)
+    cm = Table(title="confusion (rows true, columns predicted)")
+    cm.add_column("")
+    for c in m["labels"]:
+        cm.add_column(c, justify="right")
+    for c, row in zip(m["labels"], m["confusion"]):
+        cm.add_row(c, *map(str, row))
+    con.print(cm)

@@ -1,0 +1,195 @@
+"""``rvdiag train``: train a CNN or a classical model on a sample store and save it as a model directory.
+
+    rvdiag train DATA.zarr --model cnn1d|cnn1d-lean|mcsa-cnn|svm|kelm|kelm-mpa|kelm-ga|kelm-pso
+                 [--features time|spectrum|wpd|eemd|none|cnn] --out MODEL_DIR [--epochs N]
+                 [--device auto|cpu|cuda] [--seed N] [--repeat N]
+
+Trains on the store's ``train`` split, scores the ``test`` split (when present) into the model card, and
+with ``--repeat N`` trains N seeds (seed, seed+1, ...) and prints best / mean accuracy per class.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import typer
+
+from rvdiag.errors import ParameterError, StoreError
+
+CNN_MODELS = ("cnn1d", "cnn1d-lean", "mcsa-cnn")
+CLASSICAL_MODELS = ("svm", "kelm", "kelm-mpa", "kelm-ga", "kelm-pso")
+
+
+def _content_hash(store) -> str:
+    """Hash of the store's identity when it has no config hash: classes, length, n, labels."""
+    import hashlib
+
+    h = hashlib.sha256()
+    h.update(json.dumps([store.classes, store.length, store.n_samples]).encode())
+    h.update(np.asarray(store.labels, dtype=np.int64).tobytes())
+    return h.hexdigest()[:16]
+
+
+def build_estimator(model: str, features: str | None, *, epochs: int, device: str, seed: int,
+                    batch_size: int, lr: float, input_length: int | None, patience: int,
+                    validation_fraction: float):
+    """A fresh, unfitted estimator for a ``--model`` name."""
+    if model in CNN_MODELS:
+        if features is not None:
+            raise ParameterError(f"--features does not apply to the CNN model {model!r} (it learns its features); "
+                                 "for CNN features + SVM use --model svm --features cnn")
+        from rvdiag.models.torch_estimator import CNNClassifier
+
+        return CNNClassifier(architecture=model, input_length=input_length, max_epochs=epochs, device=device,
+                             random_state=seed, batch_size=batch_size, learning_rate=lr,
+                             n_iter_no_change=patience, validation_fraction=validation_fraction)
+    if model in CLASSICAL_MODELS:
+        from rvdiag.models.pipelines import make_classical_model
+
+        feats = features or "wpd"
+        kw = {}
+        if feats == "cnn":
+            kw = {"max_epochs": epochs, "device": device, "random_state": seed, "learning_rate": lr,
+                  "batch_size": batch_size}
+        return make_classical_model(model, feats, seed=seed, features_kw=kw)
+    raise ParameterError(f"unknown model {model!r}; use one of {'|'.join(CNN_MODELS + CLASSICAL_MODELS)}")
+
+
+def _fit(est, X, y, quiet: bool, label: str):
+    """Fit with a rich progress bar per epoch (CNN) or a spinner (classical)."""
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    console = Console(stderr=True)
+    if hasattr(est, "embed"):
+        cols = [TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[info]}"),
+                TimeElapsedColumn()]
+        with Progress(*cols, console=console, disable=quiet, transient=False) as prog:
+            task = prog.add_task(f"{label} epochs", total=est.max_epochs, info="")
+
+            def cb(rec):
+                info = f"loss {rec['loss']:.4f}"
+                if rec["val_accuracy"] is not None:
+                    info += f"  val loss {rec['val_loss']:.4f}  val acc {100 * rec['val_accuracy']:.1f} %"
+                prog.update(task, completed=rec["epoch"], info=info)
+
+            est.fit(X, y, callback=cb)
+            prog.update(task, total=est.n_epochs_, completed=est.n_epochs_,
+                        info=f"stopped after {est.n_epochs_} epochs, kept epoch {est.best_epoch_}")
+    else:
+        with console.status(f"{label}: fitting", spinner="dots") if not quiet else _Null():
+            est.fit(X, y)
+    return est
+
+
+class _Null:
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *a):
+        return False
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("train")
+    def train(
+        data: Path = typer.Argument(..., help="Sample store (.zarr) from 'rvdiag library build' or 'rvdiag dataset'."),
+        model: str = typer.Option("cnn1d-lean", "--model", "-m",
+                                  help="cnn1d | cnn1d-lean | mcsa-cnn | svm | kelm | kelm-mpa | kelm-ga | kelm-pso"),
+        features: str = typer.Option(None, "--features", "-f",
+                                     help="Classical models: time | spectrum | wpd | eemd | none | cnn (default wpd)."),
+        out: Path = typer.Option(..., "--out", "-o", help="Model directory to write."),
+        epochs: int = typer.Option(30, "--epochs", help="CNN: maximum epochs (early stopping may end sooner)."),
+        device: str = typer.Option("auto", "--device", help="auto | cpu | cuda"),
+        seed: int = typer.Option(0, "--seed", help="Random seed (weights, validation split, batch order)."),
+        repeat: int = typer.Option(1, "--repeat", help="Train N seeds (seed .. seed+N-1); report best/mean per class."),
+        batch_size: int = typer.Option(32, "--batch-size", help="CNN mini-batch size."),
+        lr: float = typer.Option(1e-3, "--lr", help="CNN Adam learning rate."),
+        input_length: int = typer.Option(None, "--input-length",
+                                         help="CNN input in points (default: 6400 cnn1d, 4096 mcsa-cnn, sample length for cnn1d-lean)."),
+        patience: int = typer.Option(5, "--patience", help="CNN early-stopping patience (epochs)."),
+        validation_fraction: float = typer.Option(0.2, "--validation-fraction",
+                                                  help="Share of training samples held out for early stopping."),
+        json_out: bool = typer.Option(False, "--json", help="Print the test metrics (and repeat summary) as JSON."),
+        quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+    ) -> None:
+        """Train a classifier on the train split of a store and save it as a model directory."""
+        from rvdiag.datasets import SampleStore
+        from rvdiag.evaluation.metrics import classification_metrics, repeat_summary
+        from rvdiag.models.persistence import save_model
+        from rvdiag.models.torch_estimator import window_starts
+
+        if repeat < 1:
+            raise ParameterError(f"--repeat must be >= 1, got {repeat}")
+        if epochs < 1:
+            raise ParameterError(f"--epochs must be >= 1, got {epochs}")
+        if out.exists() and not out.is_dir():
+            raise ParameterError(f"--out {out} exists and is not a directory")
+        store = SampleStore.open(data)
+        if "train" not in store.splits():
+            raise StoreError(f"{data} has no 'train' split (splits: {', '.join(store.splits())})")
+        tr = store.load("train")
+        te = store.load("test") if "test" in store.splits() else None
+        labels = [c for c in store.classes if c in set(tr.y.tolist())]
+        if len(labels) < 2:
+            raise StoreError(f"{data}: the train split holds fewer than 2 classes")
+        echo = (lambda *a, **k: None) if json_out else (lambda msg: typer.echo(msg, err=True))
+        echo(f"{data}: {len(tr.y)} training samples of {store.length} points, {len(labels)} classes"
+             + (f", {len(te.y)} test samples" if te is not None else ", no test split"))
+
+        runs, first = [], None
+        for r in range(repeat):
+            s = seed + r
+            est = build_estimator(model, features, epochs=epochs, device=device, seed=s, batch_size=batch_size,
+                                  lr=lr, input_length=input_length, patience=patience,
+                                  validation_fraction=validation_fraction)
+            if r == 0 and model in CNN_MODELS:
+                W = est._check_params(store.length)
+                starts = window_starts(store.length, W, est.long_input)
+                if W != store.length:
+                    echo(f"note: samples have {store.length} points and the {model} input is {W}: each sample is cut "
+                         f"into {len(starts)} window(s) starting at {starts.tolist()}; training uses every window, "
+                         "predictions average them (docs/models.md)")
+            _fit(est, tr.X, tr.y, quiet or json_out, f"seed {s}")
+            metrics = None
+            if te is not None and len(te.y):
+                metrics = classification_metrics(te.y, est.predict(te.X), labels=[str(c) for c in est.classes_])
+                runs.append(metrics)
+                echo(f"seed {s}: test accuracy {100 * metrics['accuracy']:.2f} %  kappa {metrics['kappa']:.4f}")
+            if r == 0:
+                first = (est, metrics)
+        est, metrics = first
+        store_info = {"path": str(Path(data).resolve()),
+                      "config_hash": store.attrs.get("config_hash") or _content_hash(store),
+                      "kind": store.attrs.get("kind"), "n_train": int(len(tr.y))}
+        extra = {}
+        summary = None
+        if repeat > 1 and runs:
+            summary = repeat_summary(runs)
+            extra["repeat"] = {"seeds": list(range(seed, seed + repeat)), **summary}
+        save_model(est, out, model=model, features=(features or "wpd") if model in CLASSICAL_MODELS else None,
+                   fs=store.fs, training_store=store_info, metrics=metrics or {}, seed=seed, extra=extra)
+        if summary is not None:
+            (Path(out) / "repeat.json").write_text(json.dumps(summary, indent=2))
+        if json_out:
+            typer.echo(json.dumps({"model_dir": str(out), "metrics": metrics, "repeat": summary}, indent=2))
+            return
+        if summary is not None:
+            _print_repeat(summary, seed, repeat)
+        echo(f"saved model to {out}" + (" (the first seed's model; repeat.json holds the summary)" if repeat > 1 else ""))
+
+
+def _print_repeat(summary: dict, seed: int, n: int) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    t = Table(title=f"accuracy per class over {n} seeds ({seed}..{seed + n - 1}), test split")
+    for col in ("class", "best", "mean", "worst"):
+        t.add_column(col, justify="right" if col != "class" else "left")
+    for c, v in summary["per_class"].items():
+        t.add_row(c, *(f"{100 * v[k]:.2f} %" for k in ("best", "mean", "worst")))
+    a = summary["accuracy"]
+    t.add_row("overall", *(f"{100 * a[k]:.2f} %" for k in ("best", "mean", "worst")))
+    Console().print(t)

@@ -1,0 +1,110 @@
+"""Evaluate a saved model on a sample store, and build its HTML report."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from rvdiag.errors import ModelFileError
+from rvdiag.evaluation.metrics import classification_metrics
+
+
+@dataclass
+class Evaluation:
+    """Result of :func:`evaluate_on_store`.
+
+    Attributes
+    ----------
+    metrics : dict (:func:`classification_metrics`)
+    y_true, y_pred : ndarray of str
+    X : ndarray, the evaluated samples
+    meta : dict of metadata columns of the evaluated samples
+    warnings : list of str (fs mismatch...)
+    """
+
+    metrics: dict
+    y_true: np.ndarray
+    y_pred: np.ndarray
+    X: np.ndarray
+    meta: dict
+    split: str
+    warnings: list[str] = field(default_factory=list)
+
+
+def check_store_matches(card: dict, store) -> list[str]:
+    """Refuse a store the model cannot score (sample length, unknown classes); return warnings (fs)."""
+    if store.length != card["input_length"]:
+        raise ModelFileError(
+            f"the model takes samples of {card['input_length']} points, the store {store.path} has "
+            f"{store.length}-point samples (use 'rvdiag diagnose' to window long signals)")
+    unknown = sorted(set(store.classes) - set(map(str, card["classes"])))
+    present = set(np.asarray(store.label_names).astype(str).tolist())
+    unknown = [c for c in unknown if c in present]
+    if unknown:
+        raise ModelFileError(
+            f"the store {store.path} has classes {unknown} the model was not trained on "
+            f"(model classes: {', '.join(map(str, card['classes']))})")
+    warnings = []
+    if card.get("fs") and store.fs and abs(float(card["fs"]) - float(store.fs)) > 1e-6 * float(card["fs"]):
+        warnings.append(f"WARNING: the store's fs {store.fs:g} Hz differs from the training fs {card['fs']:g} Hz")
+    return warnings
+
+
+def evaluate_on_store(loaded, store, split: str = "test") -> Evaluation:
+    """Predict every sample of ``split`` and score it.
+
+    Parameters
+    ----------
+    loaded : :class:`rvdiag.models.persistence.LoadedModel`
+    store : :class:`rvdiag.datasets.SampleStore`
+    split : "test" | "train" | "all" | any split of the store
+    """
+    warnings = check_store_matches(loaded.card, store)
+    s = store.load(split)
+    if len(s.y) == 0:
+        raise ModelFileError(f"the split {split!r} of {store.path} is empty")
+    y_pred = np.asarray(loaded.estimator.predict(s.X)).astype(str)
+    y_true = np.asarray(s.y).astype(str)
+    m = classification_metrics(y_true, y_pred, labels=[str(c) for c in loaded.card["classes"]])
+    return Evaluation(m, y_true, y_pred, s.X, s.meta, split, warnings)
+
+
+def learned_features(estimator, X: np.ndarray) -> np.ndarray:
+    """The model's internal representation of samples: CNN last hidden layer, or the standardised
+    features of a classical pipeline (every step but the classifier)."""
+    if hasattr(estimator, "embed"):
+        return estimator.embed(X)
+    if hasattr(estimator, "steps") and len(estimator.steps) > 1:
+        return np.asarray(estimator[:-1].transform(X))
+    return np.asarray(X)
+
+
+def report_html(loaded, store, ev: Evaluation, max_tsne: int = 600, seed: int = 0) -> str:
+    """The HTML report of an evaluation (see :mod:`rvdiag.evaluation.report`)."""
+    from rvdiag.evaluation.plots import tsne_embedding
+    from rvdiag.evaluation.report import characteristic_frequencies_for, render_report
+
+    rng = np.random.default_rng(seed)
+    n = len(ev.y_true)
+    pick = np.sort(rng.choice(n, size=min(n, max_tsne), replace=False))
+    emb = None
+    if len(pick) >= 5:
+        emb = tsne_embedding(learned_features(loaded.estimator, ev.X[pick]), random_state=seed)
+    examples = {}
+    first_idx = []
+    for c in loaded.card["classes"]:
+        hits = np.flatnonzero(ev.y_true == str(c))
+        if hits.size:
+            examples[str(c)] = ev.X[hits[0]]
+            first_idx.append(hits[0])
+    freqs = characteristic_frequencies_for(store.attrs, ev.meta, np.array(first_idx, dtype=int))
+    store_info = {
+        "path": str(Path(store.path)), "split": ev.split, "kind": store.attrs.get("kind"),
+        "config": store.attrs.get("config"), "config_hash": store.attrs.get("config_hash"),
+    }
+    title = f"rvdiag evaluation: {loaded.card.get('model')} on {Path(store.path).name} ({ev.split})"
+    return render_report(title=title, metrics=ev.metrics, card=loaded.card, store_info=store_info,
+                         examples=examples, fs=store.fs, frequencies=freqs, embedding=emb,
+                         embedding_labels=ev.y_true[pick])

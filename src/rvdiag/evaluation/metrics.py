@@ -1,0 +1,102 @@
+"""Classification metrics of a diagnosis, as one JSON-ready dict (scikit-learn underneath).
+
+Keys of :func:`classification_metrics` (also the keys of ``rvdiag evaluate --json``):
+
+``accuracy``         fraction of samples classified correctly
+``precision_macro``  unweighted mean over classes of TP / (TP + FP)
+``recall_macro``     unweighted mean over classes of TP / (TP + FN) (= mean per-class accuracy, the
+                     figure the seed papers tabulate per state)
+``f1_macro``         unweighted mean of the per-class F1 = 2 P R / (P + R)
+``kappa``            Cohen's kappa (Cohen 1960): (p_o - p_e) / (1 - p_e), agreement beyond chance; the
+                     EEMD-MPA-KELM seed paper reports it (0.82)
+``per_class``        {class: {precision, recall, f1, support}}
+``confusion``        confusion matrix as a list of rows: row = true class, column = predicted, in the
+                     order of ``labels``
+``labels``           the class order of ``confusion``
+``n_samples``
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+from sklearn.metrics import (
+    accuracy_score,
+    cohen_kappa_score,
+    confusion_matrix,
+    precision_recall_fscore_support,
+)
+
+METRIC_KEYS = ("accuracy", "precision_macro", "recall_macro", "f1_macro", "kappa", "per_class", "confusion")
+
+
+def classification_metrics(y_true, y_pred, labels: Sequence[str] | None = None) -> dict:
+    """Accuracy, macro precision/recall/F1, Cohen's kappa, per-class figures and the confusion matrix.
+
+    Parameters
+    ----------
+    y_true, y_pred : array-like of class names
+    labels : sequence of str, optional
+        Class order (default: sorted union of both).  Classes absent from both still get a row.
+
+    Examples
+    --------
+    >>> m = classification_metrics(["a", "a", "b", "b"], ["a", "b", "b", "b"])
+    >>> m["accuracy"], m["confusion"]
+    (0.75, [[1, 1], [0, 2]])
+    >>> round(m["kappa"], 3)
+    0.5
+    """
+    yt = np.asarray(y_true).astype(str)
+    yp = np.asarray(y_pred).astype(str)
+    if yt.shape != yp.shape or yt.ndim != 1:
+        raise ValueError(f"y_true and y_pred must be 1-D of equal length, got {yt.shape} and {yp.shape}")
+    if labels is None:
+        labels = sorted(set(yt.tolist()) | set(yp.tolist()))
+    labels = [str(c) for c in labels]
+    if yt.size == 0:
+        raise ValueError("no samples to score")
+    p, r, f, s = precision_recall_fscore_support(yt, yp, labels=labels, zero_division=0)
+    present = s > 0  # macro averages over classes that occur in y_true
+    kappa = cohen_kappa_score(yt, yp, labels=labels)
+    return {
+        "accuracy": float(accuracy_score(yt, yp)),
+        "precision_macro": float(np.mean(p[present])),
+        "recall_macro": float(np.mean(r[present])),
+        "f1_macro": float(np.mean(f[present])),
+        "kappa": float(kappa) if np.isfinite(kappa) else 1.0,
+        "per_class": {
+            c: {"precision": float(p[i]), "recall": float(r[i]), "f1": float(f[i]), "support": int(s[i])}
+            for i, c in enumerate(labels)
+        },
+        "confusion": confusion_matrix(yt, yp, labels=labels).astype(int).tolist(),
+        "labels": labels,
+        "n_samples": int(yt.size),
+    }
+
+
+def repeat_summary(runs: Sequence[dict]) -> dict:
+    """Best and mean accuracy per class over repeated runs (the seed paper's per-state table).
+
+    Parameters
+    ----------
+    runs : list of dicts from :func:`classification_metrics`, one per seed
+
+    Returns
+    -------
+    dict with ``per_class`` {class: {"best", "mean", "worst"}} (per-class accuracy = recall), and
+    ``accuracy`` {"best", "mean", "worst", "std"} over runs, ``n_runs``.
+    """
+    if not runs:
+        raise ValueError("no runs to summarise")
+    labels = runs[0]["labels"]
+    per = {c: np.array([r["per_class"][c]["recall"] for r in runs]) for c in labels}
+    acc = np.array([r["accuracy"] for r in runs])
+    return {
+        "n_runs": len(runs),
+        "per_class": {c: {"best": float(v.max()), "mean": float(v.mean()), "worst": float(v.min())}
+                      for c, v in per.items()},
+        "accuracy": {"best": float(acc.max()), "mean": float(acc.mean()), "worst": float(acc.min()),
+                     "std": float(acc.std())},
+    }

@@ -1,0 +1,159 @@
+"""Figures of an evaluation: confusion matrix, t-SNE map of learned features, waveforms and spectra.
+
+Every function returns a :class:`matplotlib.figure.Figure` (Agg backend, no display needed);
+:func:`figure_to_base64` turns one into the PNG text the HTML report embeds.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+from typing import Mapping, Sequence
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+#: Characteristic frequencies marked on spectra (keys of ``rvdiag freqs --json``) and their labels.
+MARKED_FREQUENCIES = {
+    "f1": "f1 sun", "f2": "f2 crank", "fsp": "fsp mesh 1", "fcs": "fcs mesh 2",
+    "f_sun_fault": "sun fault", "f_planet_fault": "planet fault",
+}
+
+
+def figure_to_base64(fig: Figure, dpi: int = 90) -> str:
+    """PNG of ``fig`` as base64 text (the figure is closed)."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
+    plt.close(fig)
+    return base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def plot_confusion(confusion: Sequence[Sequence[int]], labels: Sequence[str], title: str = "") -> Figure:
+    """Confusion matrix: counts, shaded by the row share (true class = row, predicted = column)."""
+    cm = np.asarray(confusion, dtype=float)
+    share = cm / np.maximum(cm.sum(axis=1, keepdims=True), 1)
+    n = len(labels)
+    fig, ax = plt.subplots(figsize=(1.0 + 0.75 * n, 0.8 + 0.7 * n))
+    ax.imshow(share, cmap="Blues", vmin=0, vmax=1)
+    for i in range(n):
+        for j in range(n):
+            ax.text(j, i, f"{int(cm[i, j])}", ha="center", va="center",
+                    color="white" if share[i, j] > 0.6 else "black", fontsize=9)
+    ax.set_xticks(range(n), labels)
+    ax.set_yticks(range(n), labels)
+    ax.set_xlabel("predicted")
+    ax.set_ylabel("true")
+    ax.set_title(title or "confusion matrix")
+    fig.tight_layout()
+    return fig
+
+
+def tsne_embedding(features: np.ndarray, random_state: int = 0) -> np.ndarray:
+    """2-D t-SNE (van der Maaten & Hinton 2008; scikit-learn) of feature vectors, PCA-initialised."""
+    from sklearn.manifold import TSNE
+
+    F = np.asarray(features, dtype=np.float64)
+    F = (F - F.mean(0)) / np.where(F.std(0) > 0, F.std(0), 1.0)
+    perplexity = float(min(30.0, max(2.0, (len(F) - 1) / 3.0)))
+    return TSNE(n_components=2, perplexity=perplexity, init="pca", random_state=random_state).fit_transform(F)
+
+
+def plot_tsne(embedding: np.ndarray, labels: Sequence[str], title: str = "") -> Figure:
+    """Scatter of a 2-D embedding coloured by class."""
+    labels = np.asarray(labels).astype(str)
+    fig, ax = plt.subplots(figsize=(6.0, 5.0))
+    for i, c in enumerate(sorted(set(labels.tolist()))):
+        m = labels == c
+        ax.scatter(embedding[m, 0], embedding[m, 1], s=10, label=c, color=plt.cm.tab10(i % 10), alpha=0.8)
+    ax.legend(markerscale=2, fontsize=8, loc="best")
+    ax.set_xticks([])
+    ax.set_yticks([])
+    ax.set_title(title or "t-SNE of learned features")
+    fig.tight_layout()
+    return fig
+
+
+def amplitude_spectrum(x: np.ndarray, fs: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """One-sided amplitude spectrum with a Hann window: (frequency, amplitude).
+
+    Frequency in Hz when ``fs`` is given, else in cycles per sample.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    x = x - x.mean()
+    w = np.hanning(len(x))
+    a = 2.0 * np.abs(np.fft.rfft(x * w)) / w.sum()
+    f = np.fft.rfftfreq(len(x), d=1.0 / fs if fs else 1.0)
+    return f, a
+
+
+def plot_examples(examples: Mapping[str, np.ndarray], fs: float | None = None,
+                  frequencies: Mapping[str, float] | None = None, max_points: int = 2048,
+                  fmax: float | None = None) -> Figure:
+    """Waveform and amplitude spectrum of one example sample per state.
+
+    Parameters
+    ----------
+    examples : {state: 1-D signal}
+    fs : float or None
+        Sampling rate (Hz); None: time in samples and frequency in cycles per sample.
+    frequencies : {key: Hz}, optional
+        Characteristic frequencies (``characteristic_frequencies(...).as_dict()``); those in
+        :data:`MARKED_FREQUENCIES` below ``fmax`` are drawn as dashed lines on every spectrum.
+    max_points : int
+        Points of each waveform shown.
+    fmax : float, optional
+        Upper frequency of the spectra (default: 3 x the stage-2 mesh frequency when known, else Nyquist).
+    """
+    states = list(examples)
+    fig, axes = plt.subplots(len(states), 2, figsize=(11, 1.9 * len(states) + 0.4), squeeze=False)
+    if fmax is None and fs and frequencies and frequencies.get("fcs"):
+        fmax = min(fs / 2, 3.5 * max(frequencies["fcs"], frequencies.get("fsp", 0.0)))
+    colors = plt.cm.Set1(np.linspace(0, 1, 9))
+    for row, state in enumerate(states):
+        x = np.asarray(examples[state], dtype=np.float64)
+        n = min(len(x), max_points)
+        t = np.arange(n) / fs * 1e3 if fs else np.arange(n)
+        ax = axes[row, 0]
+        ax.plot(t, x[:n], lw=0.6, color="tab:blue")
+        ax.set_ylabel(state, rotation=0, ha="right", fontsize=11, fontweight="bold")
+        ax.set_xlabel("time (ms)" if fs else "sample")
+        f, a = amplitude_spectrum(x, fs)
+        ax = axes[row, 1]
+        sel = f <= fmax if fmax else slice(None)
+        ax.plot(f[sel], a[sel], lw=0.6, color="black")
+        ax.set_yscale("log")
+        ax.set_xlabel("frequency (Hz)" if fs else "frequency (cycles/sample)")
+        if frequencies and fs:
+            for i, (key, name) in enumerate(MARKED_FREQUENCIES.items()):
+                v = frequencies.get(key)
+                if v and (fmax is None or v <= fmax):
+                    ax.axvline(v, ls="--", lw=0.9, color=colors[i % 9], label=f"{name} {v:.1f} Hz")
+            if row == 0:
+                ax.legend(fontsize=7, ncol=3, loc="upper right")
+    axes[0, 0].set_title("waveform")
+    axes[0, 1].set_title("amplitude spectrum (Hann), characteristic frequencies dashed")
+    fig.tight_layout()
+    return fig
+
+
+def plot_history(history: Sequence[Mapping]) -> Figure:
+    """Training loss and validation accuracy per epoch of a CNN."""
+    ep = [h["epoch"] for h in history]
+    fig, ax = plt.subplots(figsize=(6, 3))
+    ax.plot(ep, [h["loss"] for h in history], "o-", ms=3, label="training loss")
+    if any(h.get("val_loss") is not None for h in history):
+        ax.plot(ep, [h["val_loss"] for h in history], "s-", ms=3, label="validation loss")
+        ax2 = ax.twinx()
+        ax2.plot(ep, [h["val_accuracy"] for h in history], "^-", ms=3, color="tab:green",
+                 label="validation accuracy")
+        ax2.set_ylim(0, 1.02)
+        ax2.set_ylabel("validation accuracy")
+    ax.set_xlabel("epoch")
+    ax.set_ylabel("cross-entropy")
+    ax.legend(fontsize=8, loc="center right")
+    fig.tight_layout()
+    return fig

@@ -1,0 +1,170 @@
+"""The evaluation report: ONE self-contained HTML file (figures embedded as base64 PNG, inline CSS,
+no script, no external resource), readable from disk without a server.
+
+Sections: summary metrics; per-class precision / recall / F1 and the confusion matrix; a t-SNE map of
+the model's learned features (CNN: last hidden layer; classical: the standardised features); the
+training curve (CNN); one example waveform and spectrum per state with the characteristic frequencies
+of ``rvdiag freqs`` marked; the library config and the model card.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from rvdiag import __version__
+from rvdiag.evaluation import plots
+
+_CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:2em auto;max-width:1150px;
+color:#222;line-height:1.4;padding:0 1em}
+h1{font-size:1.6em;margin-bottom:.2em}h2{border-bottom:2px solid #ddd;padding-bottom:.2em;margin-top:1.6em}
+table{border-collapse:collapse;margin:.6em 0}td,th{border:1px solid #ccc;padding:.25em .7em;text-align:right}
+th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}
+.big td{font-size:1.15em}.muted{color:#666;font-size:.9em}
+pre{background:#f7f7f7;border:1px solid #e3e3e3;padding:.7em;overflow:auto;max-height:420px;font-size:.82em}
+img{max-width:100%;height:auto;border:1px solid #eee}
+.flex{display:flex;flex-wrap:wrap;gap:1.5em;align-items:flex-start}
+.bad{background:#fde2e2}.ok{background:#e3f5e1}
+"""
+
+
+def _img(b64: str, alt: str) -> str:
+    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{b64}">'
+
+
+def _pct(x: float) -> str:
+    return f"{100.0 * x:.2f} %"
+
+
+def characteristic_frequencies_for(store_attrs: Mapping[str, Any], meta: Mapping[str, np.ndarray],
+                                   index: np.ndarray | None = None) -> dict[str, float] | None:
+    """Characteristic frequencies (Hz) of the store's reducer at the median speed of the given samples.
+
+    Uses ``attrs["params"]`` (else the default RV-20E) and the ``input_speed_rpm`` or
+    ``output_speed_deg_s`` metadata column; None when the store records no speed.
+    """
+    from rvdiag.kinematics import characteristic_frequencies
+    from rvdiag.params import ReducerParams
+
+    try:
+        params = ReducerParams.from_dict(store_attrs["params"]) if store_attrs.get("params") else ReducerParams.default()
+    except Exception:
+        params = ReducerParams.default()
+    for key in ("input_speed_rpm", "output_speed_deg_s"):
+        if key in meta:
+            v = np.asarray(meta[key], dtype=float)
+            if index is not None:
+                v = v[index]
+            v = v[np.isfinite(v)]
+            if v.size:
+                try:
+                    return characteristic_frequencies(params, **{key: float(np.median(v))}).as_dict()
+                except Exception:
+                    return None
+    return None
+
+
+def render_report(*, title: str, metrics: Mapping[str, Any], card: Mapping[str, Any],
+                  store_info: Mapping[str, Any], examples: Mapping[str, np.ndarray] | None = None,
+                  fs: float | None = None, frequencies: Mapping[str, float] | None = None,
+                  embedding: np.ndarray | None = None, embedding_labels=None) -> str:
+    """The report as an HTML string.
+
+    Parameters
+    ----------
+    title : str
+    metrics : dict from :func:`rvdiag.evaluation.metrics.classification_metrics`
+    card : the model card (:func:`rvdiag.models.persistence.read_card`)
+    store_info : {"path", "split", "kind", "config", "config_hash", "n_samples"} of the evaluated store
+    examples : {state: 1-D signal}, one example per state
+    fs : sampling rate of the examples (Hz) or None
+    frequencies : characteristic frequencies to mark (Hz)
+    embedding : (n, 2) t-SNE coordinates, with ``embedding_labels`` (true classes)
+    """
+    labels = metrics["labels"]
+    parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
+             f"<style>{_CSS}</style></head><body>", f"<h1>{html.escape(title)}</h1>"]
+    parts.append(
+        f"<p class='muted'>model <b>{html.escape(str(card.get('model')))}</b> ({html.escape(str(card.get('kind')))}"
+        f"{', features ' + html.escape(str(card['features'])) if card.get('features') else ''}), "
+        f"evaluated on <b>{html.escape(str(store_info.get('path')))}</b>, split <b>{html.escape(str(store_info.get('split')))}</b> "
+        f"({metrics['n_samples']} samples, store kind {html.escape(str(store_info.get('kind')))}); rvdiag {__version__}</p>")
+    # summary
+    parts.append("<h2>Summary</h2><table class='big'><tr><th>accuracy</th><th>precision (macro)</th>"
+                 "<th>recall (macro)</th><th>F1 (macro)</th><th>Cohen's kappa</th></tr><tr>"
+                 f"<td>{_pct(metrics['accuracy'])}</td><td>{_pct(metrics['precision_macro'])}</td>"
+                 f"<td>{_pct(metrics['recall_macro'])}</td><td>{_pct(metrics['f1_macro'])}</td>"
+                 f"<td>{metrics['kappa']:.4f}</td></tr></table>")
+    # per class + confusion
+    rows = "".join(
+        f"<tr class='{'ok' if v['recall'] >= 0.99 else ('bad' if v['recall'] < 0.9 else '')}'>"
+        f"<td>{html.escape(c)}</td><td>{_pct(v['precision'])}</td><td>{_pct(v['recall'])}</td>"
+        f"<td>{_pct(v['f1'])}</td><td>{v['support']}</td></tr>"
+        for c, v in metrics["per_class"].items())
+    cm_png = plots.figure_to_base64(plots.plot_confusion(metrics["confusion"], labels))
+    parts.append("<h2>Per class</h2><div class='flex'><div><table><tr><th>class</th><th>precision</th>"
+                 f"<th>recall (class accuracy)</th><th>F1</th><th>support</th></tr>{rows}</table>"
+                 "<p class='muted'>Recall of a class = share of its samples diagnosed correctly (the seed "
+                 "papers' per-state accuracy). Rows: green &ge; 99 %, red &lt; 90 %.</p></div>"
+                 f"<div>{_img(cm_png, 'confusion matrix')}<p class='muted'>Rows: true state; columns: "
+                 "diagnosis; shading: share of the row.</p></div></div>")
+    if embedding is not None and len(embedding):
+        png = plots.figure_to_base64(plots.plot_tsne(embedding, embedding_labels))
+        parts.append("<h2>t-SNE map of the learned features</h2><div class='flex'>"
+                     f"<div>{_img(png, 't-SNE map')}</div><p class='muted' style='max-width:420px'>Each point is one "
+                     "evaluated sample, placed by t-SNE (van der Maaten &amp; Hinton 2008) from the model's "
+                     "internal features (CNN: last hidden layer; classical: standardised features), coloured by "
+                     "its TRUE state. Well separated clusters mean the features distinguish the states; "
+                     "points inside another colour's cluster are the confusions.</p></div>")
+    if card.get("history"):
+        png = plots.figure_to_base64(plots.plot_history(card["history"]))
+        parts.append(f"<h2>Training</h2>{_img(png, 'training curve')}<p class='muted'>"
+                     f"{card.get('n_epochs')} epochs, weights of epoch {card.get('best_epoch')} kept "
+                     "(lowest validation loss).</p>")
+    if examples:
+        png = plots.figure_to_base64(plots.plot_examples(examples, fs, frequencies))
+        if frequencies:
+            ftab = "".join(f"<tr><td>{html.escape(k)}</td><td>{v:.3f}</td></tr>" for k, v in frequencies.items())
+            ftab = ("<table><tr><th>characteristic frequency</th><th>Hz</th></tr>" + ftab + "</table>")
+        else:
+            ftab = "<p class='muted'>No speed recorded in the store: frequencies not marked.</p>"
+        parts.append("<h2>Example signals per state</h2>" + _img(png, "waveforms and spectra") +
+                     "<p class='muted'>One sample per state from the evaluated split. Dashed lines: "
+                     "characteristic frequencies (as <code>rvdiag freqs</code>) at the samples' speed.</p>" + ftab)
+    cfg = store_info.get("config")
+    parts.append("<h2>Library config</h2><p class='muted'>config hash "
+                 f"{html.escape(str(store_info.get('config_hash')))}</p>"
+                 f"<pre>{html.escape(json.dumps(cfg, indent=2, default=str))}</pre>")
+    card_view = {k: v for k, v in card.items() if k != "history"}
+    parts.append(f"<h2>Model card</h2><pre>{html.escape(json.dumps(card_view, indent=2, default=str))}</pre>")
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
+def write_report(path: str | Path, html_text: str) -> Path:
+    """Write the report atomically (temporary file + rename)."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(html_text)
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, p)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return p
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask

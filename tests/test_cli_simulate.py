@@ -1,0 +1,90 @@
+"""`rvdiag simulate` and `rvdiag freqs`: outputs, repeatability from the recorded settings, bad input."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from rvdiag.cli import main
+from rvdiag.dynamics import ModelSettings, SimulationResult, simulate
+from rvdiag.kinematics import FREQUENCY_KEYS
+from rvdiag.params import ReducerParams
+
+
+def run(argv, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+        raise SystemExit(0)
+    out = capsys.readouterr()
+    return exc.value.code, out.out, out.err
+
+
+def test_freqs_json_keys_and_values(capsys):
+    code, out, err = run(["freqs", "--output-speed", "45", "--json"], capsys)
+    assert code in (0, None), err
+    d = json.loads(out)
+    assert tuple(d) == FREQUENCY_KEYS
+    assert abs(d["fsp"] - 165.0) < 1e-9 and abs(d["fcs"] - 195.0) < 1e-9
+
+
+def test_freqs_table(capsys):
+    code, out, _ = run(["freqs", "--input-speed", "1000"], capsys)
+    assert code in (0, None)
+    assert "fsp" in out and "stage-1 mesh" in out
+
+
+def test_simulate_writes_repeatable_npz(tmp_path, capsys):
+    path = tmp_path / "s.npz"
+    argv = ["simulate", "--state", "T2", "--output-speed", "30", "--load", "60", "--duration", "0.01",
+            "--fs", "12000", "--substeps", "40", "--transient", "0.005", "--noise-snr", "20", "--seed", "3",
+            "--quiet", "--out", str(path)]
+    code, out, err = run(argv, capsys)
+    assert code in (0, None), err
+    with np.load(path, allow_pickle=False) as z:
+        assert set(z.files) >= {"signal", "fs", "settings"}
+        signal, fs, settings = z["signal"], float(z["fs"]), json.loads(str(z["settings"]))
+    assert signal.shape == (2, 120) and fs == 12000.0 and np.all(np.isfinite(signal))
+    assert settings["seed"] == 3 and settings["state"] == "T2" and settings["noise_snr_db"] == 20.0
+    assert settings["params"] == ReducerParams.default().to_dict()
+    assert settings["model_settings"]["substeps"] == 40
+    # the recorded settings repeat the run exactly through the Python API
+    from rvdiag.gears import ToothFaults
+
+    again = simulate(ReducerParams.from_dict(settings["params"]), ToothFaults.for_state(settings["state"]),
+                     output_speed_deg_s=settings["output_speed_deg_s"], load_Nm=settings["load_Nm"],
+                     duration_s=settings["duration_s"], fs=settings["fs"],
+                     noise_snr_db=settings["noise_snr_db"], seed=settings["seed"],
+                     settings=ModelSettings(**{k: (tuple(map(tuple, v)) if k == "sensor_directions" else v)
+                                               for k, v in settings["model_settings"].items()}))
+    np.testing.assert_array_equal(again.signal, signal)
+    res = SimulationResult.from_npz(path)
+    assert res.fs == 12000.0 and res.signal.shape == (2, 120)
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["simulate", "--input-speed", "-100"], "input speed must be > 0"),
+    (["simulate", "--input-speed", "100", "--output-speed", "30"], "not both"),
+    (["simulate"], "--input-speed"),
+    (["simulate", "--state", "T9", "--input-speed", "100"], "unknown fault state"),
+    (["simulate", "--input-speed", "1000", "--substeps", "1", "--transient", "0", "--duration", "0.01"],
+     "increase the sub-steps"),
+    (["simulate", "--input-speed", "1000", "--duration", "0"], "duration_s must be"),
+    (["simulate", "--state", "T2", "--input-speed", "1000", "--broken-fraction", "2"], "broken fraction"),
+    (["simulate", "--state", "T1", "--input-speed", "1000", "--wear-depth", "0.01"], "does not apply"),
+    (["freqs", "--output-speed", "-3"], "output speed must be > 0"),
+    (["freqs"], "--input-speed"),
+])
+def test_bad_input_one_line_exit_2(argv, fragment, tmp_path, capsys):
+    if argv[0] == "simulate":
+        argv = argv + ["--quiet", "--out", str(tmp_path / "x.npz")]
+    code, _, err = run(argv, capsys)
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and fragment in lines[0], err
+
+
+def test_out_must_be_npz(tmp_path, capsys):
+    code, _, err = run(["simulate", "--input-speed", "100", "--out", str(tmp_path / "x.txt")], capsys)
+    assert code == 2 and ".npz" in err

@@ -1,0 +1,103 @@
+"""The compiled RK4 integrator: agreement with scipy, streaming, determinism, energy, instability."""
+
+from __future__ import annotations
+
+import tracemalloc
+
+import numpy as np
+import pytest
+from numpy.testing import assert_array_equal
+from scipy.integrate import solve_ivp
+
+from rvdiag.dynamics import ModelSettings, prepare, simulate
+from rvdiag.dynamics import model as mdl
+from rvdiag.dynamics.integrate import integrate
+from rvdiag.dynamics.linear import static_equilibrium, total_energy
+from rvdiag.errors import SimulationError
+from rvdiag.params import ReducerParams
+
+P0 = ReducerParams.default()
+
+
+def test_matches_scipy_dop853_over_50ms():
+    """Default settings (48 kHz, 10 sub-steps) against solve_ivp DOP853, rtol 1e-9, on the same right-hand
+    side: relative L2 error of the sensor signal below 1e-3 (measured 4.6e-4 with 12 sub-steps, 1.3e-3 with 8)."""
+    fs, T = 48000.0, 0.05
+    m = prepare(P0, output_speed_deg_s=45.0, load_Nm=100.0)
+    q0 = static_equilibrium(m, 0.0)
+    y0 = np.concatenate([q0, np.zeros_like(q0)])
+    n = int(round(T * fs))
+    sig, _ = integrate(m, y0, fs, n)
+    f = mdl.make_rhs(m)
+    te = np.arange(n) / fs
+    sol = solve_ivp(f, (0.0, te[-1]), y0, method="DOP853", rtol=1e-9, atol=1e-15, t_eval=te)
+    assert sol.status == 0
+    acc = np.array([f(t, sol.y[:, k])[m.n_dof:] for k, t in enumerate(te)])
+    ref = mdl.sensor_acceleration(m, acc)
+    err = np.linalg.norm(sig - ref) / np.linalg.norm(ref)
+    assert err < 1e-3, err
+
+
+def test_chunking_and_repetition_give_identical_output():
+    kw = dict(output_speed_deg_s=30.0, load_Nm=80.0, duration_s=0.01, fs=24000.0)
+    a = simulate(P0, settings=ModelSettings(transient_s=0.002, chunk_samples=7), **kw)
+    b = simulate(P0, settings=ModelSettings(transient_s=0.002, chunk_samples=100000), **kw)
+    c = simulate(P0, settings=ModelSettings(transient_s=0.002, chunk_samples=7), **kw)
+    assert a.signal.shape == (2, 240)
+    assert_array_equal(a.signal, b.signal)
+    assert_array_equal(a.signal, c.signal)
+    assert np.std(a.signal) > 0
+
+
+def test_noise_is_seeded():
+    kw = dict(output_speed_deg_s=30.0, duration_s=0.005, fs=12000.0,
+              settings=ModelSettings(transient_s=0.001, substeps=20))
+    a = simulate(P0, noise_snr_db=10.0, seed=4, **kw)
+    b = simulate(P0, noise_snr_db=10.0, seed=4, **kw)
+    c = simulate(P0, noise_snr_db=10.0, seed=5, **kw)
+    clean = simulate(P0, **kw)
+    assert_array_equal(a.signal, b.signal)
+    assert not np.array_equal(a.signal, c.signal)
+    snr = 10 * np.log10(np.mean(clean.signal**2, axis=1) / np.mean((a.signal - clean.signal) ** 2, axis=1))
+    assert np.all(np.abs(snr - 10.0) < 1.0)
+
+
+def test_memory_stays_flat():
+    """No sub-step history: peak allocation is the output plus a small constant, not fs * substeps * state."""
+    kw = dict(output_speed_deg_s=30.0, fs=48000.0, settings=ModelSettings(transient_s=0.0, chunk_samples=4800))
+    simulate(P0, duration_s=0.001, **kw)
+    tracemalloc.start()
+    res = simulate(P0, duration_s=0.5, **kw)
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    out_bytes = res.signal.nbytes  # 384 kB; a sub-step history would be ~100 MB
+    assert peak < 3 * out_bytes + 2_000_000, peak
+
+
+def test_too_few_substeps_raise_instability_error_with_remedy():
+    with pytest.raises(SimulationError, match=r"(?s)unstable.*sub-steps.*Remedy: increase the sub-steps"):
+        simulate(P0, output_speed_deg_s=30.0, duration_s=0.01, fs=48000.0,
+                 settings=ModelSettings(substeps=1, transient_s=0.0))
+
+
+def _energy_drift(substeps: int) -> float:
+    """Relative change of the Jacobi integral over 5 ms, damping and time variation off."""
+    st = ModelSettings(substeps=substeps, damping=False, excitation=False, transient_s=0.0)
+    m = prepare(P0, output_speed_deg_s=45.0, load_Nm=100.0, settings=st)
+    q0 = static_equilibrium(m, 0.0)
+    rng = np.random.default_rng(1)
+    v0 = 1e-3 * rng.standard_normal(m.n_dof) / np.sqrt(m.mass / m.mass.min())
+    y0 = np.concatenate([q0, v0])
+    e0 = total_energy(m, 0.0, y0)
+    kin0 = 0.5 * np.sum(m.mass * v0**2)
+    _, y1 = integrate(m, y0, 48000.0, 240)
+    return abs(total_energy(m, 0.005, y1) - e0) / kin0
+
+
+def test_energy_conserved_without_damping_and_excitation():
+    """T + V (rotating frame: Coriolis does no work) is constant to integrator accuracy: the drift falls
+    at least as h^4 (RK4's order; measured ~h^5: 1.1e-2, 3.8e-4, 1.2e-5 at 20, 40, 80 sub-steps; the
+    random start puts most energy in the 50-60 kHz modes, which RK4 damps numerically at large h)."""
+    d20, d40, d80 = (_energy_drift(s) for s in (20, 40, 80))
+    assert d80 < 1e-4, d80
+    assert d20 / d40 > 16 and d40 / d80 > 16, (d20, d40, d80)
