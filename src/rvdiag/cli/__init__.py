@@ -69,13 +69,16 @@ def main(argv: list[str] | None = None) -> None:
         _fail(str(exc))
     except (FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError) as exc:
         _fail(f"{exc.strerror or exc}: {exc.filename}" if getattr(exc, "filename", None) else str(exc))
-    except _click_exc.UsageError as exc:
+    except _click_exc.ClickException as exc:  # usage errors, bad parameters, unreadable --option files
         _fail(exc.format_message())
-    except _click_exc.Abort:
+    except typer.Abort:
         typer.echo("aborted", err=True)
         sys.exit(130)
-    except _click_exc.Exit as exc:
+    except typer.Exit as exc:
         sys.exit(exc.exit_code)
+    except BrokenPipeError:  # `rvdiag ... | head`: the reader went away; not an error of ours
+        sys.stderr.close()
+        sys.exit(0)
 
 
 def _fail(message: str) -> None:
