@@ -513,7 +513,7 @@ def main(argv=None) -> int:
     opts = ap.parse_args(argv)
     q = opts.quick
     defaults = {"runs_random": 3 if q else 10, "runs_eemd": 5 if q else 30, "eemd_ensemble": 10 if q else 20,
-                "tune_samples": 150 if q else 240, "tune_epoch": 5 if q else 10, "tune_pop": 10}
+                "tune_samples": 150 if q else 200, "tune_epoch": 5 if q else 10, "tune_pop": 10}
     for k, v in defaults.items():
         if getattr(opts, k) is None:
             setattr(opts, k, v)

@@ -88,3 +88,42 @@ def test_bad_input_one_line_exit_2(argv, fragment, tmp_path, capsys):
 def test_out_must_be_npz(tmp_path, capsys):
     code, _, err = run(["simulate", "--input-speed", "100", "--out", str(tmp_path / "x.txt")], capsys)
     assert code == 2 and ".npz" in err
+
+
+def test_result_plot_and_npz_roundtrip(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = np.arange(4800) / 48000.0
+    sig = np.vstack([np.sin(2 * np.pi * 1000 * t), 0.5 * np.cos(2 * np.pi * 2000 * t)])
+    res = SimulationResult(sig, 48000.0, {"seed": 1}, ["x", "y"])
+    f, amp = res.spectrum(1)
+    assert abs(f[np.argmax(amp)] - 2000.0) < 1e-9 and abs(amp.max() - 0.5) < 0.01
+    fig = res.plot(channel=1, fmax_hz=5000)
+    assert len(fig.axes) == 2 and fig.axes[0].get_ylabel().startswith("y")
+    plt.close(fig)
+    res.to_npz(tmp_path / "r.npz")
+    back = SimulationResult.from_npz(tmp_path / "r.npz")
+    np.testing.assert_array_equal(back.signal, sig)
+    assert back.settings == {"seed": 1} and back.channel_names == ["x", "y"]
+    (tmp_path / "bad.npz").write_bytes(b"not a zip")
+    from rvdiag.errors import DataFileError
+
+    with pytest.raises(DataFileError):
+        SimulationResult.from_npz(tmp_path / "bad.npz")
+
+
+def test_add_awgn_snr_and_validation():
+    from rvdiag.dynamics import add_awgn
+    from rvdiag.errors import ParameterError
+
+    x = np.sin(np.linspace(0, 400 * np.pi, 200000))[None, :]
+    y = add_awgn(x, 3.0, np.random.default_rng(0))
+    snr = 10 * np.log10(np.mean(x**2) / np.mean((y - x) ** 2))
+    assert abs(snr - 3.0) < 0.05
+    np.testing.assert_array_equal(add_awgn(x, 3.0, 7), add_awgn(x, 3.0, np.random.default_rng(7)))
+    for bad in (float("nan"), "10", True):
+        with pytest.raises(ParameterError):
+            add_awgn(x, bad)

@@ -47,9 +47,11 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Build (or resume) the library of CONFIG into --out, in parallel on Dask.
 
-        Deterministic: the same config gives bit-identical arrays whatever the workers.  Resumable: each
-        simulation is committed atomically; re-running the same command after a crash or Ctrl-C skips
-        committed simulations.  A store built from another config is refused.
+        Deterministic: the same config gives bit-identical arrays whatever the workers.
+
+        Resumable: re-running the same command after a crash or Ctrl-C skips committed simulations.
+
+        A store built from another config is refused.  Fields of CONFIG: docs/library.md.
         """
         from rvdiag.library.build import build_library, check_run_options
         from rvdiag.library.config import LibraryConfig

@@ -100,10 +100,11 @@ def register(app: typer.Typer) -> None:
         if quiet:
             res = simulate(p, None if fault.is_healthy else fault, **kw)
         else:
+            from rich.console import Console
             from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
             with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
-                          TimeRemainingColumn(), transient=True) as bar:
+                          TimeRemainingColumn(), transient=True, console=Console(stderr=True)) as bar:
                 task = bar.add_task("sim", total=None)
 
                 def progress(done: int, total: int) -> None:

@@ -57,7 +57,7 @@ def build_estimator(model: str, features: str | None, *, epochs: int, device: st
     raise ParameterError(f"unknown model {model!r}; use one of {'|'.join(CNN_MODELS + CLASSICAL_MODELS)}")
 
 
-def _fit(est, X, y, quiet: bool, label: str):
+def _fit(est, X, y, quiet: bool, label: str, groups=None):
     """Fit with a rich progress bar per epoch (CNN) or a spinner (classical)."""
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -74,8 +74,11 @@ def _fit(est, X, y, quiet: bool, label: str):
                 if rec["val_accuracy"] is not None:
                     info += f"  val loss {rec['val_loss']:.4f}  val acc {100 * rec['val_accuracy']:.1f} %"
                 prog.update(task, completed=rec["epoch"], info=info)
+                if not quiet and not console.is_terminal:  # a log file gets one line per epoch
+                    console.print(f"{label} epoch {rec['epoch']}/{rec['max_epochs']}: {info} ({rec['seconds']:.1f} s)",
+                                  soft_wrap=True)
 
-            est.fit(X, y, callback=cb)
+            est.fit(X, y, callback=cb, groups=groups)
             prog.update(task, total=est.n_epochs_, completed=est.n_epochs_,
                         info=f"stopped after {est.n_epochs_} epochs, kept epoch {est.best_epoch_}")
     else:
@@ -127,6 +130,14 @@ def register(app: typer.Typer) -> None:
             raise ParameterError(f"--epochs must be >= 1, got {epochs}")
         if out.exists() and not out.is_dir():
             raise ParameterError(f"--out {out} exists and is not a directory")
+        build_estimator(model, features, epochs=epochs, device=device, seed=seed, batch_size=batch_size, lr=lr,
+                        input_length=input_length, patience=patience,
+                        validation_fraction=validation_fraction)  # checks --model/--features before any work
+        if features is not None and model in CLASSICAL_MODELS:
+            from rvdiag.features import feature_names
+
+            if features not in feature_names():
+                raise ParameterError(f"unknown feature set {features!r}; use one of {'|'.join(feature_names())}")
         store = SampleStore.open(data)
         if "train" not in store.splits():
             raise StoreError(f"{data} has no 'train' split (splits: {', '.join(store.splits())})")
@@ -152,7 +163,7 @@ def register(app: typer.Typer) -> None:
                     echo(f"note: samples have {store.length} points and the {model} input is {W}: each sample is cut "
                          f"into {len(starts)} window(s) starting at {starts.tolist()}; training uses every window, "
                          "predictions average them (docs/models.md)")
-            _fit(est, tr.X, tr.y, quiet or json_out, f"seed {s}")
+            _fit(est, tr.X, tr.y, quiet or json_out, f"seed {s}", groups=tr.meta.get("unit"))
             metrics = None
             if te is not None and len(te.y):
                 metrics = classification_metrics(te.y, est.predict(te.X), labels=[str(c) for c in est.classes_])

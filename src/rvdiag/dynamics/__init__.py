@@ -40,6 +40,8 @@ def mesh_table(params: ReducerParams, fault: Any = None, source: str = "auto") -
     """
     if isinstance(fault, MeshTable):
         return fault
+    if fault is not None and getattr(fault, "is_healthy", False):
+        fault = None
     if source not in ("auto", "gears", "rectangular"):
         raise ParameterError(f"mesh source must be auto, gears or rectangular, got {source!r}")
     use_gears = source == "gears" or (source == "auto" and gears_available())

@@ -121,7 +121,7 @@ def integrate(
     nd, nz = model.n_discs, model.cosk.size
     geo = [np.zeros((nd, 3, nz)) for _ in range(3)]
     rot = [np.zeros((nd, 4)) for _ in range(3)]
-    work = [np.zeros(n)] + [np.zeros(2 * n) for _ in range(5)]
+    work = [np.zeros(n + 2 * nz)] + [np.zeros(2 * n) for _ in range(5)]  # Q + pin scratch, k1..k4, ytmp
     out = np.zeros((model.sensor.shape[0], n_samples))
     chunk = max(1, int(st.chunk_samples))
     cbuf = np.zeros((model.sensor.shape[0], chunk))

@@ -454,27 +454,40 @@ def _pin_sums(gx, gy, gl, ux, uy, th, wx, wy, om, kp, cp, bil):
 
 
 @numba.njit(cache=True, fastmath=False, error_model="numpy", inline="always")
-def _pin_sums_pair(gx, gy, gl, ux, uy, th, wx, wy, om, vx_, vy_, ph, zx, zy, ps, kp, cp, bil):
-    """:func:`_pin_sums` for two discs that share one pin geometry, in one pass over the pins."""
-    ax = ay = am = 0.0
-    bx = by = bm = 0.0
+def _dot4(a, b):
+    """Dot product with four interleaved partial sums (fixed order: deterministic, no fast-math)."""
+    s0 = s1 = s2 = s3 = 0.0
+    n = a.size
+    n4 = n - n % 4
+    for k in range(0, n4, 4):
+        s0 += a[k] * b[k]
+        s1 += a[k + 1] * b[k + 1]
+        s2 += a[k + 2] * b[k + 2]
+        s3 += a[k + 3] * b[k + 3]
+    for k in range(n4, n):
+        s0 += a[k] * b[k]
+    return (s0 + s1) + (s2 + s3)
+
+
+@numba.njit(cache=True, fastmath=False, error_model="numpy", inline="always")
+def _pin_sums_pair(gx, gy, gl, ux, uy, th, wx, wy, om, vx, vy, ph, zx, zy, ps, kp, cp, bil, F1, F2):
+    """:func:`_pin_sums` for two discs that share one pin geometry.
+
+    The contact forces go to the scratch arrays ``F1, F2`` first (an element-wise loop with a select,
+    which vectorises), then six dot products give the sums.
+    """
+    dlim = -np.inf if bil != 0.0 else 0.0
     for k in range(gx.size):
         nx = gx[k]
         ny = gy[k]
         lk = gl[k]
         d = ux * nx + uy * ny + th * lk
         f = kp * d + cp * (wx * nx + wy * ny + om * lk)
-        f = f if (d > 0.0 or bil != 0.0) else 0.0
-        d2 = vx_ * nx + vy_ * ny + ph * lk
+        F1[k] = f if d > dlim else 0.0
+        d2 = vx * nx + vy * ny + ph * lk
         f2 = kp * d2 + cp * (zx * nx + zy * ny + ps * lk)
-        f2 = f2 if (d2 > 0.0 or bil != 0.0) else 0.0
-        ax += f * nx
-        ay += f * ny
-        am += f * lk
-        bx += f2 * nx
-        by += f2 * ny
-        bm += f2 * lk
-    return ax, ay, am, bx, by, bm
+        F2[k] = f2 if d2 > dlim else 0.0
+    return (_dot4(F1, gx), _dot4(F1, gy), _dot4(F1, gl), _dot4(F2, gx), _dot4(F2, gy), _dot4(F2, gl))
 
 
 @numba.njit(cache=True, fastmath=False, error_model="numpy")
@@ -490,7 +503,8 @@ def generalized_forces(t, q, v, P, planet, tvms, geo, rot, Q):
     iD0 = 3 + 6 * N
     iH = iD0 + 3 * D
     iR = iH + 3
-    for i in range(Q.size):
+    nq = iR + 3  # Q[nq:] is scratch for the pin contact forces (see work_arrays)
+    for i in range(nq):
         Q[i] = 0.0
     a = P[I_A]
     e = P[I_E]
@@ -606,6 +620,7 @@ def generalized_forces(t, q, v, P, planet, tvms, geo, rot, Q):
     cp = P[I_CPIN]
     rr = P[I_ZP] / P[I_ZC]
     gsh = P[I_GSHARED] != 0.0
+    nzp = geo.shape[2]
     jd = 0
     while jd < D:
         a0, a1, a2, a3, a4, a5 = _disc_frame(jd, q, v, rot, iD0, iR, rr)
@@ -613,7 +628,8 @@ def generalized_forces(t, q, v, P, planet, tvms, geo, rot, Q):
             g = geo[0]
             b0, b1, b2, b3, b4, b5 = _disc_frame(jd + 1, q, v, rot, iD0, iR, rr)
             s0x, s0y, s0m, s1x, s1y, s1m = _pin_sums_pair(
-                g[0], g[1], g[2], a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, kp, cp, bil)
+                g[0], g[1], g[2], a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, kp, cp, bil,
+                Q[nq:nq + nzp], Q[nq + nzp:nq + 2 * nzp])
             _apply_pin_sums(jd, s0x, s0y, s0m, iD0, iR, rr, rot, Q)
             _apply_pin_sums(jd + 1, s1x, s1y, s1m, iD0, iR, rr, rot, Q)
             jd += 2
@@ -710,9 +726,10 @@ def rhs(t, y, P, mass, planet, tvms, cosk, sink, geo, rot, Q, dydt):
 
 
 def work_arrays(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Fresh (geo, rot, Q) work arrays for :func:`rhs`."""
+    """Fresh (geo, rot, Q) work arrays for :func:`rhs`; ``Q`` holds the n generalized forces followed
+    by 2 Zp scratch values (pin contact forces)."""
     return (np.zeros((model.n_discs, 3, model.cosk.size)), np.zeros((model.n_discs, 4)),
-            np.zeros(model.n_dof))
+            np.zeros(model.n_dof + 2 * model.cosk.size))
 
 
 def make_rhs(model: Model):
@@ -735,7 +752,7 @@ def forces(model: Model, t: float, q: np.ndarray, v: np.ndarray | None = None) -
     pin_geometry(float(t), model.P, model.cosk, model.sink, geo, rot)
     v = np.zeros_like(q) if v is None else np.asarray(v, float)
     generalized_forces(float(t), np.asarray(q, float), v, model.P, model.planet, model.tvms, geo, rot, Q)
-    return Q.copy()
+    return Q[: model.n_dof].copy()
 
 
 def sensor_acceleration(model: Model, acc: np.ndarray) -> np.ndarray:

@@ -18,9 +18,11 @@ Keys of :func:`classification_metrics` (also the keys of ``rvdiag evaluate --jso
 
 from __future__ import annotations
 
+import warnings
 from typing import Sequence
 
 import numpy as np
+from sklearn.exceptions import UndefinedMetricWarning
 from sklearn.metrics import (
     accuracy_score,
     cohen_kappa_score,
@@ -59,13 +61,17 @@ def classification_metrics(y_true, y_pred, labels: Sequence[str] | None = None) 
         raise ValueError("no samples to score")
     p, r, f, s = precision_recall_fscore_support(yt, yp, labels=labels, zero_division=0)
     present = s > 0  # macro averages over classes that occur in y_true
-    kappa = cohen_kappa_score(yt, yp, labels=labels)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UndefinedMetricWarning)
+        kappa = cohen_kappa_score(yt, yp, labels=labels)
+    if not np.isfinite(kappa):  # one label only in both: agreement is perfect or nil
+        kappa = 1.0 if np.all(yt == yp) else 0.0
     return {
         "accuracy": float(accuracy_score(yt, yp)),
         "precision_macro": float(np.mean(p[present])),
         "recall_macro": float(np.mean(r[present])),
         "f1_macro": float(np.mean(f[present])),
-        "kappa": float(kappa) if np.isfinite(kappa) else 1.0,
+        "kappa": float(kappa),
         "per_class": {
             c: {"precision": float(p[i]), "recall": float(r[i]), "f1": float(f[i]), "support": int(s[i])}
             for i, c in enumerate(labels)

@@ -338,7 +338,7 @@ def _dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
             client.close()
         return
     cluster = LocalCluster(
-        n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+        n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
         silence_logs=logging.ERROR,
     )
     try:
@@ -455,7 +455,10 @@ def _run_on_client(client: Any, todo: list[Unit], job: Job, write: Callable[[Uni
 
     nthreads = sum(client.nthreads().values())
     if nthreads == 0:
-        client.wait_for_workers(1, timeout=60)
+        try:
+            client.wait_for_workers(1, timeout=60)
+        except TimeoutError:
+            raise RvdiagError("the Dask cluster has no workers (none joined within 60 s)") from None
         nthreads = sum(client.nthreads().values())
     window = max(1, nthreads)
     pending = iter(todo)

@@ -461,10 +461,11 @@ class LibraryConfig:
 
     def replace(self, **changes: Any) -> "LibraryConfig":
         """Copy with top-level or section keys changed, re-validated: ``cfg.replace(seed=2)``,
-        ``cfg.replace(signal={"duration_s": 2.0})``."""
+        ``cfg.replace(signal={"duration_s": 2.0})``.  The tables ``signal``, ``operation``, ``randomise``
+        and ``split`` are updated key by key; ``states`` and ``model`` are replaced whole."""
         data = self.to_dict()
         for key, value in changes.items():
-            if isinstance(value, Mapping) and isinstance(data.get(key), dict) and key != "states":
+            if key in _SECTION_KEYS and isinstance(value, Mapping):
                 data[key] = {**data[key], **value}
             else:
                 data[key] = value

@@ -203,7 +203,7 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         return self._normalise(self._windows(np.asarray(X, dtype=np.float32)))
 
     # ------------------------------------------------------------------ training
-    def fit(self, X, y, callback: Callable[[dict], None] | None = None):
+    def fit(self, X, y, callback: Callable[[dict], None] | None = None, groups=None):
         """Train the network.
 
         Parameters
@@ -213,6 +213,9 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         callback : callable, optional
             Called after every epoch with a dict ``epoch, max_epochs, loss, val_loss, val_accuracy,
             seconds`` (``val_*`` are None without a validation split).
+        groups : array-like (n_samples,), optional
+            Group of each sample (e.g. the simulation ``unit`` of a library): the validation split then
+            holds whole groups, so overlapping windows of one simulation never straddle it.
 
         Returns
         -------
@@ -230,7 +233,11 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         self.device_ = str(device)
         rng = np.random.default_rng(self.random_state)
 
-        tr, va = _split(y_idx, float(self.validation_fraction), rng)
+        if groups is not None:
+            groups = np.asarray(groups)
+            if groups.shape != (len(y_idx),):
+                raise ParameterError(f"groups must have one entry per sample ({len(y_idx)}), got shape {groups.shape}")
+        tr, va = _split(y_idx, float(self.validation_fraction), rng, groups)
         k = len(self.window_starts_)
         if self.normalize == "global":
             self.norm_mean_ = float(X[tr].mean())
@@ -336,15 +343,23 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         return tags
 
 
-def _split(y_idx: np.ndarray, fraction: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Stratified split of sample indices: about ``fraction`` of every class (at least one sample per
-    class stays in training) goes to validation.  Returns (train, validation)."""
+def _split(y_idx: np.ndarray, fraction: float, rng: np.random.Generator,
+           groups: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Stratified split of sample indices: about ``fraction`` of every class (at least one sample, or
+    one group, per class stays in training) goes to validation.  With ``groups``, whole groups move
+    (a group is assigned to the class of its first sample).  Returns (train, validation)."""
     n = len(y_idx)
     if fraction <= 0:
         return np.arange(n), np.zeros(0, dtype=np.int64)
     va = []
     for c in np.unique(y_idx):
-        members = rng.permutation(np.flatnonzero(y_idx == c))
+        members = np.flatnonzero(y_idx == c)
+        if groups is not None:
+            units = rng.permutation(np.unique(groups[members]))
+            m = min(int(round(fraction * len(units))), len(units) - 1)
+            va.extend(members[np.isin(groups[members], units[:m])].tolist())
+            continue
+        members = rng.permutation(members)
         m = int(round(fraction * len(members)))
         m = min(m, len(members) - 1)
         va.extend(members[:m].tolist())

@@ -1,0 +1,151 @@
+"""train -> evaluate -> diagnose on a tiny synthetic store, and the one-line errors (exit 2)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from rvdiag.cli import main
+from rvdiag.datasets import write_store
+
+FS = 1000.0
+L = 256
+
+
+def run(args, capsys):
+    try:
+        main([str(a) for a in args])
+        code = 0
+    except SystemExit as exc:
+        code = exc.code
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def _signal(c: int, n: int, rng) -> np.ndarray:
+    t = np.arange(n) / FS
+    x = np.sin(2 * np.pi * (50 + 60 * c) * t + rng.uniform(0, 6)) + 0.2 * rng.standard_normal(n)
+    if c == 1:
+        x[rng.integers(0, 20)::20] += 4.0
+    return x
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    rng = np.random.default_rng(0)
+    X, y, split, unit = [], [], [], []
+    for c in range(3):
+        for i in range(16):
+            X.append(_signal(c, L, rng))
+            y.append(f"T{c + 1}")
+            split.append("test" if i < 4 else "train")
+            unit.append(c * 100 + i // 2)
+    p = tmp_path_factory.mktemp("s") / "tiny.zarr"
+    write_store(p, np.asarray(X, np.float32), y,
+                meta={"split": split, "unit": unit, "output_speed_deg_s": [45.0] * len(y)},
+                kind="simulated", fs=FS, config={"name": "tiny"})
+    return p
+
+
+@pytest.fixture(scope="module")
+def cnn_model(store, tmp_path_factory):
+    out = tmp_path_factory.mktemp("m") / "model"
+    main_args = ["train", store, "--model", "cnn1d-lean", "--out", out, "--epochs", "8", "--lr", "0.01",
+                 "--batch-size", "8", "--device", "cpu", "--seed", "1", "--quiet"]
+    try:
+        main([str(a) for a in main_args])
+    except SystemExit as exc:  # pragma: no cover - a failure shows here
+        assert exc.code == 0
+    return out
+
+
+def test_train_writes_a_model_directory(cnn_model):
+    assert (cnn_model / "card.json").is_file() and (cnn_model / "model.safetensors").is_file()
+    card = json.loads((cnn_model / "card.json").read_text())
+    assert card["classes"] == ["T1", "T2", "T3"] and card["seed"] == 1 and card["fs"] == FS
+    assert card["training_store"]["config_hash"] and card["training_store"]["path"].endswith("tiny.zarr")
+    assert 0.0 <= card["metrics"]["accuracy"] <= 1.0
+
+
+def test_evaluate_json_and_report(cnn_model, store, tmp_path, capsys):
+    rep = tmp_path / "report.html"
+    code, out, err = run(["evaluate", cnn_model, store, "--split", "test", "--json", "--report", rep], capsys)
+    assert code == 0, err
+    m = json.loads(out)
+    for key in ("accuracy", "precision_macro", "recall_macro", "f1_macro", "kappa", "per_class", "confusion"):
+        assert key in m
+    assert np.sum(m["confusion"]) == 12
+    assert m["accuracy"] >= 0.75  # three clearly different tones
+    text = rep.read_text()
+    assert "t-SNE" in text and "data:image/png;base64," in text
+    code, out, _ = run(["evaluate", cnn_model, store, "--split", "all"], capsys)
+    assert code == 0 and "48 samples" in out and "T3" in out
+
+
+def test_diagnose_windows_a_signal(cnn_model, tmp_path, capsys):
+    rng = np.random.default_rng(5)
+    x = np.concatenate([_signal(2, L, rng) for _ in range(3)])[: 3 * L - 10]
+    f = tmp_path / "sig.npy"
+    np.save(f, x)
+    code, out, err = run(["diagnose", cnn_model, f, "--json"], capsys)
+    assert code == 0, err
+    res = json.loads(out)
+    assert res["n_windows"] == 2 and len(res["windows"]) == 2 and res["window_length"] == L
+    assert sum(res["probabilities"].values()) == pytest.approx(1.0, abs=1e-5)
+    assert res["diagnosis"] == "T3"
+    assert "no sampling rate" in err and "last 246 points are not used" in err
+    code, out, err = run(["diagnose", cnn_model, f, "--fs", "2000"], capsys)
+    assert code == 0 and "2000 Hz but the model was trained at 1000 Hz" in err
+    assert "diagnosis: T3" in out and "overall" in out
+
+
+@pytest.mark.parametrize("args, message", [
+    (["diagnose", "{tmp}/nope", "{sig}"], "no model at"),
+    (["diagnose", "{store}", "{sig}"], "not an rvdiag model directory"),
+    (["diagnose", "{model}", "{short}"], "shorter than one window"),
+    (["evaluate", "{model}", "{model}"], "sample store"),
+    (["evaluate", "{model}", "{store}", "--split", "valid"], "no split"),
+    (["train", "{store}", "--model", "resnet", "--out", "{tmp}/x"], "unknown model"),
+    (["train", "{store}", "--model", "cnn1d-lean", "--features", "wpd", "--out", "{tmp}/x"], "--features"),
+    (["train", "{store}", "--model", "cnn1d", "--out", "{tmp}/x", "--quiet"], "6400"),
+    (["train", "{tmp}/missing.zarr", "--out", "{tmp}/x"], "no sample store"),
+])
+def test_bad_input_is_one_line_exit_2(cnn_model, store, tmp_path, capsys, args, message):
+    short = tmp_path / "short.npy"
+    np.save(short, np.zeros(100))
+    sig = tmp_path / "sig.npy"
+    np.save(sig, np.zeros(1000))
+    subst = {"{tmp}": str(tmp_path), "{model}": str(cnn_model), "{store}": str(store),
+             "{short}": str(short), "{sig}": str(sig)}
+    argv = []
+    for a in args:
+        for k, v in subst.items():
+            a = a.replace(k, v)
+        argv.append(a)
+    code, out, err = run(argv, capsys)
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], err
+
+
+def test_evaluate_refuses_a_store_of_other_length(cnn_model, tmp_path, capsys):
+    p = tmp_path / "long.zarr"
+    write_store(p, np.zeros((4, 2 * L), np.float32), ["T1", "T2", "T1", "T2"],
+                meta={"split": ["test"] * 4, "unit": [0, 1, 2, 3]}, kind="measured", fs=FS, config={})
+    code, _, err = run(["evaluate", cnn_model, p], capsys)
+    assert code == 2 and "takes samples of 256 points" in err
+
+
+def test_classical_model_and_repeat(store, tmp_path, capsys):
+    out = tmp_path / "svm"
+    code, stdout, err = run(["train", store, "--model", "svm", "--features", "time", "--out", out,
+                             "--repeat", "2", "--quiet"], capsys)
+    assert code == 0, err
+    assert "over 2 seeds" in stdout and "overall" in stdout
+    summary = json.loads((out / "repeat.json").read_text())
+    assert summary["n_runs"] == 2 and set(summary["per_class"]) == {"T1", "T2", "T3"}
+    code, stdout, err = run(["evaluate", out, store, "--json"], capsys)
+    assert code == 0, err
+    assert json.loads(stdout)["accuracy"] >= 0.5

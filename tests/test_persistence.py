@@ -1,0 +1,124 @@
+"""Model directories: safetensors + card.json for CNNs, skops for classical models; clear errors."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from rvdiag import __version__
+from rvdiag.errors import ModelFileError
+from rvdiag.models.persistence import load_model, read_card, save_model
+from rvdiag.models.torch_estimator import CNNClassifier
+
+
+def _data(n=16, L=128, seed=0):
+    rng = np.random.default_rng(seed)
+    X = rng.standard_normal((2 * n, L)).astype(np.float32)
+    X[n:, ::8] += 3.0
+    y = np.array(["A"] * n + ["B"] * n)
+    return X, y
+
+
+@pytest.fixture(scope="module")
+def cnn_dir(tmp_path_factory):
+    X, y = _data()
+    m = CNNClassifier(max_epochs=2, device="cpu", random_state=4, input_length=100, long_input="window").fit(X, y)
+    d = tmp_path_factory.mktemp("m") / "model"
+    save_model(m, d, model="cnn1d-lean", fs=1000.0, seed=4,
+               training_store={"path": "/x/lib.zarr", "config_hash": "abc123"},
+               metrics={"accuracy": 0.5})
+    return d, m, X
+
+
+def test_cnn_round_trip_gives_identical_predictions(cnn_dir):
+    d, m, X = cnn_dir
+    assert sorted(p.name for p in d.iterdir()) == ["card.json", "model.safetensors"]
+    loaded = load_model(d)
+    np.testing.assert_allclose(loaded.estimator.predict_proba(X), m.predict_proba(X), rtol=1e-6)
+    assert loaded.estimator.window_starts_.tolist() == [0, 28]
+    np.testing.assert_array_equal(loaded.estimator.predict(X), m.predict(X))
+
+
+def test_card_records_what_the_issue_asks(cnn_dir):
+    d, m, _ = cnn_dir
+    card = read_card(d)
+    assert card["classes"] == ["A", "B"]
+    assert card["input_length"] == 128 and card["fs"] == 1000.0
+    assert card["preprocessing"]["normalize"] == "window"
+    assert card["preprocessing"]["net_input_length"] == 100
+    assert card["training_store"] == {"path": "/x/lib.zarr", "config_hash": "abc123"}
+    assert card["metrics"] == {"accuracy": 0.5}
+    assert card["rvdiag_version"] == __version__ and card["seed"] == 4
+    assert card["kind"] == "cnn" and card["model"] == "cnn1d-lean"
+    assert len(card["history"]) == m.n_epochs_
+
+
+def _copy(cnn_dir, tmp_path):
+    d = tmp_path / "copy"
+    shutil.copytree(cnn_dir[0], d)
+    return d
+
+
+def test_missing_or_foreign_directory(tmp_path):
+    with pytest.raises(ModelFileError, match="no model"):
+        load_model(tmp_path / "nothing")
+    with pytest.raises(ModelFileError, match="no card.json"):
+        load_model(tmp_path)
+    f = tmp_path / "file.npy"
+    f.write_bytes(b"123")
+    with pytest.raises(ModelFileError, match="not a model directory"):
+        load_model(f)
+
+
+@pytest.mark.parametrize("mutate, match", [
+    (lambda c: "{not json", "unreadable"),
+    (lambda c: json.dumps({**c, "format": "something-else"}), "not an rvdiag model card"),
+    (lambda c: json.dumps({**c, "version": 99}), "version"),
+    (lambda c: json.dumps({k: v for k, v in c.items() if k != "classes"}), "classes"),
+    (lambda c: json.dumps({**c, "classes": ["A", "B", "C"]}), "shape"),  # output layer has 2 units
+    (lambda c: json.dumps({**c, "params": {**c["params"], "architecture": "mcsa-cnn"}}), "weights do not match"),
+    (lambda c: json.dumps({**c, "kind": "forest"}), "unknown model kind"),
+])
+def test_card_that_does_not_match_is_refused(cnn_dir, tmp_path, mutate, match):
+    d = _copy(cnn_dir, tmp_path)
+    card = json.loads((d / "card.json").read_text())
+    (d / "card.json").write_text(mutate(card))
+    with pytest.raises(ModelFileError, match=match):
+        load_model(d)
+
+
+def test_corrupt_or_missing_weights(cnn_dir, tmp_path):
+    d = _copy(cnn_dir, tmp_path)
+    (d / "model.safetensors").write_bytes(b"\x00garbage")
+    with pytest.raises(ModelFileError, match="safetensors"):
+        load_model(d)
+    (d / "model.safetensors").unlink()
+    with pytest.raises(ModelFileError, match="no model.safetensors"):
+        load_model(d)
+
+
+def test_classical_model_round_trip(tmp_path):
+    from rvdiag.models.pipelines import make_classical_model
+
+    X, y = _data(L=256)
+    m = make_classical_model("svm", "time", seed=0).fit(X.astype(np.float64), y)
+    d = save_model(m, tmp_path / "svm", model="svm", features="time", fs=None, seed=0, metrics={"accuracy": 1.0})
+    loaded = load_model(d)
+    assert loaded.card["kind"] == "classical" and loaded.card["features"] == "time"
+    assert loaded.card["classes"] == ["A", "B"] and loaded.input_length == 256
+    np.testing.assert_allclose(loaded.estimator.predict_proba(X), m.predict_proba(X))
+
+
+def test_cnn_features_svm_round_trip(tmp_path):
+    """The 'cnn' feature set (motor-current CNN + SVM) saves through skops without torch objects."""
+    from rvdiag.models.pipelines import make_classical_model
+
+    X, y = _data(L=256)
+    m = make_classical_model("svm", "cnn", seed=0, features_kw={"max_epochs": 2, "device": "cpu"}).fit(X, y)
+    assert m[0].transform(X).shape == (len(X), 32)
+    d = save_model(m, tmp_path / "cnnsvm", model="svm", features="cnn", seed=0)
+    loaded = load_model(d)
+    np.testing.assert_allclose(loaded.estimator.predict_proba(X), m.predict_proba(X), rtol=1e-5, atol=1e-7)
