@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> None:
     """Entry point of the ``rvdiag`` console script."""
     app = build_app()
     try:
-        app(args=argv, prog_name="rvdiag", standalone_mode=False)
+        code = app(args=argv, prog_name="rvdiag", standalone_mode=False)
     except RvdiagError as exc:
         _fail(str(exc))
     except (FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError) as exc:
@@ -79,6 +79,9 @@ def main(argv: list[str] | None = None) -> None:
     except BrokenPipeError:  # `rvdiag ... | head`: the reader went away; not an error of ours
         sys.stderr.close()
         sys.exit(0)
+    # with standalone_mode=False, typer.Exit(n) and Ctrl-C come back as a return value
+    if isinstance(code, int) and not isinstance(code, bool) and code != 0:
+        sys.exit(code)
 
 
 def _fail(message: str) -> None:

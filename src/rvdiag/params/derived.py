@@ -4,7 +4,10 @@ No public mass or inertia figures exist for the RV-20E's parts, so each body is 
 annulus (hollow cylinder) of the dimensions in the ``[bodies]``, ``[stage1]`` and ``[stage2]``
 sections: m = rho pi (R^2 - r^2) b and J = m (R^2 + r^2) / 2 about its own axis.  Gear blanks use the
 pitch radius as R; the cycloid disc uses the pin circle radius minus the pin radius and has the crank
-holes removed.  These are estimates good to perhaps +-30 %; users with drawings should override them
+holes removed.  The sun is the RV-20E's input shaft with the small sun gear cut on it (Nabtesco
+RV-E construction: the 11-tooth sun is too small to be a separate gear on a bore), so the sun body
+is the gear ring plus a solid steel shaft of ``bodies.input_shaft_radius`` and
+``bodies.input_shaft_length``, moving as one rigid body (:func:`input_shaft`).  These are estimates good to perhaps +-30 %; users with drawings should override them
 through :func:`body_properties`' result or their own parameter file.
 """
 
@@ -49,13 +52,27 @@ class BodyProperties:
     pin_wheel: Body
 
 
+def input_shaft(p: ReducerParams) -> Body:
+    """Input shaft that carries the sun gear: a solid steel cylinder of radius
+    ``bodies.input_shaft_radius`` and length ``bodies.input_shaft_length`` (m = rho pi r^2 L,
+    J = m r^2 / 2).  Lumped with the sun gear ring in :func:`body_properties` (rigid shaft: its
+    bending and torsion are in ``bearings.sun_support`` and ``bearings.input_torsional``)."""
+    b = p.bodies
+    return annulus(p.material.density, b.input_shaft_radius, 0.0, b.input_shaft_length)
+
+
 def body_properties(p: ReducerParams) -> BodyProperties:
-    """Estimate masses and inertias of all bodies from the parameter set's dimensions."""
+    """Estimate masses and inertias of all bodies from the parameter set's dimensions.
+
+    ``sun`` is the sun gear ring plus the input shaft it is cut on (:func:`input_shaft`).
+    """
     rho = p.material.density
     s1, s2, b = p.stage1, p.stage2, p.bodies
     sun_pitch = 0.5 * s1.module * s1.sun_teeth
     planet_pitch = 0.5 * s1.module * s1.planet_teeth
-    sun = annulus(rho, sun_pitch, min(b.sun_shaft_radius, 0.9 * sun_pitch), s1.face_width)
+    ring = annulus(rho, sun_pitch, min(b.sun_shaft_radius, 0.9 * sun_pitch), s1.face_width)
+    shaft = input_shaft(p)
+    sun = Body(ring.mass + shaft.mass, ring.inertia + shaft.inertia)
     planet = annulus(rho, planet_pitch, b.crank_shaft_radius, s1.face_width)
     crank = annulus(rho, b.crank_shaft_radius, 0.0, b.crank_shaft_length)
     disc_outer = s2.pin_circle_radius - s2.pin_radius

@@ -135,6 +135,8 @@ class Bodies:
     carrier_width: float = _positive()
     pin_wheel_outer_radius: float = _positive()
     pin_wheel_width: float = _positive()
+    input_shaft_radius: float = _positive()
+    input_shaft_length: float = _positive()
 
 
 @dataclass(frozen=True)
@@ -149,6 +151,8 @@ class Bearings:
     planet_crank_torsional: float = _positive()
     input_torsional: float = _positive()
     output_torsional: float = _positive()
+    planet_crank_radial: float = _positive()
+    pin_wheel_torsional: float = _positive()
 
 
 @dataclass(frozen=True)
@@ -157,6 +161,7 @@ class Damping:
 
     mesh_damping_ratio: float = _nonnegative()
     bearing_damping_ratio: float = _nonnegative()
+    pin_damping_ratio: float = _nonnegative()
 
 
 @dataclass(frozen=True)
