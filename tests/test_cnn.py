@@ -203,7 +203,7 @@ EXPECTED_FAILED_CHECKS = {
 def test_sklearn_check_estimator():
     from sklearn.utils.estimator_checks import check_estimator
 
-    est = CNNClassifier(max_epochs=2, validation_fraction=0.0, device="cpu")
+    est = CNNClassifier(max_epochs=1, batch_size=64, validation_fraction=0.0, device="cpu")
     results = check_estimator(est, on_fail=None, expected_failed_checks=EXPECTED_FAILED_CHECKS)
     failed = [r["check_name"] for r in results if r["status"] == "failed"]
     assert failed == [], failed

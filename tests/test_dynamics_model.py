@@ -186,3 +186,51 @@ def test_settings_validation():
     modified = P0.replace(stage2={"equidistant_modification": 1e-5})
     with pytest.raises(ParameterError, match="unmodified"):
         prepare(modified, input_speed_rpm=100.0)
+
+
+def test_pin_stiffness_is_gears_hertz_contact_linearised_at_the_load():
+    """k_pin = sum k_i l_i^2 / sum l_i^2 of rvdiag.gears.cycloid's Hertz tangent stiffnesses at the disc
+    torque T_L (1 - 1/i) Zc / (Zp D), averaged over crank angles; grows (logarithmically) with load;
+    a zero load uses the 1 % rated-torque floor.  RV-20E at 167 N m: 3.4e8 N/m (not the flat 1.78e9)."""
+    from rvdiag.gears.cycloid import pin_contact
+
+    s2 = P0.stage2
+    t_disc = 100.0 * (1 - 1 / P0.ratio) * s2.cycloid_lobes / (s2.pins * s2.n_discs)
+    c = pin_contact(s2, P0.material, 0.3 * 2 * math.pi / s2.pins, t_disc)
+    l2 = np.where(c.in_contact, c.arm_m, 0.0) ** 2
+    direct = np.sum(c.stiffness_N_per_m * l2) / np.sum(l2)
+    k100 = mdl.pin_contact_stiffness(P0, 100.0)
+    assert k100 == pytest.approx(direct, rel=0.01)  # varies < 0.5 % over the crank angle
+    assert c.stiffness_N_per_m[c.in_contact].min() < k100 < c.stiffness_N_per_m.max()
+    k_rated = mdl.pin_contact_stiffness(P0, 167.0)
+    assert 3.0e8 < k_rated < 4.0e8
+    assert mdl.pin_contact_stiffness(P0, 10.0) < k100 < k_rated
+    assert mdl.pin_contact_stiffness(P0, 0.0) == mdl.pin_contact_stiffness(P0, 0.01 * 167.0) > 1e8
+    assert mdl.pin_contact_stiffness(P0, -100.0) == k100
+    m = prepare(P0, output_speed_deg_s=45.0, load_Nm=100.0)
+    assert m.P[mdl.I_KPIN] == k100 and m.extra["k_pin_N_per_m"] == k100
+
+
+def test_bearing_and_damping_fields_come_from_the_parameter_set():
+    """One source of truth: the spline's radial stiffness, the pin wheel's torsional support and the pin
+    damping ratio are parameter-file values (not model settings)."""
+    base = prepare(P0, output_speed_deg_s=45.0, load_Nm=100.0)
+    p2 = P0.replace(bearings={"planet_crank_radial": 2.5e9, "pin_wheel_torsional": 1.0e7},
+                    damping={"pin_damping_ratio": 0.14})
+    m = prepare(p2, output_speed_deg_s=45.0, load_Nm=100.0)
+    assert base.P[mdl.I_KPR] == P0.bearings.planet_crank_radial and m.P[mdl.I_KPR] == 2.5e9
+    assert base.P[mdl.I_KRT] == P0.bearings.pin_wheel_torsional and m.P[mdl.I_KRT] == 1.0e7
+    assert m.P[mdl.I_CPIN] == pytest.approx(2 * base.P[mdl.I_CPIN], rel=1e-12)
+    for gone in ("planet_crank_radial_N_per_m", "pin_wheel_torsional_Nm_per_rad", "pin_damping_ratio"):
+        assert not hasattr(ModelSettings(), gone)
+
+
+def test_stiffest_modes_after_lumping_the_input_shaft():
+    """With the input shaft lumped with the sun and the loaded Hertz pin stiffness, the highest natural
+    frequency of the RV-20E is ~34 kHz (crank shafts on their bearings), down from 56 kHz (sun as a bare
+    5.5 g ring, discs on 1.78e9 N/m pins); docs/model.md tabulates both."""
+    m = prepare(P0, input_speed_rpm=1000.0)
+    f = natural_frequencies(m).frequencies_hz
+    assert 30e3 < f[-1] < 36e3
+    bare = P0.replace(bodies={"input_shaft_length": 1e-9})
+    assert natural_frequencies(prepare(bare, input_speed_rpm=1000.0)).frequencies_hz[-1] > 40e3

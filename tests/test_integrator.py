@@ -20,8 +20,9 @@ P0 = ReducerParams.default()
 
 
 def test_matches_scipy_dop853_over_50ms():
-    """Default settings (48 kHz, 10 sub-steps) against solve_ivp DOP853, rtol 1e-9, on the same right-hand
-    side: relative L2 error of the sensor signal below 1e-3 (measured 4.6e-4 with 12 sub-steps, 1.3e-3 with 8)."""
+    """Default settings (48 kHz, 9 sub-steps) against solve_ivp DOP853, rtol 1e-9, on the same right-hand
+    side: relative L2 error of the sensor signal below 1e-3 (measured 8.6e-4; 1.18e-3 with 8 sub-steps,
+    7.0e-4 with 10; bench/HISTORY.md 2026-11-23)."""
     fs, T = 48000.0, 0.05
     m = prepare(P0, output_speed_deg_s=45.0, load_Nm=100.0)
     q0 = static_equilibrium(m, 0.0)
@@ -96,8 +97,8 @@ def _energy_drift(substeps: int) -> float:
 
 def test_energy_conserved_without_damping_and_excitation():
     """T + V (rotating frame: Coriolis does no work) is constant to integrator accuracy: the drift falls
-    at least as h^4 (RK4's order; measured ~h^5: 1.1e-2, 3.8e-4, 1.2e-5 at 20, 40, 80 sub-steps; the
-    random start puts most energy in the 50-60 kHz modes, which RK4 damps numerically at large h)."""
+    at least as h^4 (RK4's order; measured ~h^5: 4.9e-4, 1.6e-5, 2.6e-7 at 20, 40, 80 sub-steps; the
+    random start puts most energy in the 20-34 kHz modes, which RK4 damps numerically at large h)."""
     d20, d40, d80 = (_energy_drift(s) for s in (20, 40, 80))
     assert d80 < 1e-4, d80
     assert d20 / d40 > 16 and d40 / d80 > 16, (d20, d40, d80)

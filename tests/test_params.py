@@ -161,3 +161,29 @@ def test_torsional_values_follow_their_comments():
     assert p.bearings.planet_crank_torsional == pytest.approx(0.5 * 3.9e4, rel=0.03)
     assert gj_l(p.bodies.sun_shaft_radius, 15e-3) == pytest.approx(5.2e3, rel=0.02)
     assert p.bearings.output_torsional == pytest.approx(0.7 * 49 * 60 * 180 / math.pi, rel=0.03)
+
+
+def test_sun_body_is_the_gear_ring_on_the_input_shaft():
+    """The RV-20E sun is cut on the input shaft: its mass and inertia are the gear ring's plus a solid
+    steel shaft of bodies.input_shaft_radius x input_shaft_length (m = rho pi r^2 L, J = m r^2 / 2)."""
+    from rvdiag.params.derived import annulus, input_shaft
+
+    p = ReducerParams.default()
+    rho, b, s1 = p.material.density, p.bodies, p.stage1
+    ring = annulus(rho, 0.5 * s1.module * s1.sun_teeth, b.sun_shaft_radius, s1.face_width)
+    m_shaft = rho * math.pi * b.input_shaft_radius**2 * b.input_shaft_length
+    assert input_shaft(p).mass == pytest.approx(m_shaft, rel=1e-12)
+    sun = body_properties(p).sun
+    assert sun.mass == pytest.approx(ring.mass + m_shaft, rel=1e-12)
+    assert sun.inertia == pytest.approx(ring.inertia + 0.5 * m_shaft * b.input_shaft_radius**2, rel=1e-12)
+    assert 0.03 < sun.mass < 0.06  # 42 g, against 5.5 g for the bare gear ring
+    longer = body_properties(p.replace(bodies={"input_shaft_length": 2 * b.input_shaft_length})).sun
+    assert longer.mass == pytest.approx(sun.mass + m_shaft, rel=1e-12)
+
+
+def test_pin_wheel_torsional_follows_its_comment():
+    """bearings.pin_wheel_torsional = pin_wheel_housing x (pin-wheel outer radius)^2, rounded to 2 digits."""
+    p = ReducerParams.default()
+    k = p.bearings.pin_wheel_housing * p.bodies.pin_wheel_outer_radius**2
+    assert p.bearings.pin_wheel_torsional == pytest.approx(k, rel=0.02)
+    assert p.damping.pin_damping_ratio == p.damping.mesh_damping_ratio

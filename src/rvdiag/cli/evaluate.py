@@ -7,6 +7,8 @@ from pathlib import Path
 
 import typer
 
+from rvdiag.errors import ParameterError
+
 
 def register(app: typer.Typer) -> None:
     @app.command("evaluate")
@@ -25,6 +27,8 @@ def register(app: typer.Typer) -> None:
         from rvdiag.evaluation.report import write_report
         from rvdiag.models.persistence import load_model
 
+        if report is not None and (report.is_dir() or (report.parent.exists() and not report.parent.is_dir())):
+            raise ParameterError(f"--report {report}: not a writable file path")
         loaded = load_model(model_dir)
         store = SampleStore.open(data)
         ev = evaluate_on_store(loaded, store, split)

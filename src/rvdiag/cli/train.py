@@ -34,7 +34,7 @@ def _content_hash(store) -> str:
 
 def build_estimator(model: str, features: str | None, *, epochs: int, device: str, seed: int,
                     batch_size: int, lr: float, input_length: int | None, patience: int,
-                    validation_fraction: float):
+                    validation_fraction: float, normalize: str = "window"):
     """A fresh, unfitted estimator for a ``--model`` name."""
     if model in CNN_MODELS:
         if features is not None:
@@ -44,7 +44,8 @@ def build_estimator(model: str, features: str | None, *, epochs: int, device: st
 
         return CNNClassifier(architecture=model, input_length=input_length, max_epochs=epochs, device=device,
                              random_state=seed, batch_size=batch_size, learning_rate=lr,
-                             n_iter_no_change=patience, validation_fraction=validation_fraction)
+                             n_iter_no_change=patience, validation_fraction=validation_fraction,
+                             normalize=normalize)
     if model in CLASSICAL_MODELS:
         from rvdiag.models.pipelines import make_classical_model
 
@@ -115,6 +116,9 @@ def register(app: typer.Typer) -> None:
         patience: int = typer.Option(5, "--patience", help="CNN early-stopping patience (epochs)."),
         validation_fraction: float = typer.Option(0.2, "--validation-fraction",
                                                   help="Share of training samples held out for early stopping."),
+        normalize: str = typer.Option("window", "--normalize",
+                                      help="CNN input normalisation: window (z-score each window) | global "
+                                           "(training mean/std, keeps amplitude) | none."),
         json_out: bool = typer.Option(False, "--json", help="Print the test metrics (and repeat summary) as JSON."),
         quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
     ) -> None:
@@ -130,17 +134,23 @@ def register(app: typer.Typer) -> None:
             raise ParameterError(f"--epochs must be >= 1, got {epochs}")
         if out.exists() and not out.is_dir():
             raise ParameterError(f"--out {out} exists and is not a directory")
-        build_estimator(model, features, epochs=epochs, device=device, seed=seed, batch_size=batch_size, lr=lr,
+        probe = build_estimator(model, features, epochs=epochs, device=device, seed=seed, batch_size=batch_size, lr=lr,
                         input_length=input_length, patience=patience,
-                        validation_fraction=validation_fraction)  # checks --model/--features before any work
+                        validation_fraction=validation_fraction, normalize=normalize)  # checks --model/--features before any work
         if features is not None and model in CLASSICAL_MODELS:
             from rvdiag.features import feature_names
 
             if features not in feature_names():
                 raise ParameterError(f"unknown feature set {features!r}; use one of {'|'.join(feature_names())}")
+        if model in CNN_MODELS or features == "cnn":
+            from rvdiag.models.torch_estimator import resolve_device
+
+            resolve_device(device)  # 'cuda' without a GPU fails now, not after loading the data
         store = SampleStore.open(data)
         if "train" not in store.splits():
             raise StoreError(f"{data} has no 'train' split (splits: {', '.join(store.splits())})")
+        if model in CNN_MODELS:
+            probe._check_params(store.length)  # the samples must be at least one network input long
         tr = store.load("train")
         te = store.load("test") if "test" in store.splits() else None
         labels = [c for c in store.classes if c in set(tr.y.tolist())]
@@ -155,7 +165,7 @@ def register(app: typer.Typer) -> None:
             s = seed + r
             est = build_estimator(model, features, epochs=epochs, device=device, seed=s, batch_size=batch_size,
                                   lr=lr, input_length=input_length, patience=patience,
-                                  validation_fraction=validation_fraction)
+                                  validation_fraction=validation_fraction, normalize=normalize)
             if r == 0 and model in CNN_MODELS:
                 W = est._check_params(store.length)
                 starts = window_starts(store.length, W, est.long_input)

@@ -4,7 +4,9 @@ The classical fourth-order Runge-Kutta method (Hairer, Norsett & Wanner, *Solvin
 section II.1) advances ``substeps`` steps of ``h = 1 / (fs substeps)`` per output sample.  The
 cycloid-pin contact geometry depends on time only, so it is computed once per distinct stage time
 (t, t + h/2, t + h) and shared by the stages and by both discs' force loops; the pin angles come
-from one sin/cos per disc and angle addition with a precomputed table (REFERENCE.md section 5).
+by angle addition from a precomputed table, and the two frame angles are rotated by fixed half-step
+increments within an output sample and recomputed exactly at each sample (REFERENCE.md section 5):
+one sin/cos pair per output sample instead of four per step.
 
 The sensor output at sample ``k`` is the housing acceleration at ``t_k``, read from the first RK4
 stage of the step that starts there (no extra right-hand-side evaluation).  Only the current state
@@ -28,9 +30,10 @@ from rvdiag.dynamics import model as mdl
 from rvdiag.errors import SimulationError
 
 OK, NONFINITE, UNBOUNDED = 0, 1, 2
+FASTMATH = mdl.FASTMATH
 
 
-@numba.njit(cache=True, fastmath=False, error_model="numpy")
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def rk4_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms, cosk, sink, sensor, out,
             geo0, rot0, geo1, rot1, geo2, rot2, Q, k1, k2, k3, k4, ytmp):
     """Advance ``y`` in place over ``n_samples`` output samples starting at sample index ``k_start``.
@@ -50,7 +53,24 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms, 
     nch = sensor.shape[0]
     # every time is an integer number of half steps times h/2, so a chunk boundary changes nothing
     hh = 0.5 * h
-    mdl.pin_geometry((2 * k_start * substeps) * hh, P, cosk, sink, geo0, rot0)
+    h6 = h / 6.0
+    # three geometry slots (start, half, end of the step); the end slot becomes the next step's
+    # start by swapping references, not by copying
+    ga, ra, gb, rb, gc, rc = geo0, rot0, geo1, rot1, geo2, rot2
+    # The frame angles b_0 = beta_0 - Zp Omega t and W = Omega t advance linearly, so within an output
+    # sample their cos/sin are rotated by the half-step increments instead of recomputed (issue 3;
+    # REFERENCE.md sec. 5); every sample end t_(k+1) is re-anchored with exact cos/sin, so rounding
+    # cannot accumulate and a chunk boundary changes nothing.
+    frozen = P[mdl.I_TFROZEN] >= 0.0
+    db = 0.0 if frozen else -P[mdl.I_ZP] * P[mdl.I_OMEGA] * hh
+    dw = 0.0 if frozen else P[mdl.I_OMEGA] * hh
+    cdb = math.cos(db)
+    sdb = math.sin(db)
+    cdw = math.cos(dw)
+    sdw = math.sin(dw)
+    cb, sb, cw, sw = mdl.frame_angles((2 * k_start * substeps) * hh, P)
+    mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, ga, ra)
+    ks = k3  # running sum k1 + 2 k2 + 2 k3 (same order of additions as the textbook formula)
     for s in range(n_samples):
         kk = k_start + s
         for sub in range(substeps):
@@ -58,28 +78,46 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms, 
             t = (2 * idx) * hh
             th = (2 * idx + 1) * hh
             t1 = (2 * idx + 2) * hh
-            mdl.rhs_with_geometry(t, y, P, mass, planet, tvms, geo0, rot0, Q, k1)
+            mdl.rhs_with_geometry(t, y, P, mass, planet, tvms, ga, ra, Q, k1)
             if sub == 0 and record:
                 ax = k1[n + iR] - k1[n + iR + 2] * sy
                 ay = k1[n + iR + 1] + k1[n + iR + 2] * sx
                 for c in range(nch):
                     out[c, s] = sensor[c, 0] * ax + sensor[c, 1] * ay
-            mdl.pin_geometry(th, P, cosk, sink, geo1, rot1)
+            c = cb * cdb - sb * sdb
+            sb = sb * cdb + cb * sdb
+            cb = c
+            c = cw * cdw - sw * sdw
+            sw = sw * cdw + cw * sdw
+            cw = c
+            mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gb, rb)
             for i in range(n2):
-                ytmp[i] = y[i] + 0.5 * h * k1[i]
-            mdl.rhs_with_geometry(th, ytmp, P, mass, planet, tvms, geo1, rot1, Q, k2)
+                ytmp[i] = y[i] + hh * k1[i]
+                ks[i] = k1[i]
+            mdl.rhs_with_geometry(th, ytmp, P, mass, planet, tvms, gb, rb, Q, k2)
             for i in range(n2):
-                ytmp[i] = y[i] + 0.5 * h * k2[i]
-            mdl.rhs_with_geometry(th, ytmp, P, mass, planet, tvms, geo1, rot1, Q, k3)
-            mdl.pin_geometry(t1, P, cosk, sink, geo2, rot2)
+                ytmp[i] = y[i] + hh * k2[i]
+                ks[i] += 2.0 * k2[i]
+            mdl.rhs_with_geometry(th, ytmp, P, mass, planet, tvms, gb, rb, Q, k2)
+            if sub == substeps - 1:
+                cb, sb, cw, sw = mdl.frame_angles(t1, P)
+            else:
+                c = cb * cdb - sb * sdb
+                sb = sb * cdb + cb * sdb
+                cb = c
+                c = cw * cdw - sw * sdw
+                sw = sw * cdw + cw * sdw
+                cw = c
+            mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gc, rc)
             for i in range(n2):
-                ytmp[i] = y[i] + h * k3[i]
-            mdl.rhs_with_geometry(t1, ytmp, P, mass, planet, tvms, geo2, rot2, Q, k4)
+                ytmp[i] = y[i] + h * k2[i]
+                ks[i] += 2.0 * k2[i]
+            mdl.rhs_with_geometry(t1, ytmp, P, mass, planet, tvms, gc, rc, Q, k2)
             for i in range(n2):
-                y[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+                y[i] += h6 * (ks[i] + k2[i])
             # the end geometry is the next step's start geometry
-            rot0[:, :] = rot2
-            geo0[:, :, :] = geo2
+            ga, gc = gc, ga
+            ra, rc = rc, ra
         big = 0.0
         bigr = 0.0
         for i in range(n):
@@ -121,7 +159,7 @@ def integrate(
     nd, nz = model.n_discs, model.cosk.size
     geo = [np.zeros((nd, 3, nz)) for _ in range(3)]
     rot = [np.zeros((nd, 4)) for _ in range(3)]
-    work = [np.zeros(n + 2 * nz)] + [np.zeros(2 * n) for _ in range(5)]  # Q + pin scratch, k1..k4, ytmp
+    work = [np.zeros(n)] + [np.zeros(2 * n) for _ in range(5)]  # Q, k1..k4, ytmp
     out = np.zeros((model.sensor.shape[0], n_samples))
     chunk = max(1, int(st.chunk_samples))
     cbuf = np.zeros((model.sensor.shape[0], chunk))
@@ -133,7 +171,7 @@ def integrate(
         rec = k >= 0
         if not rec:
             m = min(m, -k)
-        status, s = rk4_run(y, k, m, S, float(fs), rec, model.P, model.mass, model.planet, model.tvms,
+        status, s = rk4_run(y, k, m, S, float(fs), rec, model.P, model.mass, model.planet, model.tables,
                             model.cosk, model.sink, model.sensor, cbuf,
                             geo[0], rot[0], geo[1], rot[1], geo[2], rot[2], *work)
         if status != OK:

@@ -138,6 +138,7 @@ def potential_energy(model: mdl.Model, t: float, q: np.ndarray) -> float:
     nt = model.tvms.size
     grid = np.arange(nt + 1) * (2 * np.pi / nt)
     ktab = np.append(model.tvms, model.tvms[0])
+    etab = np.append(model.tvms_error, model.tvms_error[0])  # profile deviation: delta - e
     bil = P[mdl.I_BILATERAL]
     beta = [P[mdl.I_BETA0] - Zp * Om * te + j * P[mdl.I_DISCPHASE] for j in range(D)]
     for i in range(N):
@@ -145,7 +146,8 @@ def potential_energy(model: mdl.Model, t: float, q: np.ndarray) -> float:
         p, c = lay[f"planet{i}"], lay[f"crank{i}"]
         km = np.interp(np.mod(P[mdl.I_WREL] * te - psi, 2 * np.pi), grid, ktab)
         d = (q[s] * np.sin(alpha - psi) + q[s + 1] * np.cos(alpha - psi) + rb1 * q[s + 2]
-             - q[p] * np.sin(alpha) - q[p + 1] * np.cos(alpha) + rb2 * q[p + 2])
+             - q[p] * np.sin(alpha) - q[p + 1] * np.cos(alpha) + rb2 * q[p + 2]
+             - np.interp(np.mod(P[mdl.I_WREL] * te - psi, 2 * np.pi), grid, etab))
         g = d - bil * hb if bil != 0 else (d - hb if d > hb else (d + hb if d < -hb else 0.0))
         V += 0.5 * km * g * g
         V += 0.5 * P[mdl.I_KPR] * ((q[p] - q[c]) ** 2 + (q[p + 1] - q[c + 1]) ** 2)

@@ -15,6 +15,9 @@ Two sources of tables:
   e.g. Lin & Parker 1999 and Kahraman 1994), with tooth faults as a stiffness factor per sun tooth
   (a broken tooth carries nothing: factor 0, REFERENCE.md section 3).  Used in tests and when the gears
   package is not installed.
+
+A table may also carry the mesh profile deviation ``error_m`` (wear), which the model subtracts from the
+mesh deflection as a transmission-error excitation (docs/model.md, "Fault sensitivity").
 """
 
 from __future__ import annotations
@@ -44,12 +47,22 @@ class MeshTable:
         Mesh stiffness along the line of action at each angle (N/m), >= 0.
     period_rad : float
         Period of the table (2 pi for one relative sun revolution).
+    source : str
+        Where the table came from (recorded with simulations).
+    error_m : array or None
+        Mesh profile deviation along the line of action at each angle (m), same grid as the
+        stiffness; ``None`` means zeros (a perfect involute).  Positive where material is missing
+        (wear): it reduces the mesh approach, ``delta - e``, and enters the dynamic model as a
+        displacement (transmission-error) excitation (Kahraman & Singh 1990, J. Sound Vib. 142;
+        for wear, Ding & Kahraman 2007, J. Sound Vib. 307; see docs/model.md, "Fault sensitivity").  :func:`mesh_table_from_gears` fills it from
+        ``rvdiag.gears.mesh_stiffness(...).profile_error_m``.
     """
 
     angle_rad: np.ndarray
     stiffness_N_per_m: np.ndarray
     period_rad: float = TWO_PI
     source: str = "table"
+    error_m: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         a = np.asarray(self.angle_rad, dtype=float)
@@ -64,13 +77,30 @@ class MeshTable:
             raise ParameterError("mesh table: stiffness must be >= 0")
         if not self.period_rad > 0 or a[-1] - a[0] >= self.period_rad + 1e-12:
             raise ParameterError("mesh table: angles must span less than one period")
+        e = np.zeros_like(a) if self.error_m is None else np.asarray(self.error_m, dtype=float)
+        if e.shape != a.shape:
+            raise ParameterError(
+                f"mesh table: error_m must have one value per angle ({a.size}), got shape {e.shape}")
+        if not np.all(np.isfinite(e)):
+            raise ParameterError("mesh table: profile errors (error_m) must be finite")
         object.__setattr__(self, "angle_rad", a)
         object.__setattr__(self, "stiffness_N_per_m", k)
+        object.__setattr__(self, "error_m", e)
+
+    @property
+    def has_error(self) -> bool:
+        """True when the table carries a non-zero profile deviation."""
+        return bool(np.any(self.error_m != 0.0))
 
     def resample(self, n: int) -> np.ndarray:
         """Stiffness on the uniform grid ``phi_j = j * period / n``, j = 0..n-1 (periodic linear interpolation)."""
         grid = np.arange(n) * (self.period_rad / n)
         return np.interp(grid, self.angle_rad, self.stiffness_N_per_m, period=self.period_rad)
+
+    def resample_error(self, n: int) -> np.ndarray:
+        """Profile deviation (m) on the same uniform grid as :meth:`resample` (periodic linear interpolation)."""
+        grid = np.arange(n) * (self.period_rad / n)
+        return np.interp(grid, self.angle_rad, self.error_m, period=self.period_rad)
 
     def mean(self) -> float:
         """Mean stiffness over the period (N/m)."""
@@ -147,6 +177,9 @@ def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_c
     """Potential-energy TVMS of :mod:`rvdiag.gears` over one relative sun revolution (Z1 mesh cycles).
 
     ``fault`` is ``None`` (healthy) or a :class:`rvdiag.gears.ToothFaults`; the faults sit on sun teeth.
+    The table's ``error_m`` is the load-shared profile deviation ``res.profile_error_m`` (wear depth
+    along the line of action, ``sum k_i e_i / sum k_i`` over the pairs in contact; zero when healthy
+    and at the pitch point, docs/tvms.md section 3).
     """
     from rvdiag.gears import GearPair, mesh_stiffness
 
@@ -157,7 +190,8 @@ def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_c
     res = mesh_stiffness(pair, fault=fault, cycles=z1, points_per_cycle=points_per_cycle)
     angle = np.asarray(res.angle_rad, dtype=float)
     k = np.asarray(res.stiffness_N_per_m, dtype=float)
+    err = np.asarray(res.profile_error_m, dtype=float)
     angle = angle - angle[0]
     period = TWO_PI
     keep = angle < period - 1e-12
-    return MeshTable(angle[keep], k[keep], period, source="rvdiag.gears.mesh_stiffness")
+    return MeshTable(angle[keep], k[keep], period, source="rvdiag.gears.mesh_stiffness", error_m=err[keep])

@@ -17,14 +17,16 @@ displacements about the rigid-body motion at constant speed:
 Forces: sun-planet meshes along the line of action with the TVMS table and a backlash dead zone
 (Kahraman & Singh 1990); planet-crank spline (radial + torsional); crank-carrier and crank-cycloid
 bearings (isotropic linear springs); every cycloid-pin contact (Hertz line contact stiffness
-pi E b / (4 (1 - nu^2)), Yang & Sun 1985, compression only, normal through the pitch point: Litvin &
+linearised at the operating load, Johnson 1985, from :mod:`rvdiag.gears.cycloid`; compression only, normal through the pitch point: Litvin &
 Feng 1996; lever arm e Zc sin(eta) / sqrt(1 + K1^2 - 2 K1 cos(eta)), Blanche & Yang 1989); pin wheel
 and carrier supports; input coupling to the motor turning at constant speed; load torque on the
 carrier.  Rotating-frame terms ``m (u'' + 2 Omega z x u' - Omega^2 u)`` and the nominal centripetal
 accelerations of orbiting bodies are included.  Viscous damping ``c = 2 zeta sqrt(k m_eq)``.
 
 Everything is passed to the compiled kernels as flat float64 arrays (``P``, ``mass``, ``planet``,
-``tvms``, ``cosk``, ``sink``) so the kernels hold no global state and model objects pickle.
+``tvms``, ``cosk``, ``sink``) so the kernels hold no global state and model objects pickle; the
+kernels' ``tvms`` argument is ``Model.tables`` (stiffness and profile deviation, shape ``(2, n)``;
+``(1, n)``, stiffness only, when the deviation is zero).
 """
 
 from __future__ import annotations
@@ -55,9 +57,15 @@ I_BILATERAL = 45
 I_GSHARED = 46
 I_SINA, I_COSA = 47, 48
 I_ROTLIM = 49
-N_P = 50
+I_CPH, I_SPH = 50, 51  # cos and sin of the disc phase
+N_P = 52
 
 TWO_PI = 2.0 * math.pi
+
+#: LLVM fast-math flags of the compiled kernels: reassociation (vectorised reductions), fused
+#: multiply-add contraction and signed-zero freedom only.  No ``nnan``/``ninf``: the integrator's
+#: instability check must still see NaN and inf.  Results stay deterministic (same code, same order).
+FASTMATH = {"reassoc", "contract", "nsz"}
 
 
 @dataclass(frozen=True)
@@ -67,21 +75,13 @@ class ModelSettings:
     Parameters
     ----------
     substeps : int
-        RK4 steps per output sample.  The stiffest mode of the RV-20E is near 56-60 kHz; RK4 is stable
-        for ``omega h < 2.78``, so at 48 kHz at least 3 are needed.  The default 10 keeps the output
-        within 1e-3 (relative L2) of scipy's DOP853 at rtol 1e-9 over 0.05 s at 48 kHz (4 sub-steps:
-        1.5e-2, 8: 1.3e-3, 12: 4.6e-4; tests/test_integrator.py); at other rates keep
-        ``fs * substeps`` near 480 kHz.
+        RK4 steps per output sample.  The stiffest mode of the RV-20E is near 34 kHz (crank shafts);
+        RK4 is stable for ``omega h < 2.78``, so at 48 kHz at least 2 are needed.  Accuracy, not
+        stability, sets the default 9: the output stays within 1e-3 (relative L2) of scipy's DOP853 at
+        rtol 1e-9 over 0.05 s at 48 kHz (8.6e-4; 8 sub-steps: 1.18e-3, 10: 7.0e-4; docs/model.md
+        section 7, tests/test_integrator.py); at other rates keep ``fs * substeps`` near 430 kHz.
     transient_s : float
         Simulated time discarded before output starts (start-up transient), s.
-    planet_crank_radial_N_per_m : float
-        Radial stiffness of the planet-crank spline (no catalogue figure; the spline is taken as
-        stiff as the crank-cycloid needle bearing scaled to a press fit, 1e9 N/m).
-    pin_wheel_torsional_Nm_per_rad : float or None
-        Torsional stiffness of the pin wheel on the housing; ``None`` derives it from the linear
-        ``bearings.pin_wheel_housing`` stiffness acting at the pin-wheel outer radius, ``k R^2``.
-    pin_damping_ratio : float or None
-        Damping ratio of each cycloid-pin contact; ``None`` uses ``damping.mesh_damping_ratio``.
     sensor_point_m : tuple of 2 floats or None
         Measurement point on the housing in the fixed frame (m); ``None`` puts it on the pin-wheel
         outer radius at angle 0.
@@ -105,11 +105,8 @@ class ModelSettings:
         meaningless long before).
     """
 
-    substeps: int = 10
+    substeps: int = 9
     transient_s: float = 0.1
-    planet_crank_radial_N_per_m: float = 1.0e9
-    pin_wheel_torsional_Nm_per_rad: float | None = None
-    pin_damping_ratio: float | None = None
     sensor_point_m: tuple[float, float] | None = None
     sensor_directions: tuple[tuple[float, float], ...] = ((1.0, 0.0), (0.0, 1.0))
     excitation: bool = True
@@ -125,12 +122,6 @@ class ModelSettings:
             raise ParameterError(f"substeps must be a whole number >= 1, got {self.substeps!r}")
         if not (math.isfinite(self.transient_s) and self.transient_s >= 0):
             raise ParameterError(f"transient_s must be >= 0, got {self.transient_s!r}")
-        if not self.planet_crank_radial_N_per_m > 0:
-            raise ParameterError("planet_crank_radial_N_per_m must be > 0")
-        if self.pin_wheel_torsional_Nm_per_rad is not None and not self.pin_wheel_torsional_Nm_per_rad > 0:
-            raise ParameterError("pin_wheel_torsional_Nm_per_rad must be > 0")
-        if self.pin_damping_ratio is not None and not self.pin_damping_ratio >= 0:
-            raise ParameterError("pin_damping_ratio must be >= 0")
         if len(self.sensor_directions) < 1:
             raise ParameterError("give at least one sensor direction")
         for d in self.sensor_directions:
@@ -150,6 +141,42 @@ class ModelSettings:
         if self.sensor_point_m is not None:
             d["sensor_point_m"] = list(self.sensor_point_m)
         return d
+
+
+#: Pin stiffness is linearised at ``max(|T_L|, PIN_LOAD_FLOOR_FRACTION * rated torque)``: the Hertz
+#: tangent stiffness vanishes (logarithmically) at zero load, where a linearisation means nothing.
+PIN_LOAD_FLOOR_FRACTION = 0.01
+#: crank angles (over one pin pitch) averaged in :func:`pin_contact_stiffness`
+PIN_STIFFNESS_ANGLES = 8
+
+
+def pin_contact_stiffness(params: ReducerParams, load_Nm: float) -> float:
+    """Cycloid-pin contact stiffness (N/m) linearised at the operating load, one value for every pin.
+
+    The per-pin tangent stiffness is the Hertz line contact of the pin on the disc flank at its share
+    of the load (Johnson 1985, *Contact Mechanics*, sec. 5.6; load shared in proportion to the lever
+    arm, Blagojevic et al. 2011, J. Mech. Des. 133, eq. 11), as computed by
+    :func:`rvdiag.gears.cycloid.pin_contact`.  The torque one disc carries about its own centre is the
+    pin-wheel reaction ``T_L (1 - 1/i)`` (docs/model.md, sec. 5) times the arm ratio ``Zc / Zp``
+    (arms ``e Zc n_y`` about the disc, ``e Zp n_y`` about the pin wheel), shared by the ``D`` discs:
+    ``T_d = |T_L| (1 - 1/i) Zc / (Zp D)``.  The pins in contact act on the disc's rocking in parallel
+    through their arms, so the equivalent uniform stiffness is the arm-weighted mean
+    ``k = sum k_i l_i^2 / sum l_i^2`` (same disc torsional stiffness), averaged over
+    ``PIN_STIFFNESS_ANGLES`` crank angles across one pin pitch (it varies by < 0.5 %).  For the RV-20E
+    at rated torque (167 N m) this is 3.4e8 N/m, 2.3e8 at 1 N m: the Hertz stiffness of a loaded pin,
+    against the load-independent 1.78e9 of Yang & Sun's ``pi E b / (4 (1 - nu^2))``.
+    """
+    from rvdiag.gears.cycloid import pin_contact
+
+    s2 = params.stage2
+    load = max(abs(float(load_Nm)), PIN_LOAD_FLOOR_FRACTION * params.operation.rated_torque)
+    t_disc = load * (1.0 - 1.0 / params.ratio) * s2.cycloid_lobes / (s2.pins * s2.n_discs)
+    vals = []
+    for ang in np.arange(PIN_STIFFNESS_ANGLES) * (TWO_PI / s2.pins / PIN_STIFFNESS_ANGLES):
+        c = pin_contact(s2, params.material, float(ang), t_disc)
+        l2 = np.where(c.in_contact, c.arm_m, 0.0) ** 2
+        vals.append(float(np.sum(c.stiffness_N_per_m * l2) / np.sum(l2)))
+    return float(np.mean(vals))
 
 
 def dof_layout(n_planets: int, n_discs: int) -> dict[str, int]:
@@ -190,6 +217,22 @@ class Model:
     mesh_source: str
     settings: ModelSettings = field(default_factory=ModelSettings)
     extra: dict = field(default_factory=dict)
+    #: mesh profile deviation (transmission-error excitation, m) on the same grid as ``tvms``;
+    #: ``None`` means zeros (see :class:`rvdiag.dynamics.mesh.MeshTable`)
+    tvms_error: np.ndarray | None = None
+    #: ``(2, n)`` C-contiguous ``[tvms, tvms_error]`` (``(1, n)`` when the error is zero): the mesh
+    #: table the compiled kernels take
+    tables: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        k = np.asarray(self.tvms, dtype=float)
+        e = np.zeros_like(k) if self.tvms_error is None else np.asarray(self.tvms_error, dtype=float)
+        if e.shape != k.shape or not np.all(np.isfinite(e)):
+            raise ParameterError("tvms_error must be finite and on the same grid as tvms")
+        object.__setattr__(self, "tvms_error", e)
+        # without a deviation the kernels get the stiffness row only and skip the error terms
+        rows = [k, e] if np.any(e != 0.0) else [k]
+        object.__setattr__(self, "tables", np.ascontiguousarray(np.stack(rows)))
 
     @property
     def n_dof(self) -> int:
@@ -215,7 +258,7 @@ class Model:
 
 def _replace_P(m: Model, P: np.ndarray) -> Model:
     return Model(P, m.mass, m.planet, m.tvms, m.cosk, m.sink, m.sensor, m.n_planets, m.n_discs,
-                 m.mesh_source, m.settings, m.extra)
+                 m.mesh_source, m.settings, m.extra, m.tvms_error)
 
 
 def build_model(
@@ -278,14 +321,14 @@ def build_model(
 
     zb = dmp.bearing_damping_ratio if st.damping else 0.0
     zm = dmp.mesh_damping_ratio if st.damping else 0.0
-    zp = (dmp.mesh_damping_ratio if st.pin_damping_ratio is None else st.pin_damping_ratio) if st.damping else 0.0
+    zp = dmp.pin_damping_ratio if st.damping else 0.0
 
     def c(zeta: float, k: float, m1: float, m2: float | None = None) -> float:
         meq = m1 if m2 is None else m1 * m2 / (m1 + m2)
         return 2.0 * zeta * math.sqrt(k * meq)
 
-    k_pin = math.pi * mat.youngs_modulus * s2.cycloid_face_width / (4.0 * (1.0 - mat.poisson_ratio**2))
-    k_rt = st.pin_wheel_torsional_Nm_per_rad or br.pin_wheel_housing * params.bodies.pin_wheel_outer_radius**2
+    k_pin = pin_contact_stiffness(params, load_Nm)
+    k_rt = br.pin_wheel_torsional
     tv = mesh.resample(st.tvms_points)
     k_mean = float(np.mean(tv))
     J_s, J_p = bp.sun.inertia, bp.planet.inertia
@@ -304,7 +347,7 @@ def build_model(
     P[I_KIN], P[I_CIN] = br.input_torsional, c(zb, br.input_torsional, J_eff)
     P[I_KCC], P[I_CCC] = br.crank_carrier, c(zb, br.crank_carrier, bp.crank.mass, bp.carrier.mass)
     P[I_KCD], P[I_CCD] = br.crank_cycloid, c(zb, br.crank_cycloid, bp.crank.mass, bp.cycloid.mass)
-    kpr = st.planet_crank_radial_N_per_m
+    kpr = br.planet_crank_radial
     P[I_KPR], P[I_CPR] = kpr, c(zb, kpr, bp.planet.mass, bp.crank.mass)
     P[I_KPT], P[I_CPT] = br.planet_crank_torsional, c(zb, br.planet_crank_torsional, J_p, bp.crank.inertia)
     P[I_KHS], P[I_CHS] = br.carrier_support, c(zb, br.carrier_support, bp.carrier.mass)
@@ -317,6 +360,7 @@ def build_model(
     P[I_CORIOLIS] = 1.0 if st.coriolis else 0.0
     P[I_BETA0] = 0.0
     P[I_DISCPHASE] = math.radians(s2.disc_phase_deg)
+    P[I_CPH], P[I_SPH] = math.cos(P[I_DISCPHASE]), math.sin(P[I_DISCPHASE])
     pitches = s2.disc_phase_deg / (360.0 / Zp)
     P[I_GSHARED] = 1.0 if abs(pitches - round(pitches)) < 1e-12 else 0.0
     P[I_NTVMS] = tv.size
@@ -333,13 +377,14 @@ def build_model(
     sensor = np.array([np.asarray(d, float) / math.hypot(*d) for d in st.sensor_directions])
     extra = {"k_pin_N_per_m": k_pin, "k_mesh_mean_N_per_m": k_mean, "carrier_speed_rad_s": Omega,
              "ratio": params.ratio}
-    return Model(P, mass, planet, tv, np.cos(kk), np.sin(kk), sensor, N, D, mesh.source, st, extra)
+    return Model(P, mass, planet, tv, np.cos(kk), np.sin(kk), sensor, N, D, mesh.source, st, extra,
+                 tvms_error=mesh.resample_error(st.tvms_points))
 
 
 # ================================================================================ compiled kernels
 
 
-@numba.njit(cache=True, fastmath=False, error_model="numpy")
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def eval_time(t, P):
     """Time at which the time-varying terms are evaluated (``t``, or the frozen time)."""
     if P[I_TFROZEN] >= 0.0:
@@ -347,7 +392,7 @@ def eval_time(t, P):
     return t
 
 
-@numba.njit(cache=True, fastmath=False, error_model="numpy")
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def pin_geometry(t, P, cosk, sink, geo, rot):
     """Normal (in each disc's eccentric frame) and lever arm of every cycloid-pin contact at time t.
 
@@ -360,8 +405,25 @@ def pin_geometry(t, P, cosk, sink, geo, rot):
     number of pin pitches (``P[I_GSHARED]``; 180 deg with an even pin count) every disc sees the same
     set of pin angles, only relabelled, and one geometry ``g = 0`` serves all discs.
     """
+    cb0, sb0, cw, sw = frame_angles(t, P)
+    pin_geometry_cs(cb0, sb0, cw, sw, P, cosk, sink, geo, rot)
+
+
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def frame_angles(t, P):
+    """``(cos b_0, sin b_0, cos W, sin W)`` at time t: b_0 = beta_0 - Zp Omega t the eccentric angle of
+    disc 0 in the carrier frame, W = Omega t the carrier angle (time-varying terms frozen: at the
+    frozen time)."""
     te = eval_time(t, P)
     Om = P[I_OMEGA]
+    b0 = P[I_BETA0] - P[I_ZP] * Om * te
+    return math.cos(b0), math.sin(b0), math.cos(Om * te), math.sin(Om * te)
+
+
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def pin_geometry_cs(cb0, sb0, cw, sw, P, cosk, sink, geo, rot):
+    """:func:`pin_geometry` from the cosines and sines of :func:`frame_angles` (no trigonometry:
+    the integrator advances them by rotation within an output sample)."""
     Zp = P[I_ZP]
     Zc = P[I_ZC]
     e = P[I_E]
@@ -370,14 +432,9 @@ def pin_geometry(t, P, cosk, sink, geo, rot):
     eZc = e * Zc
     D = int(P[I_NDISC])
     nz = cosk.size
-    # b_j = b_0 + j phi and B_j = b_j + Omega t by angle addition: two sin/cos pairs per call
-    b0 = P[I_BETA0] - Zp * Om * te
-    cb0 = math.cos(b0)
-    sb0 = math.sin(b0)
-    cw = math.cos(Om * te)
-    sw = math.sin(Om * te)
-    cph = math.cos(P[I_DISCPHASE])
-    sph = math.sin(P[I_DISCPHASE])
+    # b_j = b_0 + j phi and B_j = b_j + Omega t by angle addition
+    cph = P[I_CPH]
+    sph = P[I_SPH]
     cb = cb0
     sb = sb0
     for j in range(D):
@@ -405,7 +462,7 @@ def pin_geometry(t, P, cosk, sink, geo, rot):
             gl[k] = eZc * dy * inv
 
 
-@numba.njit(cache=True, fastmath=False, error_model="numpy", inline="always")
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
 def _pin_sums(gx, gy, gl, ux, uy, th, wx, wy, om, kp, cp, bil):
     """Sums of F n_x, F n_y and F l over the pins of one disc, F = k d + c d' where d > 0, else 0.
 
@@ -453,48 +510,43 @@ def _pin_sums(gx, gy, gl, ux, uy, th, wx, wy, om, kp, cp, bil):
     return (sx0 + sx1) + (sx2 + sx3), (sy0 + sy1) + (sy2 + sy3), (sm0 + sm1) + (sm2 + sm3)
 
 
-@numba.njit(cache=True, fastmath=False, error_model="numpy", inline="always")
-def _dot4(a, b):
-    """Dot product with four interleaved partial sums (fixed order: deterministic, no fast-math)."""
-    s0 = s1 = s2 = s3 = 0.0
-    n = a.size
-    n4 = n - n % 4
-    for k in range(0, n4, 4):
-        s0 += a[k] * b[k]
-        s1 += a[k + 1] * b[k + 1]
-        s2 += a[k + 2] * b[k + 2]
-        s3 += a[k + 3] * b[k + 3]
-    for k in range(n4, n):
-        s0 += a[k] * b[k]
-    return (s0 + s1) + (s2 + s3)
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
+def _pin_sums_pair(gx, gy, gl, ux, uy, th, wx, wy, om, vx, vy, ph, zx, zy, ps, kp, cp, bil):
+    """:func:`_pin_sums` for two discs that share one pin geometry, in one fused pass.
 
-
-@numba.njit(cache=True, fastmath=False, error_model="numpy", inline="always")
-def _pin_sums_pair(gx, gy, gl, ux, uy, th, wx, wy, om, vx, vy, ph, zx, zy, ps, kp, cp, bil, F1, F2):
-    """:func:`_pin_sums` for two discs that share one pin geometry.
-
-    The contact forces go to the scratch arrays ``F1, F2`` first (an element-wise loop with a select,
-    which vectorises), then six dot products give the sums.
+    The six sums are plain reductions; the kernels' ``reassoc`` fast-math flag lets LLVM vectorise
+    them (bench/HISTORY.md: pin part ~150 -> ~85 ns per right-hand side).  The summation order is
+    fixed by the compiled code, so results are deterministic.
     """
     dlim = -np.inf if bil != 0.0 else 0.0
+    s0x = s0y = s0m = s1x = s1y = s1m = 0.0
     for k in range(gx.size):
         nx = gx[k]
         ny = gy[k]
         lk = gl[k]
         d = ux * nx + uy * ny + th * lk
         f = kp * d + cp * (wx * nx + wy * ny + om * lk)
-        F1[k] = f if d > dlim else 0.0
+        f = f if d > dlim else 0.0
         d2 = vx * nx + vy * ny + ph * lk
         f2 = kp * d2 + cp * (zx * nx + zy * ny + ps * lk)
-        F2[k] = f2 if d2 > dlim else 0.0
-    return (_dot4(F1, gx), _dot4(F1, gy), _dot4(F1, gl), _dot4(F2, gx), _dot4(F2, gy), _dot4(F2, gl))
+        f2 = f2 if d2 > dlim else 0.0
+        s0x += f * nx
+        s0y += f * ny
+        s0m += f * lk
+        s1x += f2 * nx
+        s1y += f2 * ny
+        s1m += f2 * lk
+    return s0x, s0y, s0m, s1x, s1y, s1m
 
 
-@numba.njit(cache=True, fastmath=False, error_model="numpy")
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def generalized_forces(t, q, v, P, planet, tvms, geo, rot, Q):
     """Generalized forces Q(t, q, v) of all springs, contacts, dampers and the external torques.
 
     ``geo, rot`` must hold :func:`pin_geometry` at the same ``t``.  The equations are in docs/model.md.
+    ``tvms`` is ``Model.tables``, shape ``(2, n)`` or ``(1, n)``: row 0 the mesh stiffness, row 1
+    (when present) the profile deviation ``e`` (m) subtracted from each sun-planet mesh deflection, force
+    ``k g(delta - e) + c (delta' - e')`` (transmission-error excitation, Kahraman & Singh 1990).
     """
     te = eval_time(t, P)
     N = int(P[I_NPL])
@@ -503,7 +555,7 @@ def generalized_forces(t, q, v, P, planet, tvms, geo, rot, Q):
     iD0 = 3 + 6 * N
     iH = iD0 + 3 * D
     iR = iH + 3
-    nq = iR + 3  # Q[nq:] is scratch for the pin contact forces (see work_arrays)
+    nq = iR + 3
     for i in range(nq):
         Q[i] = 0.0
     a = P[I_A]
@@ -538,9 +590,12 @@ def generalized_forces(t, q, v, P, planet, tvms, geo, rot, Q):
     rb2 = P[I_RB2]
     hb = P[I_HALF_BACKLASH]
     cm = P[I_CMESH]
-    nt = tvms.size
+    nt = tvms.shape[1]
+    has_e = tvms.shape[0] > 1
     bil = P[I_BILATERAL]
     phi = P[I_WREL] * te
+    # d(e)/dt = e'(phi) * w_rel of the profile deviation (table slope per grid step); 0 when frozen
+    erate = P[I_WREL] * nt * (1.0 / TWO_PI) if P[I_TFROZEN] < 0.0 else 0.0
     for i in range(N):
         ip = 3 + 3 * i
         ic = iC0 + 3 * i
@@ -558,9 +613,15 @@ def generalized_forces(t, q, v, P, planet, tvms, geo, rot, Q):
         j1 = j0 + 1
         if j1 >= nt:
             j1 = 0
-        km = tvms[j0] + fr * (tvms[j1] - tvms[j0])
+        km = tvms[0, j0] + fr * (tvms[0, j1] - tvms[0, j0])
         d = q[0] * sap + q[1] * cap + rb1 * q[2] - q[ip] * sa - q[ip + 1] * ca + rb2 * q[ip + 2]
         dd = v[0] * sap + v[1] * cap + rb1 * v[2] - v[ip] * sa - v[ip + 1] * ca + rb2 * v[ip + 2]
+        if has_e:
+            # profile deviation e (transmission-error excitation) reduces the approach: delta - e
+            e0 = tvms[1, j0]
+            de = tvms[1, j1] - e0
+            d -= e0 + fr * de
+            dd -= erate * de
         F = 0.0
         if bil != 0.0:
             F = km * (d - bil * hb) + cm * dd
@@ -620,7 +681,6 @@ def generalized_forces(t, q, v, P, planet, tvms, geo, rot, Q):
     cp = P[I_CPIN]
     rr = P[I_ZP] / P[I_ZC]
     gsh = P[I_GSHARED] != 0.0
-    nzp = geo.shape[2]
     jd = 0
     while jd < D:
         a0, a1, a2, a3, a4, a5 = _disc_frame(jd, q, v, rot, iD0, iR, rr)
@@ -628,8 +688,7 @@ def generalized_forces(t, q, v, P, planet, tvms, geo, rot, Q):
             g = geo[0]
             b0, b1, b2, b3, b4, b5 = _disc_frame(jd + 1, q, v, rot, iD0, iR, rr)
             s0x, s0y, s0m, s1x, s1y, s1m = _pin_sums_pair(
-                g[0], g[1], g[2], a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, kp, cp, bil,
-                Q[nq:nq + nzp], Q[nq + nzp:nq + 2 * nzp])
+                g[0], g[1], g[2], a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, kp, cp, bil)
             _apply_pin_sums(jd, s0x, s0y, s0m, iD0, iR, rr, rot, Q)
             _apply_pin_sums(jd + 1, s1x, s1y, s1m, iD0, iR, rr, rot, Q)
             jd += 2
@@ -640,7 +699,7 @@ def generalized_forces(t, q, v, P, planet, tvms, geo, rot, Q):
             jd += 1
 
 
-@numba.njit(cache=True, fastmath=False, error_model="numpy", inline="always")
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
 def _disc_frame(jd, q, v, rot, iD0, iR, rr):
     """Disc-minus-pin-wheel displacement, rotation and their rates in disc jd's eccentric frame."""
     idd = iD0 + 3 * jd
@@ -657,7 +716,7 @@ def _disc_frame(jd, q, v, rot, iD0, iR, rr):
     return ux, uy, th, wx, wy, om
 
 
-@numba.njit(cache=True, fastmath=False, error_model="numpy", inline="always")
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
 def _apply_pin_sums(jd, sx, sy, sm, iD0, iR, rr, rot, Q):
     """Disc jd gets -sum F n and -sum F l; the pin wheel +sum F n and +sum F l Zp/Zc (rotated back)."""
     idd = iD0 + 3 * jd
@@ -673,7 +732,7 @@ def _apply_pin_sums(jd, sx, sy, sm, iD0, iR, rr, rot, Q):
     Q[iR + 2] += rr * sm
 
 
-@numba.njit(cache=True, fastmath=False, error_model="numpy")
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def accelerations(t, q, v, P, mass, planet, tvms, geo, rot, Q, acc):
     """acc = M^-1 (Q + rotating-frame and nominal inertial terms), the second-order equations."""
     generalized_forces(t, q, v, P, planet, tvms, geo, rot, Q)
@@ -707,7 +766,7 @@ def accelerations(t, q, v, P, mass, planet, tvms, geo, rot, Q, acc):
     return te
 
 
-@numba.njit(cache=True, fastmath=False, error_model="numpy")
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def rhs_with_geometry(t, y, P, mass, planet, tvms, geo, rot, Q, dydt):
     """First-order right-hand side dy/dt, y = [q, v], using precomputed pin geometry at t."""
     n = mass.size
@@ -718,7 +777,7 @@ def rhs_with_geometry(t, y, P, mass, planet, tvms, geo, rot, Q, dydt):
     accelerations(t, q, v, P, mass, planet, tvms, geo, rot, Q, dydt[n:])
 
 
-@numba.njit(cache=True, fastmath=False, error_model="numpy")
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def rhs(t, y, P, mass, planet, tvms, cosk, sink, geo, rot, Q, dydt):
     """First-order right-hand side dy/dt computing the pin geometry itself (for scipy and checks)."""
     pin_geometry(t, P, cosk, sink, geo, rot)
@@ -726,10 +785,9 @@ def rhs(t, y, P, mass, planet, tvms, cosk, sink, geo, rot, Q, dydt):
 
 
 def work_arrays(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Fresh (geo, rot, Q) work arrays for :func:`rhs`; ``Q`` holds the n generalized forces followed
-    by 2 Zp scratch values (pin contact forces)."""
+    """Fresh (geo, rot, Q) work arrays for :func:`rhs`; ``Q`` holds the n generalized forces."""
     return (np.zeros((model.n_discs, 3, model.cosk.size)), np.zeros((model.n_discs, 4)),
-            np.zeros(model.n_dof + 2 * model.cosk.size))
+            np.zeros(model.n_dof))
 
 
 def make_rhs(model: Model):
@@ -739,7 +797,7 @@ def make_rhs(model: Model):
 
     def f(t: float, y: np.ndarray) -> np.ndarray:
         out = np.empty_like(y)
-        rhs(float(t), np.ascontiguousarray(y, dtype=np.float64), m.P, m.mass, m.planet, m.tvms,
+        rhs(float(t), np.ascontiguousarray(y, dtype=np.float64), m.P, m.mass, m.planet, m.tables,
             m.cosk, m.sink, geo, rot, Q, out)
         return out
 
@@ -751,7 +809,7 @@ def forces(model: Model, t: float, q: np.ndarray, v: np.ndarray | None = None) -
     geo, rot, Q = work_arrays(model)
     pin_geometry(float(t), model.P, model.cosk, model.sink, geo, rot)
     v = np.zeros_like(q) if v is None else np.asarray(v, float)
-    generalized_forces(float(t), np.asarray(q, float), v, model.P, model.planet, model.tvms, geo, rot, Q)
+    generalized_forces(float(t), np.asarray(q, float), v, model.P, model.planet, model.tables, geo, rot, Q)
     return Q[: model.n_dof].copy()
 
 

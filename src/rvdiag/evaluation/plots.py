@@ -106,13 +106,13 @@ def plot_examples(examples: Mapping[str, np.ndarray], fs: float | None = None,
     max_points : int
         Points of each waveform shown.
     fmax : float, optional
-        Upper frequency of the spectra (default: 3 x the stage-2 mesh frequency when known, else Nyquist).
+        Upper frequency of the spectra (default: Nyquist).  The frequency axis is logarithmic, so the
+        low characteristic frequencies and the high-frequency resonances show on one plot.
     """
     states = list(examples)
-    fig, axes = plt.subplots(len(states), 2, figsize=(11, 1.9 * len(states) + 0.4), squeeze=False)
-    if fmax is None and fs and frequencies and frequencies.get("fcs"):
-        fmax = min(fs / 2, 3.5 * max(frequencies["fcs"], frequencies.get("fsp", 0.0)))
-    colors = plt.cm.Set1(np.linspace(0, 1, 9))
+    fig, axes = plt.subplots(len(states), 2, figsize=(11, 1.9 * len(states) + 0.9), squeeze=False)
+    colors = [plt.cm.tab10(i) for i in (3, 0, 2, 4, 1, 6, 5, 7, 8)]
+    handles = []
     for row, state in enumerate(states):
         x = np.asarray(examples[state], dtype=np.float64)
         n = min(len(x), max_points)
@@ -123,20 +123,25 @@ def plot_examples(examples: Mapping[str, np.ndarray], fs: float | None = None,
         ax.set_xlabel("time (ms)" if fs else "sample")
         f, a = amplitude_spectrum(x, fs)
         ax = axes[row, 1]
-        sel = f <= fmax if fmax else slice(None)
-        ax.plot(f[sel], a[sel], lw=0.6, color="black")
-        ax.set_yscale("log")
+        keep = f > 0
+        if fmax:
+            keep &= f <= fmax
+        ax.loglog(f[keep], a[keep], lw=0.6, color="black")
         ax.set_xlabel("frequency (Hz)" if fs else "frequency (cycles/sample)")
         if frequencies and fs:
             for i, (key, name) in enumerate(MARKED_FREQUENCIES.items()):
                 v = frequencies.get(key)
                 if v and (fmax is None or v <= fmax):
-                    ax.axvline(v, ls="--", lw=0.9, color=colors[i % 9], label=f"{name} {v:.1f} Hz")
-            if row == 0:
-                ax.legend(fontsize=7, ncol=3, loc="upper right")
+                    h = ax.axvline(v, ls="--", lw=0.9, color=colors[i % 9], label=f"{name} {v:.1f} Hz")
+                    if row == 0:
+                        handles.append(h)
+    if handles:
+        fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=8, frameon=False)
+        fig.tight_layout(rect=(0, 0.06 / max(1, len(states) / 3), 1, 1))
+    else:
+        fig.tight_layout()
     axes[0, 0].set_title("waveform")
-    axes[0, 1].set_title("amplitude spectrum (Hann), characteristic frequencies dashed")
-    fig.tight_layout()
+    axes[0, 1].set_title("amplitude spectrum (Hann, log-log), characteristic frequencies dashed")
     return fig
 
 

@@ -179,7 +179,7 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
             else:
                 raise ParameterError(
                     f"{self.architecture} takes windows of {W} points but the samples have only {length}; "
-                    f"give a shorter input_length or use cnn1d-lean"
+                    f"give a shorter input_length (--input-length) or use cnn1d-lean"
                 )
         return W
 
