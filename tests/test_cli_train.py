@@ -80,8 +80,14 @@ def test_evaluate_json_and_report(cnn_model, store, tmp_path, capsys):
     assert m["accuracy"] >= 0.75  # three clearly different tones
     text = rep.read_text()
     assert "t-SNE" in text and "data:image/png;base64," in text
-    code, out, _ = run(["evaluate", cnn_model, store, "--split", "all"], capsys)
-    assert code == 0 and "48 samples" in out and "T3" in out
+    code, out, _ = run(["evaluate", cnn_model, store, "--split", "all", "--by", "output_speed_deg_s"], capsys)
+    assert code == 0 and "48 samples" in out and "T3" in out and "accuracy by output_speed_deg_s" in out
+    code, out, err = run(["evaluate", cnn_model, store, "--json", "--by", "unit"], capsys)
+    assert code == 0, err
+    groups = json.loads(out)["by"]["groups"]
+    assert sum(g["n"] for g in groups) == 12 and len(groups) == 6  # 12 test samples in 6 units, by value
+    code, _, err = run(["evaluate", cnn_model, store, "--by", "snr"], capsys)
+    assert code == 2 and "no metadata column 'snr'" in err
 
 
 def test_diagnose_windows_a_signal(cnn_model, tmp_path, capsys):

@@ -59,3 +59,22 @@ def test_repeat_summary_best_mean_worst():
     assert s["accuracy"]["mean"] == pytest.approx(0.875)
     with pytest.raises(ValueError):
         repeat_summary([])
+
+
+def test_accuracy_by_snr_bins():
+    from rvdiag.errors import StoreError
+    from rvdiag.evaluation.evaluate import Evaluation, accuracy_by
+
+    snr = np.linspace(-5, 20, 26)  # 26 distinct values -> 5 equal-width bins of 5 dB
+    y = np.array(["a"] * 26)
+    pred = np.where(snr >= 10, "a", "b")
+    ev = Evaluation({}, y, pred, np.zeros((26, 2)), {"noise_snr_db": snr, "kind": np.array(["x"] * 26)}, "test")
+    g = accuracy_by(ev, "noise_snr_db", n_bins=5)
+    assert [(x["lo"], x["hi"], x["n"]) for x in g] == [(-5, 0, 5), (0, 5, 5), (5, 10, 5), (10, 15, 5), (15, 20, 6)]
+    assert [x["accuracy"] for x in g] == [0.0, 0.0, 0.0, 1.0, 1.0]
+    g = accuracy_by(Evaluation({}, y[:4], pred[:4], None, {"u": np.array([1, 1, 2, 2])}, "t"), "u")
+    assert [(x["lo"], x["n"]) for x in g] == [(1.0, 2), (2.0, 2)]
+    with pytest.raises(StoreError, match="no metadata column"):
+        accuracy_by(ev, "speed")
+    with pytest.raises(StoreError, match="not numeric"):
+        accuracy_by(ev, "kind")

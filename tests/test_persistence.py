@@ -122,3 +122,13 @@ def test_cnn_features_svm_round_trip(tmp_path):
     d = save_model(m, tmp_path / "cnnsvm", model="svm", features="cnn", seed=0)
     loaded = load_model(d)
     np.testing.assert_allclose(loaded.estimator.predict_proba(X), m.predict_proba(X), rtol=1e-5, atol=1e-7)
+
+
+def test_model_trained_for_cuda_predicts_on_cpu(cnn_dir, tmp_path):
+    d = _copy(cnn_dir, tmp_path)
+    card = json.loads((d / "card.json").read_text())
+    card["params"]["device"] = "cuda"
+    (d / "card.json").write_text(json.dumps(card))
+    loaded = load_model(d)
+    np.testing.assert_allclose(loaded.estimator.predict_proba(cnn_dir[2][:3]),
+                               cnn_dir[1].predict_proba(cnn_dir[2][:3]), rtol=1e-4, atol=1e-6)

@@ -20,10 +20,13 @@ def register(app: typer.Typer) -> None:
                                       help="Print accuracy, precision_macro, recall_macro, f1_macro, kappa, "
                                            "per_class, confusion as JSON."),
         report: Path = typer.Option(None, "--report", help="Write a self-contained HTML report here."),
+        by: str = typer.Option(None, "--by",
+                               help="Also give the accuracy per value/bin of a metadata column, e.g. noise_snr_db "
+                                    "(accuracy against SNR); JSON key 'by'."),
     ) -> None:
         """Score a saved model on a split of a sample store."""
         from rvdiag.datasets import SampleStore
-        from rvdiag.evaluation.evaluate import evaluate_on_store, report_html
+        from rvdiag.evaluation.evaluate import accuracy_by, evaluate_on_store, report_html
         from rvdiag.evaluation.report import write_report
         from rvdiag.models.persistence import load_model
 
@@ -32,14 +35,20 @@ def register(app: typer.Typer) -> None:
         loaded = load_model(model_dir)
         store = SampleStore.open(data)
         ev = evaluate_on_store(loaded, store, split)
+        groups = accuracy_by(ev, by) if by else None
         for w in ev.warnings:
             typer.echo(w, err=True)
         if report is not None:
             write_report(report, report_html(loaded, store, ev))
         if json_out:
-            typer.echo(json.dumps(ev.metrics, indent=2))
+            out = dict(ev.metrics)
+            if groups is not None:
+                out["by"] = {"column": by, "groups": groups}
+            typer.echo(json.dumps(out, indent=2))
         else:
             _print(ev, loaded, data)
+            if groups is not None:
+                _print_by(by, groups)
         if report is not None:
             typer.echo(f"report: {report.resolve()}", err=json_out)
 
@@ -66,3 +75,17 @@ def _print(ev, loaded, data) -> None:
     for c, row in zip(m["labels"], m["confusion"]):
         cm.add_row(c, *map(str, row))
     con.print(cm)
+
+
+def _print_by(column: str, groups: list[dict]) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    t = Table(title=f"accuracy by {column}")
+    t.add_column(column, justify="right")
+    t.add_column("samples", justify="right")
+    t.add_column("accuracy", justify="right")
+    for g in groups:
+        rng = f"{g['lo']:.4g}" if g["lo"] == g["hi"] else f"{g['lo']:.4g} .. {g['hi']:.4g}"
+        t.add_row(rng, str(g["n"]), f"{100 * g['accuracy']:.2f} %")
+    Console().print(t)

@@ -108,3 +108,36 @@ def report_html(loaded, store, ev: Evaluation, max_tsne: int = 600, seed: int = 
     return render_report(title=title, metrics=ev.metrics, card=loaded.card, store_info=store_info,
                          examples=examples, fs=store.fs, frequencies=freqs, embedding=emb,
                          embedding_labels=ev.y_true[pick])
+
+
+def accuracy_by(ev: Evaluation, column: str, n_bins: int = 6) -> list[dict]:
+    """Accuracy per value (or per equal-width bin) of a metadata column, e.g. ``noise_snr_db``.
+
+    A column with at most 12 distinct values is grouped by value, otherwise into ``n_bins`` equal-width
+    bins between its minimum and maximum (the last bin closed).  Returns one dict per group:
+    ``{"lo", "hi", "n", "accuracy"}`` (``lo == hi`` for a single value).
+    """
+    from rvdiag.errors import StoreError
+
+    if column not in ev.meta:
+        raise StoreError(f"no metadata column {column!r} (columns: {', '.join(sorted(ev.meta))})")
+    try:
+        v = np.asarray(ev.meta[column], dtype=float)
+    except (TypeError, ValueError):
+        raise StoreError(f"metadata column {column!r} is not numeric") from None
+    ok = np.isfinite(v)
+    correct = ev.y_true == ev.y_pred
+    out = []
+    values = np.unique(v[ok])
+    if values.size <= 12:
+        groups = [(x, x, ok & (v == x)) for x in values]
+    else:
+        edges = np.linspace(values[0], values[-1], n_bins + 1)
+        groups = []
+        for i in range(n_bins):
+            hi_ok = v <= edges[i + 1] if i == n_bins - 1 else v < edges[i + 1]
+            groups.append((edges[i], edges[i + 1], ok & (v >= edges[i]) & hi_ok))
+    for lo, hi, m in groups:
+        if m.any():
+            out.append({"lo": float(lo), "hi": float(hi), "n": int(m.sum()), "accuracy": float(correct[m].mean())})
+    return out
