@@ -53,6 +53,8 @@ CASES = [
     ("wear 100 um", "T3", {"wear_depth": 100e-6}),
     ("crack 0.5 mm at 45 deg", "T4", {"crack_depth": 0.5e-3, "crack_angle_deg": 45.0}),
     ("crack 1 mm at 30 deg", "T4", {"crack_depth": 1.0e-3, "crack_angle_deg": 30.0}),
+    ("crack 1.6 mm at 45 deg", "T4", {"crack_depth": 1.6e-3, "crack_angle_deg": 45.0}),
+    ("crack 2 mm at 45 deg", "T4", {"crack_depth": 2.0e-3, "crack_angle_deg": 45.0}),
     ("broken fraction 0.3", "T2", {"broken_fraction": 0.3}),
     ("whole tooth missing", "T2", {"broken_fraction": 1.0}),
     ("broken + wear 20 um (T5)", "T5", {"broken_fraction": 1.0, "wear_depth": 20e-6}),

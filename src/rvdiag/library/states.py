@@ -71,8 +71,9 @@ class SeverityParameter:
 
 #: Severity parameters.  Ranges for the RV-20E sun gear (module 1.25 mm, tooth whole depth 2.81 mm,
 #: root half-thickness about 1.1 mm with the +0.4 profile shift of ``rv20e.toml``):
-#: a root crack deeper than about 1 mm would cross the tooth centreline far enough to leave no section
-#: (the crack cases of Mohammed, Rantatalo & Aidanpaa 2013 assume q < tooth thickness); wear depths of
+#: a root crack may cross the centreline (cases 3-4 of Mohammed, Rantatalo & Aidanpaa 2013) but must end
+#: inside the tooth; at 45-60 deg the sun tooth admits about 2.2 mm, and the gear model
+#: (:class:`rvdiag.gears.RootCrack`) refuses a deeper one with a GeometryError, so 2.2 mm caps the range; wear depths of
 #: 5..100 um span the mild to severe wear of Flodin & Andersson 1997 / Chen & Shao; crack angles of
 #: 30..75 deg cover the propagation paths of Chen & Shao 2011 (45 deg is their reference case).
 SEVERITY_PARAMETERS: dict[str, SeverityParameter] = {
@@ -87,7 +88,7 @@ SEVERITY_PARAMETERS: dict[str, SeverityParameter] = {
             "maximum uniform-Archard wear depth of the tooth flank (m)",
         ),
         SeverityParameter(
-            "crack_depth", "m", 5.0e-5, 1.0e-3, 5.0e-4,
+            "crack_depth", "m", 5.0e-5, 2.2e-3, 5.0e-4,
             "root crack depth q measured along the crack (m)",
         ),
         SeverityParameter(
