@@ -55,6 +55,7 @@ TRUSTED_TYPES: set[str] = {
     "rvdiag.features.spectrum.CharacteristicBandEnergy",
     "rvdiag.features.spectrum.EnvelopeSpectrumFeatures",
     "rvdiag.features.wavelet.WaveletPacketEnergy",
+    "rvdiag.features.bearing.BearingEnvelopeFeatures",
     "rvdiag.features.eemd.EEMDFeatures",
     "rvdiag.models.kelm.KELMClassifier",
     "rvdiag.models.tuning.TunedKELM",
