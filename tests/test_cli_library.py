@@ -104,6 +104,8 @@ def test_out_that_is_not_a_store_or_another_config_is_refused(tmp_path, config_f
 
 def test_unreachable_scheduler_is_an_error(tmp_path, config_file, capsys):
     import dask
+    import distributed  # noqa: F401  loads its config defaults first: leaving dask.config.set restores the
+    # config as it found it, and would drop a 'distributed' section that an import inside the block added
 
     with dask.config.set({"distributed.comm.timeouts.connect": "2s"}):
         code = run(["library", "build", str(config_file), "--out", str(tmp_path / "x.zarr"), "-q",
