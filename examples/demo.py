@@ -64,9 +64,8 @@ def main() -> None:
     print("== 1. mesh stiffness (TVMS) of the RV-20E sun-planet pair, healthy and faulty")
     summary = demo_tvms.run(out)
     print(f"   wrote {out / 'tvms.png'} and {out / 'tvms_summary.json'}")
-    healthy = summary.get("healthy", {}) if isinstance(summary, dict) else {}
-    if "mean_N_per_m" in healthy:
-        print(f"   healthy mean mesh stiffness {healthy['mean_N_per_m']:.3e} N/m")
+    for state, row in summary["states"].items():
+        print(f"   {state} {row['name']:<18} mean {row['mean_N_per_m']:.3e} N/m, min {row['min_N_per_m']:.3e} N/m")
 
     step("2. characteristic frequencies", ["freqs", "--input-speed", DEMO_SPEED_RPM, "--json"], out / "freqs.json")
     print(f"   wrote {out / 'freqs.json'}")
