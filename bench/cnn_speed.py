@@ -26,7 +26,6 @@ import os
 import statistics
 import time
 
-import numpy as np
 import torch
 
 CONFIGS = [("cnn1d", 6400), ("cnn1d-lean", 4096), ("cnn1d-lean", 6400), ("mcsa-cnn", 4096)]

@@ -34,7 +34,7 @@ def test_force_line_passes_through_pitch_point_and_arm(p):
     s2 = p.stage2
     crank = 0.7
     c = pin_contact(s2, p.material, crank)
-    e, zp, zc, rp = s2.eccentricity, s2.pins, s2.cycloid_lobes, s2.pin_circle_radius
+    e, zp, rp = s2.eccentricity, s2.pins, s2.pin_circle_radius
     disc_centre = e * np.array([math.cos(crank), math.sin(crank)])
     for i in np.flatnonzero(c.in_contact)[:5]:
         psi = 2 * math.pi * i / zp

@@ -8,7 +8,7 @@ import pytest
 
 from rvdiag.errors import ParameterError
 from rvdiag.gears import GearPair, mesh_stiffness, tooth_pair_components
-from rvdiag.gears.tvms import (_healthy_table, foundation_compliance, hertz_compliance, load_point,
+from rvdiag.gears.tvms import (_healthy_table, hertz_compliance, load_point,
                                pair_stiffness_at, sainsot_coefficients)
 from rvdiag.params import ReducerParams
 

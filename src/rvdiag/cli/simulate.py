@@ -2,21 +2,13 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Optional
 
 import typer
 
+from rvdiag.cli._options import fault_severities
 from rvdiag.errors import ParameterError
-
-
-def _mm(name: str, value: Optional[float]) -> Optional[float]:
-    if value is None:
-        return None
-    if not math.isfinite(value):
-        raise ParameterError(f"--{name} must be finite, got {value}")
-    return value * 1e-3
 
 
 _USES = {"wear_depth": "wear", "crack_depth": "crack", "crack_angle_deg": "crack", "broken_fraction": "broken"}
@@ -84,13 +76,7 @@ def register(app: typer.Typer) -> None:
             raise ParameterError(f"--out must name a .npz file, got {out}")
         if not out.parent.exists():
             raise ParameterError(f"--out directory does not exist: {out.parent}")
-        severities = {}
-        for key, value in (("wear_depth", _mm("wear-depth", wear_depth_mm)),
-                           ("crack_depth", _mm("crack-depth", crack_depth_mm)),
-                           ("crack_angle_deg", crack_angle),
-                           ("broken_fraction", broken_fraction)):
-            if value is not None:
-                severities[key] = value
+        severities = fault_severities(wear_depth_mm, crack_depth_mm, crack_angle, broken_fraction)
         fault = ToothFaults.for_state(state, **severities)
         _check_severities(fault.label or state.upper(), severities)
         p = ReducerParams.load(params)

@@ -3,23 +3,15 @@
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Optional
 
 import typer
 
+from rvdiag.cli._options import fault_severities, mm_to_m
 from rvdiag.errors import ParameterError
 
 FAULTS = ("healthy", "wear", "crack", "broken", "broken+wear", "broken+wear+crack")
-
-
-def _mm(name: str, value: Optional[float]) -> Optional[float]:
-    if value is None:
-        return None
-    if not math.isfinite(value):
-        raise ParameterError(f"--{name} must be finite, got {value}")
-    return value * 1e-3
 
 
 def register(app: typer.Typer) -> None:
@@ -59,20 +51,14 @@ def register(app: typer.Typer) -> None:
             if params is not None:
                 raise ParameterError("give either --params or a custom pair (--z1/--z2/--module), not both")
             gp = GearPair.from_dimensions(
-                z1, z2, _mm("module", module_mm), _mm("face-width", face_width_mm),
+                z1, z2, mm_to_m("module", module_mm), mm_to_m("face-width", face_width_mm),
                 pressure_angle_deg=pressure_angle, youngs_modulus=youngs_modulus,
                 poisson_ratio=poisson, x1=x1, x2=x2)
         else:
             if pair != "sun-planet":
                 raise ParameterError(f"unknown --pair {pair!r}; the only involute pair is sun-planet")
             gp = GearPair.sun_planet(ReducerParams.load(params))
-        severities = {}
-        for key, value in (("wear_depth", _mm("wear-depth", wear_depth_mm)),
-                           ("crack_depth", _mm("crack-depth", crack_depth_mm)),
-                           ("crack_angle_deg", crack_angle),
-                           ("broken_fraction", broken_fraction)):
-            if value is not None:
-                severities[key] = value
+        severities = fault_severities(wear_depth_mm, crack_depth_mm, crack_angle, broken_fraction)
         faults = ToothFaults.from_name(fault, **severities)
         if cycles == 0:
             cycles = gp.driver.teeth

@@ -282,7 +282,7 @@ def build_model(
     settings : ModelSettings
     """
     st = settings or ModelSettings()
-    s1, s2, mat, br, dmp = params.stage1, params.stage2, params.material, params.bearings, params.damping
+    s1, s2, br, dmp = params.stage1, params.stage2, params.bearings, params.damping
     if s2.equidistant_modification != 0.0 or s2.offset_modification != 0.0:
         raise ParameterError(
             "the dynamic model supports unmodified cycloid profiles only: set "

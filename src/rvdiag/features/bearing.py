@@ -36,7 +36,7 @@ import numpy as np
 
 from rvdiag.errors import ParameterError
 from rvdiag.features._base import SignalTransformer
-from rvdiag.features.spectrum import bearing_defect_frequencies, power_spectrum, squared_envelope
+from rvdiag.features.spectrum import bearing_defect_frequencies, squared_envelope
 
 #: CWRU drive-end bearing 6205-2RS JEM SKF (inches; only the ratio d/D matters)
 BEARING_6205 = {"n_balls": 9, "ball_diameter": 0.3126, "pitch_diameter": 1.537, "contact_angle_rad": 0.0}
