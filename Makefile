@@ -7,7 +7,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.rvdiag-installed
 OUT    ?= out
 
-.PHONY: demo test bench clean install
+.PHONY: demo paper test bench clean install
 
 install: $(STAMP)
 
@@ -18,6 +18,10 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	$(PY) examples/demo.py --out $(OUT)
+
+# the same main job at the scale of the dynamics paper (6 states x 60 s, 8000-point samples)
+paper: $(STAMP)
+	$(PY) examples/demo.py --out $(OUT)/paper --config configs/paper.toml
 
 test: $(STAMP)
 	$(PY) -m pytest -q -p no:cacheprovider

@@ -53,6 +53,9 @@ def step(title: str, args: list[str], stdout_file: Path | None = None) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=Path, default=ROOT / "out", help="output folder (default: out/)")
+    parser.add_argument("--config", type=Path, default=DEMO_CONFIG,
+                        help="library config (default: configs/demo.toml; configs/paper.toml for paper scale)")
+    parser.add_argument("--model", default=DEMO_MODEL, help=f"classifier to train (default: {DEMO_MODEL})")
     args = parser.parse_args()
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
@@ -70,13 +73,13 @@ def main() -> None:
     step("2. characteristic frequencies", ["freqs", "--input-speed", DEMO_SPEED_RPM, "--json"], out / "freqs.json")
     print(f"   wrote {out / 'freqs.json'}")
 
-    library = out / "demo.zarr"
-    step("3. the demo fault-sample library", ["library", "build", str(DEMO_CONFIG), "--out", str(library)])
+    library = out / f"{args.config.stem}.zarr"
+    step("3. the fault-sample library", ["library", "build", str(args.config), "--out", str(library)])
 
     model_dir = out / "model"
     if model_dir.exists():
         shutil.rmtree(model_dir)
-    step("4. train the CNN", ["train", str(library), "--model", DEMO_MODEL, "--out", str(model_dir),
+    step("4. train the classifier", ["train", str(library), "--model", args.model, "--out", str(model_dir),
                               "--epochs", DEMO_EPOCHS, "--seed", "0", *DEMO_TRAIN_OPTIONS])
 
     report = out / "report.html"
