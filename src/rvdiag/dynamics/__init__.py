@@ -86,6 +86,22 @@ def prepare(
     return build_model(params, mesh_table(params, fault, mesh_source), fsun, load, settings or ModelSettings())
 
 
+def initial_deflection(model: Model, t0: float) -> tuple[np.ndarray, str]:
+    """Initial displacements of a run and how they were found.
+
+    The static equilibrium at ``t0`` when its Newton iteration converges; otherwise (contacts that keep
+    switching, as with a partly broken, heavily worn tooth) the bilateral linear deflection, which always
+    exists.  Either way the start-up transient is discarded, so the choice only shortens the settling.
+    """
+    from rvdiag.dynamics.linear import bilateral_deflection, static_equilibrium
+    from rvdiag.errors import SimulationError
+
+    try:
+        return static_equilibrium(model, t0), "static equilibrium"
+    except SimulationError:
+        return bilateral_deflection(model, t0), "bilateral linear deflection (static iteration did not converge)"
+
+
 def simulate(
     params: ReducerParams | None = None,
     fault: Any = None,
@@ -134,7 +150,6 @@ def simulate(
         ``signal`` of shape (channels, samples) in m/s^2.
     """
     from rvdiag.dynamics.integrate import integrate
-    from rvdiag.dynamics.linear import static_equilibrium
 
     st = settings or ModelSettings()
     for name, val in (("duration_s", duration_s), ("fs", fs)):
@@ -150,13 +165,14 @@ def simulate(
                     load_Nm=load_Nm, settings=st, mesh_source=mesh_source)
     n_tr = int(round(st.transient_s * fs))
     t0 = -n_tr / fs
-    q0 = static_equilibrium(model, t0)
+    q0, initial_state = initial_deflection(model, t0)
     y0 = np.concatenate([q0, np.zeros_like(q0)])
     signal, _ = integrate(model, y0, fs, n_samples, n_tr, progress)
     if noise_snr_db is not None:
         signal = add_awgn(signal, noise_snr_db, np.random.default_rng(seed))
     names = [f"accel[{d[0]:.3g},{d[1]:.3g}]" for d in model.sensor]
     record = {
+        "initial_state": initial_state,
         "input_speed_rpm": input_speed_rpm,
         "output_speed_deg_s": output_speed_deg_s,
         "sun_speed_hz": float(model.P[5] + model.P[6]) / (2 * math.pi),

@@ -59,6 +59,18 @@ def mass_matrix(model: mdl.Model) -> np.ndarray:
     return np.diag(model.mass)
 
 
+def bilateral_deflection(model: mdl.Model, t: float = 0.0) -> np.ndarray:
+    """Static deflection with every contact closed and no backlash: a linear solve that always exists.
+
+    The meshes sit on the flank the load presses together (the backlash gap taken up).  It is the start
+    of :func:`static_equilibrium`'s Newton iteration, and the initial state of a simulation when that
+    iteration does not converge (the start-up transient then settles the contacts).
+    """
+    fm = model.frozen(t)
+    lin = fm.with_P(BILATERAL=-1.0 if fm.P[mdl.I_TLOAD] < 0 else 1.0)
+    return _solve(stiffness_matrix(lin, t), _residual(lin, t, np.zeros(model.n_dof)))
+
+
 def static_equilibrium(model: mdl.Model, t: float = 0.0, max_iter: int = 50, tol: float = 1e-9) -> np.ndarray:
     """Static deflection ``q`` with ``M a(t, q, v=0) = 0`` (time-varying terms frozen at ``t``).
 
@@ -66,12 +78,8 @@ def static_equilibrium(model: mdl.Model, t: float = 0.0, max_iter: int = 50, tol
     changing.  Raises SimulationError when it does not.
     """
     fm = model.frozen(t)
-    n = model.n_dof
     scale = np.abs(fm.P[mdl.I_TLOAD]) + 1.0
-    # start from the bilateral (all contacts closed, no backlash) linear solution, which is regular
-    # (the meshes on the flank the load presses together: the backlash gap taken up)
-    lin = fm.with_P(BILATERAL=-1.0 if fm.P[mdl.I_TLOAD] < 0 else 1.0)
-    q = _solve(stiffness_matrix(lin, t), _residual(lin, t, np.zeros(n)))
+    q = bilateral_deflection(model, t)
     r = _residual(fm, t, q)
     for _ in range(max_iter):
         if np.max(np.abs(r)) <= tol * scale:
