@@ -38,7 +38,6 @@ Examples
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -47,6 +46,7 @@ import numpy as np
 
 from rvdiag.errors import ConfigError, ParameterError
 from rvdiag.library.states import SEVERITY_PARAMETERS, STATES
+from rvdiag.tomlfile import read_toml
 
 MODES = ("paper", "independent")
 SPLIT_ASSIGN = ("random", "ordered")
@@ -238,18 +238,7 @@ class LibraryConfig:
     def load(cls, path: str | Path) -> "LibraryConfig":
         """Read and validate a library TOML file; :class:`ConfigError` names the file and key."""
         path = Path(path)
-        try:
-            text = path.read_text("utf-8")
-        except FileNotFoundError:
-            raise ConfigError(f"library config not found: {path}") from None
-        except IsADirectoryError:
-            raise ConfigError(f"library config {path} is a directory, expected a TOML file") from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ConfigError(f"cannot read library config {path}: {exc}") from None
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise ConfigError(f"{path}: not valid TOML ({exc})") from None
+        data = read_toml(path, "library config")
         cfg = cls.from_dict(data, source=str(path))
         object.__setattr__(cfg, "base_dir", str(path.resolve().parent))
         return cfg

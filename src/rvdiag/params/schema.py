@@ -27,6 +27,7 @@ from typing import Any
 import tomli_w
 
 from rvdiag.errors import ConfigError
+from rvdiag.tomlfile import read_toml
 
 DEFAULT_PARAMS_NAME = "rv20e.toml"
 
@@ -219,18 +220,7 @@ class ReducerParams:
         """Load and validate a TOML parameter file; ``None`` gives :meth:`default`."""
         if path is None:
             return cls.default()
-        path = Path(path)
-        try:
-            text = path.read_text("utf-8")
-        except FileNotFoundError:
-            raise ConfigError(f"parameter file not found: {path}") from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ConfigError(f"cannot read parameter file {path}: {exc}") from None
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise ConfigError(f"{path}: not valid TOML ({exc})") from None
-        return cls.from_dict(data, source=str(path))
+        return cls.from_dict(read_toml(path, "parameter file"), source=str(path))
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], source: str = "<dict>") -> "ReducerParams":
