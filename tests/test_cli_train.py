@@ -158,3 +158,40 @@ def test_classical_model_and_repeat(store, tmp_path, capsys):
     code, stdout, err = run(["evaluate", out, store, "--json"], capsys)
     assert code == 0, err
     assert json.loads(stdout)["accuracy"] >= 0.5
+
+
+def test_validation_split_is_by_segment_without_overlap_and_by_simulation_with_it():
+    """Paper mode (one simulation per state, hop = segment length) must still get a validation set: split
+    by segment there; with overlapping segments, whole simulations move (no leak)."""
+    from types import SimpleNamespace
+
+    from rvdiag.cli.train import validation_groups
+
+    units = np.array([0, 0, 1, 1])
+    samples = SimpleNamespace(meta={"unit": units})
+
+    def store(hop, seg):
+        return SimpleNamespace(attrs={"config": {"signal": {"hop": hop, "segment_length": seg}}})
+
+    assert validation_groups(store(8000, 8000), samples) is None
+    assert validation_groups(store(2048, 4096), samples) is units
+    assert validation_groups(SimpleNamespace(attrs={}), samples) is units      # measured-data stores
+    assert validation_groups(store(2048, 4096), SimpleNamespace(meta={})) is None
+
+
+def test_evaluate_accuracy_against_added_noise(cnn_model, store, capsys):
+    """--snr-db scores the same samples at each added-noise level: seeded, reproducible, and accuracy falls
+    to chance when the noise swamps the tones (-30 dB) while it holds at +30 dB."""
+    args = ["evaluate", cnn_model, store, "--json", "--snr-db", "-30,30", "--seed", "3"]
+    code, out, err = run(args, capsys)
+    assert code == 0, err
+    curve = json.loads(out)["snr"]
+    assert [r["snr_db"] for r in curve] == [-30.0, 30.0] and all(r["n"] == 12 for r in curve)
+    clean = json.loads(out)["accuracy"]
+    assert curve[1]["accuracy"] >= clean - 1 / 12
+    assert curve[0]["accuracy"] <= 0.6
+    assert run(args, capsys)[1] == out                                  # same seed, same noise
+    code, out, _ = run(["evaluate", cnn_model, store, "--snr-db", "0,10"], capsys)
+    assert code == 0 and "accuracy against added-noise SNR" in out
+    code, _, err = run(["evaluate", cnn_model, store, "--snr-db", "loud"], capsys)
+    assert code == 2 and "--snr-db" in err

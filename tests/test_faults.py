@@ -5,7 +5,7 @@ import pytest
 
 from rvdiag.errors import GeometryError, ParameterError
 from rvdiag.gears import BrokenTooth, GearPair, RootCrack, ToothFaults, Wear, mesh_stiffness
-from rvdiag.gears.faults import archard_wear_profile, damaged_profile
+from rvdiag.gears.faults import T6_CRACK_OFFSET, archard_wear_profile, damaged_profile
 from rvdiag.params import ReducerParams
 
 
@@ -97,7 +97,7 @@ def test_combinations_t5_t6(pair):
     assert means["T6"] < means["T5"] < means["T4"] < h
     t6 = ToothFaults.for_state("T6")
     assert t6.wear is not None and isinstance(t6.teeth[0][0], BrokenTooth)
-    assert isinstance(t6.teeth[1][0], RootCrack)
+    assert isinstance(t6.teeth[T6_CRACK_OFFSET][0], RootCrack)
     assert ToothFaults.for_state("T1").is_healthy
     assert ToothFaults.from_name("wear+broken").label == "T5"
 

@@ -250,3 +250,19 @@ def test_time_features_scale_as_their_definitions_say(x, a):
             assert_allclose(G[idx[k]], F[idx[k]], rtol=1e-6)
     assert F[idx["crest_factor"]] >= 1 - 1e-12 or F[idx["rms"]] == 0
     assert F[idx["shape_factor"]] >= 1 - 1e-12 or F[idx["rms"]] == 0
+
+
+def test_logspec_features_are_every_bin_and_level_free():
+    """``logspec``: one feature per FFT bin, independent of the signal level, and the same spectrum shape as
+    the CNNs' logspec input (natural log there, log10 of the relative magnitude here)."""
+    from rvdiag.features import make_features
+    from rvdiag.models.torch_estimator import log_spectrum
+
+    rng = np.random.default_rng(2)
+    X = rng.standard_normal((5, 512))
+    F = make_features("logspec").fit_transform(X)
+    assert F.shape == (5, 257) and "logspec" in feature_names()
+    np.testing.assert_allclose(make_features("logspec").fit_transform(30.0 * X), F, atol=1e-9)
+    # interior bins (the one-sided power doubles all but DC and Nyquist): equal up to a constant per row
+    diff = (F * np.log(10.0) - log_spectrum(X))[:, 1:-1]
+    np.testing.assert_allclose(diff - diff.mean(axis=1, keepdims=True), 0.0, atol=1e-4)

@@ -172,7 +172,8 @@ def test_demo_config_has_enough_samples_for_a_cnn():
     cfg = LibraryConfig.load(ROOT / "configs" / "demo.toml")
     counts = split_counts(cfg)
     assert cfg.mode == "independent" and counts["train"] >= 100 and counts["test"] >= 30
-    assert cfg.n_simulations * (cfg.duration_s + cfg.transient_s) <= 120.0  # simulated seconds: minutes on 2 cores
+    # simulated seconds: at the ~2 simulated s per CPU-s of 4 sub-steps, about a minute on 2 cores
+    assert cfg.n_simulations * (cfg.duration_s + cfg.transient_s) <= 250.0
 
 
 def test_plan_draws_are_seeded_and_within_ranges():

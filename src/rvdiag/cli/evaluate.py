@@ -23,19 +23,25 @@ def register(app: typer.Typer) -> None:
         by: str = typer.Option(None, "--by",
                                help="Also give the accuracy per value/bin of a metadata column, e.g. noise_snr_db "
                                     "(accuracy against SNR); JSON key 'by'."),
+        snr_db: str = typer.Option(None, "--snr-db",
+                                   help="Also score the split with white noise added at each of these SNRs, "
+                                        "e.g. -5,0,5,10,15,20 (accuracy against SNR); JSON key 'snr'."),
+        seed: int = typer.Option(0, "--seed", help="Seed of the noise added by --snr-db."),
     ) -> None:
         """Score a saved model on a split of a sample store."""
         from rvdiag.datasets import SampleStore
-        from rvdiag.evaluation.evaluate import accuracy_by, evaluate_on_store, report_html
+        from rvdiag.evaluation.evaluate import accuracy_against_snr, accuracy_by, evaluate_on_store, report_html
         from rvdiag.evaluation.report import write_report
         from rvdiag.models.persistence import load_model
 
         if report is not None and (report.is_dir() or (report.parent.exists() and not report.parent.is_dir())):
             raise ParameterError(f"--report {report}: not a writable file path")
+        levels = _parse_levels(snr_db) if snr_db is not None else None
         loaded = load_model(model_dir)
         store = SampleStore.open(data)
         ev = evaluate_on_store(loaded, store, split)
         groups = accuracy_by(ev, by) if by else None
+        curve = accuracy_against_snr(loaded, ev, levels, seed) if levels else None
         for w in ev.warnings:
             typer.echo(w, err=True)
         if report is not None:
@@ -44,11 +50,15 @@ def register(app: typer.Typer) -> None:
             out = dict(ev.metrics)
             if groups is not None:
                 out["by"] = {"column": by, "groups": groups}
+            if curve is not None:
+                out["snr"] = curve
             typer.echo(json.dumps(out, indent=2))
         else:
             _print(ev, loaded, data)
             if groups is not None:
                 _print_by(by, groups)
+            if curve is not None:
+                _print_snr(curve)
         if report is not None:
             typer.echo(f"report: {report.resolve()}", err=json_out)
 
@@ -75,6 +85,34 @@ def _print(ev, loaded, data) -> None:
     for c, row in zip(m["labels"], m["confusion"]):
         cm.add_row(c, *map(str, row))
     con.print(cm)
+
+
+def _parse_levels(text: str) -> list[float]:
+    """``"-5,0,5"`` -> [-5.0, 0.0, 5.0]; a clear error for anything else."""
+    import math
+
+    try:
+        levels = [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise ParameterError(f"--snr-db must be comma-separated numbers in dB, got {text!r}") from None
+    if not levels or not all(math.isfinite(v) for v in levels):
+        raise ParameterError(f"--snr-db must be comma-separated finite numbers in dB, got {text!r}")
+    return levels
+
+
+def _print_snr(curve: list[dict]) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    t = Table(title="accuracy against added-noise SNR (same samples at every level)")
+    t.add_column("SNR (dB)", justify="right")
+    t.add_column("accuracy", justify="right")
+    t.add_column("macro F1", justify="right")
+    t.add_column("kappa", justify="right")
+    for row in curve:
+        t.add_row(f"{row['snr_db']:g}", f"{100 * row['accuracy']:.2f} %", f"{100 * row['f1_macro']:.2f} %",
+                  f"{row['kappa']:.3f}")
+    Console().print(t)
 
 
 def _print_by(column: str, groups: list[dict]) -> None:

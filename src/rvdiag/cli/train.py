@@ -1,7 +1,7 @@
 """``rvdiag train``: train a CNN or a classical model on a sample store and save it as a model directory.
 
     rvdiag train DATA.zarr --model cnn1d|cnn1d-lean|mcsa-cnn|svm|kelm|kelm-mpa|kelm-ga|kelm-pso
-                 [--features time|spectrum|wpd|eemd|none|cnn] --out MODEL_DIR [--epochs N]
+                 [--features time|spectrum|logspec|wpd|eemd|none|cnn] --out MODEL_DIR [--epochs N]
                  [--device auto|cpu|cuda] [--seed N] [--repeat N]
 
 Trains on the store's ``train`` split, scores the ``test`` split (when present) into the model card, and
@@ -32,9 +32,22 @@ def _content_hash(store) -> str:
     return h.hexdigest()[:16]
 
 
+def validation_groups(store, samples):
+    """Groups for the early-stopping validation split: the simulation (``unit``) of each sample when the
+    store's segments overlap (a split by segment would then leak: neighbours share points), else None
+    (split by segment).  A paper-mode library (one simulation per state, ``hop = segment_length``) so
+    gets a real validation set instead of none at all."""
+    units = samples.meta.get("unit")
+    signal = (store.attrs.get("config") or {}).get("signal") or {}
+    hop, seg = signal.get("hop"), signal.get("segment_length")
+    if units is None or (hop is not None and seg is not None and int(hop) >= int(seg)):
+        return None
+    return units
+
+
 def build_estimator(model: str, features: str | None, *, epochs: int, device: str, seed: int,
                     batch_size: int, lr: float, input_length: int | None, patience: int,
-                    validation_fraction: float, normalize: str = "window"):
+                    validation_fraction: float, normalize: str = "window", representation: str = "waveform"):
     """A fresh, unfitted estimator for a ``--model`` name."""
     if model in CNN_MODELS:
         if features is not None:
@@ -45,7 +58,7 @@ def build_estimator(model: str, features: str | None, *, epochs: int, device: st
         return CNNClassifier(architecture=model, input_length=input_length, max_epochs=epochs, device=device,
                              random_state=seed, batch_size=batch_size, learning_rate=lr,
                              n_iter_no_change=patience, validation_fraction=validation_fraction,
-                             normalize=normalize)
+                             normalize=normalize, representation=representation)
     if model in CLASSICAL_MODELS:
         from rvdiag.models.pipelines import make_classical_model
 
@@ -103,7 +116,7 @@ def register(app: typer.Typer) -> None:
         model: str = typer.Option("cnn1d-lean", "--model", "-m",
                                   help="cnn1d | cnn1d-lean | mcsa-cnn | svm | kelm | kelm-mpa | kelm-ga | kelm-pso"),
         features: str = typer.Option(None, "--features", "-f",
-                                     help="Classical models: time | spectrum | wpd | eemd | none | cnn (default wpd)."),
+                                     help="Classical models: time | spectrum | logspec | wpd | eemd | none | cnn (default wpd)."),
         out: Path = typer.Option(..., "--out", "-o", help="Model directory to write."),
         epochs: int = typer.Option(30, "--epochs", help="CNN: maximum epochs (early stopping may end sooner)."),
         device: str = typer.Option("auto", "--device", help="auto | cpu | cuda"),
@@ -119,6 +132,9 @@ def register(app: typer.Typer) -> None:
         normalize: str = typer.Option("window", "--normalize",
                                       help="CNN input normalisation: window (z-score each window) | global "
                                            "(training mean/std, keeps amplitude) | none."),
+        representation: str = typer.Option("waveform", "--representation",
+                                           help="CNN input: waveform (the time window, as in the paper) | logspec "
+                                                "(log-magnitude spectrum of each window; docs/models.md)."),
         json_out: bool = typer.Option(False, "--json", help="Print the test metrics (and repeat summary) as JSON."),
         quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
     ) -> None:
@@ -136,7 +152,8 @@ def register(app: typer.Typer) -> None:
             raise ParameterError(f"--out {out} exists and is not a directory")
         probe = build_estimator(model, features, epochs=epochs, device=device, seed=seed, batch_size=batch_size, lr=lr,
                         input_length=input_length, patience=patience,
-                        validation_fraction=validation_fraction, normalize=normalize)  # checks --model/--features before any work
+                        validation_fraction=validation_fraction, normalize=normalize,
+                        representation=representation)  # checks --model/--features before any work
         if features is not None and model in CLASSICAL_MODELS:
             from rvdiag.features import feature_names
 
@@ -165,7 +182,8 @@ def register(app: typer.Typer) -> None:
             s = seed + r
             est = build_estimator(model, features, epochs=epochs, device=device, seed=s, batch_size=batch_size,
                                   lr=lr, input_length=input_length, patience=patience,
-                                  validation_fraction=validation_fraction, normalize=normalize)
+                                  validation_fraction=validation_fraction, normalize=normalize,
+                                  representation=representation)
             if r == 0 and model in CNN_MODELS:
                 W = est._check_params(store.length)
                 starts = window_starts(store.length, W, est.long_input)
@@ -173,7 +191,7 @@ def register(app: typer.Typer) -> None:
                     echo(f"note: samples have {store.length} points and the {model} input is {W}: each sample is cut "
                          f"into {len(starts)} window(s) starting at {starts.tolist()}; training uses every window, "
                          "predictions average them (docs/models.md)")
-            _fit(est, tr.X, tr.y, quiet or json_out, f"seed {s}", groups=tr.meta.get("unit"))
+            _fit(est, tr.X, tr.y, quiet or json_out, f"seed {s}", groups=validation_groups(store, tr))
             metrics = None
             if te is not None and len(te.y):
                 metrics = classification_metrics(te.y, est.predict(te.X), labels=[str(c) for c in est.classes_])

@@ -1,7 +1,8 @@
 """Fixed-step RK4 integration of the RV-reducer model, compiled with numba, streamed in chunks.
 
 The classical fourth-order Runge-Kutta method (Hairer, Norsett & Wanner, *Solving ODEs I*, 1993,
-section II.1) advances ``substeps`` steps of ``h = 1 / (fs substeps)`` per output sample.  The
+section II.1) advances ``substeps`` steps of ``h = 1 / (fs substeps)`` per output sample
+(``ModelSettings(method="rk38")``: Kutta's 3/8 rule instead, :func:`rk38_run`).  The
 cycloid-pin contact geometry depends on time only, so it is computed once per distinct stage time
 (t, t + h/2, t + h) and shared by the stages and by both discs' force loops; the pin angles come
 by angle addition from a precomputed table, and the two frame angles are rotated by fixed half-step
@@ -11,6 +12,10 @@ one sin/cos pair per output sample instead of four per step.
 The sensor output at sample ``k`` is the housing acceleration at ``t_k``, read from the first RK4
 stage of the step that starts there (no extra right-hand-side evaluation).  Only the current state
 and the output chunk live in memory: memory stays flat for any signal length.
+
+The force kernels (``generalized_forces``, ``accelerations``) are inlined into the compiled
+right-hand side (numba ``inline="always"``): one call per stage instead of three nested ones, -21 %
+CPU per step (bench/HISTORY.md 2026-11-23, "speed at the same accuracy").
 
 Instability (a non-finite state, or a vibratory displacement beyond ``max_displacement_m``, or a
 rotation beyond ``max_rotation_rad``) stops
@@ -137,6 +142,115 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms, 
     return OK, n_samples
 
 
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def rk38_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms, cosk, sink, sensor, out,
+             geo0, rot0, geo1, rot1, geo2, rot2, geo3, rot3, Q, k1, k2, k3, k4, ytmp):
+    """:func:`rk4_run` with Kutta's 3/8-rule fourth-order method (stage times t, t + h/3, t + 2h/3,
+    t + h; weights 1/8, 3/8, 3/8, 1/8; Kutta 1901; Hairer, Norsett & Wanner 1993, section II.1).
+
+    Same arguments, outputs and instability checks as :func:`rk4_run`, with a fourth geometry slot.
+    Every time is an integer multiple of h/3, so chunking does not change a bit.
+    """
+    n2 = y.size
+    n = n2 // 2
+    iR = n - 3
+    h = 1.0 / (fs * substeps)
+    sx = P[mdl.I_SENSX]
+    sy = P[mdl.I_SENSY]
+    lim = P[mdl.I_DISPLIM]
+    limr = P[mdl.I_ROTLIM]
+    nch = sensor.shape[0]
+    h3 = h / 3.0
+    h8 = h / 8.0
+    ga, ra, gb, rb, gc, rc, gd, rd = geo0, rot0, geo1, rot1, geo2, rot2, geo3, rot3
+    frozen = P[mdl.I_TFROZEN] >= 0.0
+    db = 0.0 if frozen else -P[mdl.I_ZP] * P[mdl.I_OMEGA] * h3
+    dw = 0.0 if frozen else P[mdl.I_OMEGA] * h3
+    cdb = math.cos(db)
+    sdb = math.sin(db)
+    cdw = math.cos(dw)
+    sdw = math.sin(dw)
+    cb, sb, cw, sw = mdl.frame_angles((3 * k_start * substeps) * h3, P)
+    mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, ga, ra)
+    for s in range(n_samples):
+        kk = k_start + s
+        for sub in range(substeps):
+            idx = kk * substeps + sub
+            t = (3 * idx) * h3
+            ta = (3 * idx + 1) * h3
+            tb = (3 * idx + 2) * h3
+            t1 = (3 * idx + 3) * h3
+            mdl.rhs_with_geometry(t, y, P, mass, planet, tvms, ga, ra, Q, k1)
+            if sub == 0 and record:
+                ax = k1[n + iR] - k1[n + iR + 2] * sy
+                ay = k1[n + iR + 1] + k1[n + iR + 2] * sx
+                for c in range(nch):
+                    out[c, s] = sensor[c, 0] * ax + sensor[c, 1] * ay
+            c = cb * cdb - sb * sdb
+            sb = sb * cdb + cb * sdb
+            cb = c
+            c = cw * cdw - sw * sdw
+            sw = sw * cdw + cw * sdw
+            cw = c
+            mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gb, rb)
+            for i in range(n2):
+                ytmp[i] = y[i] + h3 * k1[i]
+            mdl.rhs_with_geometry(ta, ytmp, P, mass, planet, tvms, gb, rb, Q, k2)
+            c = cb * cdb - sb * sdb
+            sb = sb * cdb + cb * sdb
+            cb = c
+            c = cw * cdw - sw * sdw
+            sw = sw * cdw + cw * sdw
+            cw = c
+            mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gc, rc)
+            for i in range(n2):
+                ytmp[i] = y[i] + h * (k2[i] - k1[i] / 3.0)
+            mdl.rhs_with_geometry(tb, ytmp, P, mass, planet, tvms, gc, rc, Q, k3)
+            if sub == substeps - 1:
+                cb, sb, cw, sw = mdl.frame_angles(t1, P)
+            else:
+                c = cb * cdb - sb * sdb
+                sb = sb * cdb + cb * sdb
+                cb = c
+                c = cw * cdw - sw * sdw
+                sw = sw * cdw + cw * sdw
+                cw = c
+            mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gd, rd)
+            for i in range(n2):
+                ytmp[i] = y[i] + h * (k1[i] - k2[i] + k3[i])
+            mdl.rhs_with_geometry(t1, ytmp, P, mass, planet, tvms, gd, rd, Q, k4)
+            for i in range(n2):
+                y[i] += h8 * (k1[i] + 3.0 * (k2[i] + k3[i]) + k4[i])
+            ga, gd = gd, ga
+            ra, rd = rd, ra
+        st = _check_state(y, n, lim, limr)
+        if st != OK:
+            return st, s
+    return OK, n_samples
+
+
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
+def _check_state(y, n, lim, limr):
+    """NONFINITE for a NaN/inf entry, UNBOUNDED for a displacement or rotation beyond its limit."""
+    big = 0.0
+    bigr = 0.0
+    for i in range(n):
+        a = abs(y[i])
+        if not (a < math.inf):
+            return NONFINITE
+        if i % 3 == 2:
+            if a > bigr:
+                bigr = a
+        elif a > big:
+            big = a
+    for i in range(n, 2 * n):
+        if not (abs(y[i]) < math.inf):
+            return NONFINITE
+    if big > lim or bigr > limr:
+        return UNBOUNDED
+    return OK
+
+
 def integrate(
     model: mdl.Model,
     y0: np.ndarray,
@@ -157,8 +271,9 @@ def integrate(
     if y.shape != (2 * n,):
         raise SimulationError(f"initial state must have {2 * n} entries, got {y.shape}")
     nd, nz = model.n_discs, model.cosk.size
-    geo = [np.zeros((nd, 3, nz)) for _ in range(3)]
-    rot = [np.zeros((nd, 4)) for _ in range(3)]
+    rk38 = st.method == "rk38"
+    geo = [np.zeros((nd, 3, nz)) for _ in range(4 if rk38 else 3)]
+    rot = [np.zeros((nd, 4)) for _ in range(4 if rk38 else 3)]
     work = [np.zeros(n)] + [np.zeros(2 * n) for _ in range(5)]  # Q, k1..k4, ytmp
     out = np.zeros((model.sensor.shape[0], n_samples))
     chunk = max(1, int(st.chunk_samples))
@@ -171,9 +286,10 @@ def integrate(
         rec = k >= 0
         if not rec:
             m = min(m, -k)
-        status, s = rk4_run(y, k, m, S, float(fs), rec, model.P, model.mass, model.planet, model.tables,
-                            model.cosk, model.sink, model.sensor, cbuf,
-                            geo[0], rot[0], geo[1], rot[1], geo[2], rot[2], *work)
+        slots = [a for pair in zip(geo, rot) for a in pair]
+        run = rk38_run if rk38 else rk4_run
+        status, s = run(y, k, m, S, float(fs), rec, model.P, model.mass, model.planet, model.tables,
+                        model.cosk, model.sink, model.sensor, cbuf, *slots, *work)
         if status != OK:
             _raise_unstable(model, status, (k + s) / fs, fs)
         if rec:
@@ -197,7 +313,8 @@ def _raise_unstable(model: mdl.Model, status: int, t: float, fs: float) -> None:
 
         f_max = float(natural_frequencies(model).frequencies_hz[-1])
         s_min = math.ceil(2.0 * math.pi * f_max / (2.78 * fs))
-        hint = (f" The stiffest mode is near {f_max / 1e3:.1f} kHz; RK4 needs omega*h < 2.78, "
+        hint = (f" The stiffest mode is near {f_max / 1e3:.1f} kHz; RK4 (and the 3/8 rule) needs "
+                f"omega*h < 2.78, "
                 f"i.e. at least {s_min} sub-steps at fs = {fs:g} Hz.")
     except Exception:  # noqa: BLE001 - the hint is optional, the error is not
         pass

@@ -75,11 +75,20 @@ class ModelSettings:
     Parameters
     ----------
     substeps : int
-        RK4 steps per output sample.  The stiffest mode of the RV-20E is near 34 kHz (crank shafts);
-        RK4 is stable for ``omega h < 2.78``, so at 48 kHz at least 2 are needed.  Accuracy, not
-        stability, sets the default 9: the output stays within 1e-3 (relative L2) of scipy's DOP853 at
-        rtol 1e-9 over 0.05 s at 48 kHz (8.6e-4; 8 sub-steps: 1.18e-3, 10: 7.0e-4; docs/model.md
-        section 7, tests/test_integrator.py); at other rates keep ``fs * substeps`` near 430 kHz.
+        Runge-Kutta steps per output sample.  The stiffest mode of the RV-20E is near 34 kHz (crank
+        shafts); RK4 is stable for ``omega h < 2.78``, so at 48 kHz at least 2 are needed.  Accuracy,
+        not stability, sets the default 9: the output stays within 1e-3 (relative L2) of scipy's DOP853
+        at rtol 1e-9 over 0.05 s at 48 kHz (8.6e-4; 8 sub-steps: 1.18e-3, 10: 7.0e-4; 8.4e-4 at
+        1000 rpm rated load; docs/model.md section 7, tests/test_integrator.py); at other rates keep
+        ``fs * substeps`` near 430 kHz.
+    method : str
+        ``"rk4"`` (default): classical RK4, stage times t, t + h/2, t + h (two pin geometries per
+        step).  ``"rk38"``: Kutta's 3/8 rule, same order and stability, 25-30 % smaller error at the
+        same sub-steps (9: 6.0e-4) but three pin geometries per step (~5 % more CPU per step); at 8
+        sub-steps it is 3 % cheaper than RK4 at 9 but not reliably within 1e-3 (9.3e-4 to 1.05e-3
+        over three operating points), hence not the default.  Higher-order (Butcher 6, Verner 6(5),
+        DOP853 fixed-step) and low-dispersion schemes (Berland et al. 2006 RK4-6) were measured and
+        do not do better per right-hand side on this non-smooth model (docs/model.md section 7).
     transient_s : float
         Simulated time discarded before output starts (start-up transient), s.
     sensor_point_m : tuple of 2 floats or None
@@ -107,6 +116,7 @@ class ModelSettings:
 
     substeps: int = 9
     transient_s: float = 0.1
+    method: str = "rk4"
     sensor_point_m: tuple[float, float] | None = None
     sensor_directions: tuple[tuple[float, float], ...] = ((1.0, 0.0), (0.0, 1.0))
     excitation: bool = True
@@ -120,6 +130,8 @@ class ModelSettings:
     def __post_init__(self) -> None:
         if int(self.substeps) != self.substeps or self.substeps < 1:
             raise ParameterError(f"substeps must be a whole number >= 1, got {self.substeps!r}")
+        if self.method not in ("rk4", "rk38"):
+            raise ParameterError(f"method must be 'rk4' or 'rk38', got {self.method!r}")
         if not (math.isfinite(self.transient_s) and self.transient_s >= 0):
             raise ParameterError(f"transient_s must be >= 0, got {self.transient_s!r}")
         if len(self.sensor_directions) < 1:
@@ -539,7 +551,7 @@ def _pin_sums_pair(gx, gy, gl, ux, uy, th, wx, wy, om, vx, vy, ph, zx, zy, ps, k
     return s0x, s0y, s0m, s1x, s1y, s1m
 
 
-@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
 def generalized_forces(t, q, v, P, planet, tvms, geo, rot, Q):
     """Generalized forces Q(t, q, v) of all springs, contacts, dampers and the external torques.
 
@@ -732,7 +744,7 @@ def _apply_pin_sums(jd, sx, sy, sm, iD0, iR, rr, rot, Q):
     Q[iR + 2] += rr * sm
 
 
-@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
 def accelerations(t, q, v, P, mass, planet, tvms, geo, rot, Q, acc):
     """acc = M^-1 (Q + rotating-frame and nominal inertial terms), the second-order equations."""
     generalized_forces(t, q, v, P, planet, tvms, geo, rot, Q)

@@ -5,6 +5,8 @@ name       transformer                                 source
 =========  ==========================================  ===================================
 time       :class:`TimeDomainFeatures` (10 statistics)  motor-current seed paper
 spectrum   :class:`SpectrumFeatures` (FFT band powers)
+logspec    :class:`SpectrumFeatures` (every FFT bin, log    the input of the ``logspec`` CNNs
+           of the relative magnitude)
 wpd        :class:`WaveletPacketEnergy` (16 bands)      motor-current seed paper
 eemd       :class:`EEMDFeatures` (mean |IMF| x 6)        EEMD-MPA-KELM seed paper
 none       :class:`RawSignal` (the samples themselves)
@@ -42,9 +44,16 @@ class RawSignal(SignalTransformer):
         return [f"x{i}" for i in range(self.n_features_in_)]
 
 
+def log_spectrum_features(**kw) -> SpectrumFeatures:
+    """Every bin of the one-sided spectrum, log10 of the magnitude relative to the window's total: the
+    sidebands a tooth fault adds to the mesh harmonics keep their weight (docs/results.md)."""
+    return SpectrumFeatures(**{"n_bands": None, "log": True, "relative": True, **kw})
+
+
 _REGISTRY: dict[str, Callable[..., object]] = {
     "time": TimeDomainFeatures,
     "spectrum": SpectrumFeatures,
+    "logspec": log_spectrum_features,
     "wpd": WaveletPacketEnergy,
     "eemd": EEMDFeatures,
     "none": RawSignal,

@@ -135,6 +135,7 @@ DEFAULT_WEAR_DEPTH = 20e-6       # 20 um: moderate wear, about 1.5 % of the RV-2
 DEFAULT_CRACK_DEPTH = 0.8e-3     # 0.8 mm at 45 deg: about half way from the RV-20E sun flank to its centreline
 DEFAULT_CRACK_ANGLE_DEG = 45.0   # the angle used by Chen & Shao (2011) and Tian (2004)
 DEFAULT_BROKEN_FRACTION = 1.0    # whole tooth lost (REFERENCE.md sec. 3)
+T6_CRACK_OFFSET = 5               # T6: the crack sits this many teeth after the broken tooth
 
 #: the health states of issue 4 (and of the seed paper on dynamics-model driving)
 STATES = {
@@ -229,8 +230,12 @@ class ToothFaults:
         T5 broken + wear, T6 broken + wear + crack.
 
         Wear acts on every tooth; the broken tooth is ``tooth``; the crack is on ``tooth`` in T4
-        and, in T6, on ``crack_tooth`` (default: the tooth after ``tooth``, so the crack is not
-        hidden by a fully broken tooth).
+        and, in T6, on ``crack_tooth``, by default ``tooth + T6_CRACK_OFFSET`` (five teeth on: nearly
+        opposite the broken tooth on the 11-tooth RV sun).  A crack on the tooth next to a missing
+        one is half hidden, since that tooth already carries the whole load while its broken
+        neighbour would have shared it: on the RV-20E its signature is half as large as five teeth
+        on (log-spectrum change 0.06 against 0.11 for a 2 mm crack at 10 um wear, docs/model.md,
+        "Fault sensitivity").
         """
         key = str(state).upper()
         if key not in STATES:
@@ -241,7 +246,7 @@ class ToothFaults:
         if "broken" in kinds:
             teeth.setdefault(tooth, []).append(BrokenTooth(broken_fraction))
         if "crack" in kinds:
-            ct = tooth if key == "T4" else (tooth + 1 if crack_tooth is None else crack_tooth)
+            ct = tooth if key == "T4" else (tooth + T6_CRACK_OFFSET if crack_tooth is None else crack_tooth)
             teeth.setdefault(ct, []).append(RootCrack(crack_depth, crack_angle_deg))
         return cls({k: tuple(v) for k, v in teeth.items()}, wear=wear, gear=gear, label=key)
 

@@ -186,7 +186,7 @@ def tooth_faults(state: str, **severity: float) -> Any:
     """Map a state and its severities to ``rvdiag.gears.ToothFaults`` (``None`` for T1, healthy).
 
     The faults sit on the sun gear (the driver of the sun-planet mesh): the broken tooth on tooth 0,
-    wear on every tooth, the crack on tooth 0 (T4) or, with a broken tooth (T6), on the next tooth so
+    wear on every tooth, the crack on tooth 0 (T4) or, with a broken tooth (T6), five teeth on so
     that the broken tooth does not hide it (``ToothFaults.for_state``).  The gear model is imported
     lazily so that configs can be validated without loading it.
     """

@@ -38,7 +38,7 @@ import torch
 from rvdiag import __version__
 from rvdiag.errors import ModelFileError, ParameterError
 from rvdiag.models.cnn import build_network
-from rvdiag.models.torch_estimator import CNNClassifier
+from rvdiag.models.torch_estimator import CNNClassifier, network_length
 
 CARD_FORMAT = "rvdiag-model"
 CARD_VERSION = 1
@@ -47,7 +47,7 @@ CARD = "card.json"
 
 _CNN_PARAM_KEYS = ("architecture", "input_length", "long_input", "normalize", "max_epochs", "batch_size",
                    "learning_rate", "weight_decay", "validation_fraction", "n_iter_no_change", "device",
-                   "random_state", "net_kwargs")
+                   "random_state", "net_kwargs", "representation")
 
 
 @dataclass
@@ -130,6 +130,7 @@ def base_card(estimator, *, model: str, features: str | None = None, fs: float |
         card["kind"] = "cnn"
         card["preprocessing"] = {
             "normalize": estimator.normalize,
+            "representation": estimator.representation,
             "norm_mean": float(estimator.norm_mean_),
             "norm_std": float(estimator.norm_std_),
             "net_input_length": int(estimator.net_input_length_),
@@ -252,7 +253,9 @@ def _load_cnn(d: Path, card: dict) -> CNNClassifier:
             params["net_kwargs"] = dict(params["net_kwargs"], fc_hidden=tuple(params["net_kwargs"]["fc_hidden"]))
         est = CNNClassifier(**params)
         W = int(pre["net_input_length"])
-        net = build_network(params["architecture"], len(card["classes"]), W, **(params.get("net_kwargs") or {}))
+        net = build_network(params["architecture"], len(card["classes"]),
+                            network_length(W, params.get("representation", "waveform")),
+                            **(params.get("net_kwargs") or {}))
     except (KeyError, TypeError, ValueError, ParameterError) as exc:
         raise ModelFileError(f"{d}/card.json: does not describe a CNN ({type(exc).__name__}: {exc})") from None
     expected = net.state_dict()

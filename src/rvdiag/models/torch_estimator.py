@@ -22,6 +22,18 @@ classifier sees waveform shape, not amplitude — simulated accelerations and me
 units or gains become comparable.  ``"global"``: subtract the training mean and divide by the training
 standard deviation (``norm_mean_``, ``norm_std_``), keeping the amplitude information.  ``"none"``.
 
+Input representation (stored in the model)
+------------------------------------------
+``representation="waveform"`` (default): the network sees the (normalised) time window, as in the dynamics
+paper.  ``"logspec"``: it sees the log-magnitude spectrum of each Hann-windowed window,
+``log(|FFT| + eps)`` over the ``W // 2 + 1`` one-sided bins, minus its own mean (so independent of the
+signal level), then normalised as above.  Tooth-fault signatures of an RV reducer are sidebands of the
+mesh harmonics at the fault frequency, tens of dB above a floor that holds little energy; a waveform
+network weighs points by energy and misses them, the log spectrum puts them on an equal footing
+(docs/results.md, "Input representation").  The spectrum is the classic input of 1-D CNNs in gear
+diagnosis (e.g. Jing et al. 2017, Measurement 111, "A convolutional neural network based feature learning
+and fault diagnosis method for the condition monitoring of gearbox").
+
 Training
 --------
 Adam (Kingma & Ba 2015) on the cross-entropy loss, mini-batches, a stratified validation split of
@@ -49,6 +61,23 @@ from rvdiag.errors import ParameterError
 from rvdiag.models.cnn import ARCHITECTURES, DEFAULT_INPUT_LENGTH, build_network
 
 NORMALIZATIONS = ("window", "global", "none")
+REPRESENTATIONS = ("waveform", "logspec")
+LOGSPEC_EPS = 1e-12
+
+
+def log_spectrum(windows: np.ndarray) -> np.ndarray:
+    """Level-free log-magnitude spectrum of each row: ``log(|rfft(hann * (x - mean))| + eps)`` minus its
+    row mean, shape ``(n, W // 2 + 1)``, float32."""
+    x = np.asarray(windows, dtype=np.float64)
+    x = x - x.mean(axis=1, keepdims=True)
+    mag = np.abs(np.fft.rfft(x * np.hanning(x.shape[1]), axis=1))
+    out = np.log(mag + LOGSPEC_EPS)
+    return (out - out.mean(axis=1, keepdims=True)).astype(np.float32)
+
+
+def network_length(window: int, representation: str) -> int:
+    """Length of the network input for ``window`` points in the given representation."""
+    return int(window) if representation == "waveform" else int(window) // 2 + 1
 LONG_INPUT = ("window", "crop")
 
 
@@ -102,6 +131,8 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         What to do with samples longer than the input (module docstring).
     normalize : {"window", "global", "none"}
         Input normalisation (module docstring).
+    representation : {"waveform", "logspec"}
+        What the network sees of each window (module docstring).
     max_epochs : int
         Upper bound on epochs.
     batch_size : int
@@ -137,7 +168,7 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
                  long_input: str = "window", normalize: str = "window", max_epochs: int = 30,
                  batch_size: int = 32, learning_rate: float = 1e-3, weight_decay: float = 0.0,
                  validation_fraction: float = 0.2, n_iter_no_change: int = 5, device: str = "auto",
-                 random_state: int = 0, net_kwargs: dict | None = None):
+                 random_state: int = 0, net_kwargs: dict | None = None, representation: str = "waveform"):
         self.architecture = architecture
         self.input_length = input_length
         self.long_input = long_input
@@ -151,6 +182,7 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         self.device = device
         self.random_state = random_state
         self.net_kwargs = net_kwargs
+        self.representation = representation
 
     # ------------------------------------------------------------------ validation
     def _check_params(self, length: int) -> int:
@@ -158,6 +190,8 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
             raise ParameterError(f"unknown architecture {self.architecture!r}; choose one of {', '.join(ARCHITECTURES)}")
         if self.normalize not in NORMALIZATIONS:
             raise ParameterError(f"normalize must be one of {NORMALIZATIONS}, got {self.normalize!r}")
+        if self.representation not in REPRESENTATIONS:
+            raise ParameterError(f"representation must be one of {REPRESENTATIONS}, got {self.representation!r}")
         if self.long_input not in LONG_INPUT:
             raise ParameterError(f"long_input must be one of {LONG_INPUT}, got {self.long_input!r}")
         for name in ("max_epochs", "batch_size", "n_iter_no_change"):
@@ -200,8 +234,15 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
             return ((Xw - self.norm_mean_) / self.norm_std_).astype(np.float32)
         return Xw.astype(np.float32)
 
+    def _represent(self, X: np.ndarray) -> np.ndarray:
+        """Windows of ``X`` in the model's representation, before normalisation."""
+        Xw = self._windows(np.asarray(X, dtype=np.float32))
+        if self.representation == "logspec":
+            return log_spectrum(Xw)
+        return Xw
+
     def _prepare(self, X: np.ndarray) -> np.ndarray:
-        return self._normalise(self._windows(np.asarray(X, dtype=np.float32)))
+        return self._normalise(self._represent(X))
 
     # ------------------------------------------------------------------ training
     def fit(self, X, y, callback: Callable[[dict], None] | None = None, groups=None):
@@ -241,8 +282,9 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         tr, va = _split(y_idx, float(self.validation_fraction), rng, groups)
         k = len(self.window_starts_)
         if self.normalize == "global":
-            self.norm_mean_ = float(X[tr].mean())
-            sd = float(X[tr].std())
+            R = self._represent(X[tr])
+            self.norm_mean_ = float(R.mean())
+            sd = float(R.std())
             self.norm_std_ = sd if sd > 0 else 1.0
         else:
             self.norm_mean_, self.norm_std_ = 0.0, 1.0
@@ -258,7 +300,8 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         torch.use_deterministic_algorithms(True, warn_only=True)
         try:
             torch.manual_seed(int(self.random_state))
-            net = build_network(self.architecture, len(self.classes_), W, **(self.net_kwargs or {}))
+            net = build_network(self.architecture, len(self.classes_), network_length(W, self.representation),
+                                **(self.net_kwargs or {}))
             net.to(device)
             opt = torch.optim.Adam(net.parameters(), lr=float(self.learning_rate),
                                    weight_decay=float(self.weight_decay))

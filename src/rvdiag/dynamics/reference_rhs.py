@@ -1,0 +1,250 @@
+"""An independent, vectorised NumPy implementation of the model's equations of motion (no numba).
+
+Written from ``docs/model.md`` (sections 1-4), not from the compiled kernels of
+:mod:`rvdiag.dynamics.model`, whose code it does not call: only the model's *data* (the flat
+parameter vector ``P`` with its ``I_*`` layout, the masses, the TVMS table and its profile deviation,
+the pin count) is shared.  Planet angles, pin angles, frame angles and the contact geometry are
+recomputed here.  Two uses:
+
+- a check of the compiled right-hand side (``tests/test_reference_rhs.py``: equal to ~1e-9 relative at
+  random states, healthy and faulty, with and without excitation);
+- the honest speed baseline of ``bench/sim_speed.py``: scipy's ``solve_ivp`` on a Python/NumPy
+  right-hand side of the same equations, which is what a reader gets without the compiled kernels
+  (REFERENCE.md's peer figure, 0.0033 simulated s per s for RK45 with a Python RHS, measures this).
+
+Conventions that the documentation leaves open and that this file shares with the kernels (so the
+comparison is exact): a damping force is ``c`` times the projection of the relative *velocity* on the
+current geometric coefficients (the coefficients' own time variation, e.g. of the crank-cycloid
+direction ``t_j`` or of the pin normals, is not differentiated); mesh and pin dampers act only while
+the contact is closed (always, with the bilateral flag ``P[I_BILATERAL]``, which also replaces the
+dead zone by a shift of ``bilateral * b/2``); with a profile deviation ``e`` the mesh deflection is
+``delta - e`` and its rate ``delta' - de/dt``, ``de/dt`` the table slope per grid step times the grid
+rate (zero when the time variation is frozen).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rvdiag.dynamics import model as mdl
+
+TWO_PI = 2.0 * math.pi
+
+
+class ReferenceRHS:
+    """``f(t, y) -> dy/dt`` for ``y = [q, v]`` of a :class:`rvdiag.dynamics.model.Model`, in NumPy.
+
+    >>> from rvdiag.dynamics import prepare
+    >>> m = prepare(output_speed_deg_s=45.0, load_Nm=100.0, mesh_source="rectangular")
+    >>> f = ReferenceRHS(m)
+    >>> f(0.0, np.zeros(2 * m.n_dof)).shape
+    (54,)
+    """
+
+    def __init__(self, model: mdl.Model) -> None:
+        P = np.asarray(model.P, dtype=float)
+        self.P = P
+        self.N = int(P[mdl.I_NPL])
+        self.D = int(P[mdl.I_NDISC])
+        self.n = model.n_dof
+        self.mass = np.asarray(model.mass, dtype=float)
+        self.k_table = np.asarray(model.tvms, dtype=float)
+        err = model.tvms_error
+        self.e_table = None if err is None or not np.any(err != 0.0) else np.asarray(err, dtype=float)
+        N, D = self.N, self.D
+        psi = TWO_PI * np.arange(N) / N
+        self.cps, self.sps = np.cos(psi), np.sin(psi)
+        alpha = P[mdl.I_ALPHA]
+        self.sa, self.ca = math.sin(alpha), math.cos(alpha)
+        # line of action of mesh i on the sun's (x, y): (sin(alpha - psi), cos(alpha - psi))
+        self.sap, self.cap = np.sin(alpha - psi), np.cos(alpha - psi)
+        Zp = int(round(P[mdl.I_ZP]))
+        self.gamma = TWO_PI * np.arange(Zp) / Zp  # pin angles at t = 0 (carrier frame offsets)
+        self.ip = 3 + 3 * np.arange(N)  # planets
+        self.ic = 3 + 3 * N + 3 * np.arange(N)  # cranks
+        self.idisc = 3 + 6 * N + 3 * np.arange(D)  # discs
+        self.iH = 3 + 6 * N + 3 * D  # carrier
+        self.iR = self.iH + 3  # pin wheel
+
+    def _te(self, t: float) -> float:
+        tf = self.P[mdl.I_TFROZEN]
+        return float(tf) if tf >= 0.0 else float(t)
+
+    def forces(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Generalized forces Q(t, q, v): springs, contacts, dampers, load torque (docs/model.md 3-4)."""
+        P, N = self.P, self.N
+        te = self._te(t)
+        frozen = P[mdl.I_TFROZEN] >= 0.0
+        Q = np.zeros(self.n)
+        ip, ic, idd, iH, iR = self.ip, self.ic, self.idisc, self.iH, self.iR
+        a, e = P[mdl.I_A], P[mdl.I_E]
+        bil = P[mdl.I_BILATERAL]
+
+        # supports, input coupling, load torque
+        Q[0:2] -= P[mdl.I_KSS] * q[0:2] + P[mdl.I_CSS] * v[0:2]
+        Q[2] -= P[mdl.I_KIN] * q[2] + P[mdl.I_CIN] * v[2]
+        Q[iH:iH + 2] -= P[mdl.I_KHS] * q[iH:iH + 2] + P[mdl.I_CHS] * v[iH:iH + 2]
+        Q[iH + 2] -= P[mdl.I_TLOAD]
+        Q[iR:iR + 2] -= P[mdl.I_KRH] * q[iR:iR + 2] + P[mdl.I_CRH] * v[iR:iR + 2]
+        Q[iR + 2] -= P[mdl.I_KRT] * q[iR + 2] + P[mdl.I_CRT] * v[iR + 2]
+
+        # sun-planet meshes: TVMS at the sun angle relative to planet i, linear interpolation
+        nt = self.k_table.size
+        phi = P[mdl.I_WREL] * te
+        x = phi / TWO_PI - np.arange(N) / N
+        x = (x - np.floor(x)) * nt
+        j0 = np.minimum(x.astype(np.int64), nt - 1)
+        fr = x - j0
+        j1 = (j0 + 1) % nt
+        km = self.k_table[j0] + fr * (self.k_table[j1] - self.k_table[j0])
+        rb1, rb2 = P[mdl.I_RB1], P[mdl.I_RB2]
+        d = (q[0] * self.sap + q[1] * self.cap + rb1 * q[2]
+             - q[ip] * self.sa - q[ip + 1] * self.ca + rb2 * q[ip + 2])
+        dd = (v[0] * self.sap + v[1] * self.cap + rb1 * v[2]
+              - v[ip] * self.sa - v[ip + 1] * self.ca + rb2 * v[ip + 2])
+        if self.e_table is not None:
+            e0 = self.e_table[j0]
+            de = self.e_table[j1] - e0
+            d = d - (e0 + fr * de)
+            if not frozen:
+                dd = dd - P[mdl.I_WREL] * nt / TWO_PI * de
+        hb, cm = P[mdl.I_HALF_BACKLASH], P[mdl.I_CMESH]
+        if bil != 0.0:
+            F = km * (d - bil * hb) + cm * dd
+        else:
+            g = d - np.sign(d) * hb  # dead zone: teeth apart while |delta| <= b/2
+            F = np.where(np.abs(d) > hb, km * g + cm * dd, 0.0)
+        Q[0] -= np.sum(F * self.sap)
+        Q[1] -= np.sum(F * self.cap)
+        Q[2] -= np.sum(F) * rb1
+        Q[ip] += F * self.sa
+        Q[ip + 1] += F * self.ca
+        Q[ip + 2] -= F * rb2
+
+        # planet-crank splines
+        for m in range(2):
+            f = P[mdl.I_KPR] * (q[ip + m] - q[ic + m]) + P[mdl.I_CPR] * (v[ip + m] - v[ic + m])
+            Q[ip + m] -= f
+            Q[ic + m] += f
+        f = P[mdl.I_KPT] * (q[ip + 2] - q[ic + 2]) + P[mdl.I_CPT] * (v[ip + 2] - v[ic + 2])
+        Q[ip + 2] -= f
+        Q[ic + 2] += f
+
+        # crank-carrier bearings, orbiting frame: d = u_c - R(psi)^T u_H - a th_H (0, 1)
+        cps, sps = self.cps, self.sps
+
+        def cc(z):
+            return (z[ic] - (cps * z[iH] + sps * z[iH + 1]),
+                    z[ic + 1] - (-sps * z[iH] + cps * z[iH + 1]) - a * z[iH + 2])
+
+        (dx, dy), (vx, vy) = cc(q), cc(v)
+        fx = P[mdl.I_KCC] * dx + P[mdl.I_CCC] * vx
+        fy = P[mdl.I_KCC] * dy + P[mdl.I_CCC] * vy
+        Q[ic] -= fx
+        Q[ic + 1] -= fy
+        Q[iH] += np.sum(cps * fx - sps * fy)
+        Q[iH + 1] += np.sum(sps * fx + cps * fy)
+        Q[iH + 2] += a * np.sum(fy)
+
+        # frame angles: eccentric of disc j at beta_j (carrier frame), B_j = beta_j + Omega t (fixed)
+        B, cb, sb, cB, sB = self._frames(t)
+
+        # crank-cycloid bearings (i, j), carrier frame: d = R(psi) u_c + e th_c t_j - u_d - a th_d e_t(psi)
+        kcd, ccd = P[mdl.I_KCD], P[mdl.I_CCD]
+        tx, ty = -e * sb[None, :], e * cb[None, :]  # (1, D): e t_j
+
+        def ccd_d(z):
+            ux = (cps * z[ic] - sps * z[ic + 1])[:, None]
+            uy = (sps * z[ic] + cps * z[ic + 1])[:, None]
+            th = z[ic + 2][:, None]
+            return (ux + th * tx - z[idd][None, :] + z[idd + 2][None, :] * a * sps[:, None],
+                    uy + th * ty - z[idd + 1][None, :] - z[idd + 2][None, :] * a * cps[:, None])
+
+        (dx, dy), (vx, vy) = ccd_d(q), ccd_d(v)
+        fx = kcd * dx + ccd * vx  # (N, D)
+        fy = kcd * dy + ccd * vy
+        Q[ic] -= np.sum(cps[:, None] * fx + sps[:, None] * fy, axis=1)
+        Q[ic + 1] -= np.sum(-sps[:, None] * fx + cps[:, None] * fy, axis=1)
+        Q[ic + 2] -= np.sum(tx * fx + ty * fy, axis=1)
+        Q[idd] += np.sum(fx, axis=0)
+        Q[idd + 1] += np.sum(fy, axis=0)
+        Q[idd + 2] += a * np.sum(-sps[:, None] * fx + cps[:, None] * fy, axis=0)
+
+        # cycloid-pin contacts
+        nx, ny, lk, delta, rate = self._pin_deflections(B, cb, sb, cB, sB, q, v)
+        Fp = P[mdl.I_KPIN] * delta + P[mdl.I_CPIN] * rate
+        rr = P[mdl.I_ZP] / P[mdl.I_ZC]
+        if bil == 0.0:
+            Fp = np.where(delta > 0.0, Fp, 0.0)
+        sx, sy, sm = np.sum(Fp * nx, axis=1), np.sum(Fp * ny, axis=1), np.sum(Fp * lk, axis=1)
+        Q[idd] -= cb * sx - sb * sy
+        Q[idd + 1] -= sb * sx + cb * sy
+        Q[idd + 2] -= sm
+        Q[iR] += np.sum(cB * sx - sB * sy)
+        Q[iR + 1] += np.sum(sB * sx + cB * sy)
+        Q[iR + 2] += rr * np.sum(sm)
+        return Q
+
+    def _frames(self, t: float):
+        P = self.P
+        te = self._te(t)
+        Om = P[mdl.I_OMEGA]
+        beta = P[mdl.I_BETA0] - P[mdl.I_ZP] * Om * te + np.arange(self.D) * P[mdl.I_DISCPHASE]
+        B = beta + Om * te
+        return B, np.cos(beta), np.sin(beta), np.cos(B), np.sin(B)
+
+    def _pin_geometry(self, B: np.ndarray):
+        """Unit normals (disc frame) from the pitch point to every pin and the arms, shape (D, Zp):
+        eta_k = gamma_k - B_j, n = (R_p cos eta - e Zp, R_p sin eta) / L, l = e Zc n_y."""
+        P = self.P
+        e, Zp, Zc, Rp = P[mdl.I_E], P[mdl.I_ZP], P[mdl.I_ZC], P[mdl.I_RP]
+        eta = self.gamma[None, :] - B[:, None]
+        px = Rp * np.cos(eta) - e * Zp
+        py = Rp * np.sin(eta)
+        L = np.hypot(px, py)
+        return px / L, py / L, e * Zc * py / L
+
+    def _pin_deflections(self, B, cb, sb, cB, sB, q, v):
+        P = self.P
+        nx, ny, lk = self._pin_geometry(B)
+        idd, iR = self.idisc, self.iR
+        rr = P[mdl.I_ZP] / P[mdl.I_ZC]
+
+        def rel(z):  # disc minus pin wheel, in the disc's eccentric frame
+            ux = cb * z[idd] + sb * z[idd + 1] - (cB * z[iR] + sB * z[iR + 1])
+            uy = -sb * z[idd] + cb * z[idd + 1] - (-sB * z[iR] + cB * z[iR + 1])
+            return ux[:, None], uy[:, None], (z[idd + 2] - rr * z[iR + 2])[:, None]
+
+        ux, uy, th = rel(q)
+        wx, wy, om = rel(v)
+        return nx, ny, lk, ux * nx + uy * ny + th * lk, wx * nx + wy * ny + om * lk
+
+    def pin_deflections(self, t: float, q: np.ndarray) -> np.ndarray:
+        """Approach delta_jk of every cycloid-pin contact, shape (D, Zp); > 0 is compression."""
+        B, cb, sb, cB, sB = self._frames(t)
+        q = np.asarray(q, dtype=float)
+        return self._pin_deflections(B, cb, sb, cB, sB, q, np.zeros_like(q))[3]
+
+    def accelerations(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """M^-1 (Q - m a0) + rotating-frame terms (docs/model.md section 2)."""
+        P = self.P
+        acc = self.forces(t, q, v) / self.mass
+        Om = P[mdl.I_OMEGA]
+        acc[self.ip] += Om * Om * P[mdl.I_A]  # nominal centripetal acceleration of the orbiting bodies
+        acc[self.ic] += Om * Om * P[mdl.I_A]
+        _, cb, sb, _, _ = self._frames(t)
+        ue = P[mdl.I_E] * (P[mdl.I_ZC] * Om) ** 2  # disc orbit (unbalance)
+        acc[self.idisc] += ue * cb
+        acc[self.idisc + 1] += ue * sb
+        if P[mdl.I_CORIOLIS] != 0.0:
+            ix = np.arange(0, self.iR, 3)  # every body but the pin wheel (fixed frame)
+            acc[ix] += 2.0 * Om * v[ix + 1] + Om * Om * q[ix]
+            acc[ix + 1] += -2.0 * Om * v[ix] + Om * Om * q[ix + 1]
+        return acc
+
+    def __call__(self, t: float, y: np.ndarray) -> np.ndarray:
+        n = self.n
+        y = np.asarray(y, dtype=float)
+        return np.concatenate([y[n:], self.accelerations(t, y[:n], y[n:])])

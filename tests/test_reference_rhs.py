@@ -1,0 +1,78 @@
+"""The independent NumPy right-hand side (``rvdiag.dynamics.reference_rhs``) against the compiled one.
+
+The NumPy version is written from docs/model.md and shares only the model's data with the numba
+kernels, so agreement at random states (contacts open and closed, every damper active) checks the
+kernels' equations, and makes the scipy-on-NumPy baseline of ``bench/sim_speed.py`` a run of the
+same equations.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rvdiag.dynamics import ModelSettings, prepare
+from rvdiag.dynamics import model as mdl
+from rvdiag.dynamics.linear import static_equilibrium
+from rvdiag.dynamics.reference_rhs import ReferenceRHS
+from rvdiag.gears import BrokenTooth, ToothFaults, Wear
+from rvdiag.params import ReducerParams
+
+P0 = ReducerParams.default()
+
+
+def _max_rel_diff(m: mdl.Model, seed: int, trials: int = 8) -> float:
+    """Largest |compiled - NumPy| over the accelerations, relative to the largest acceleration of the
+    state, at random times and random states around the static solution."""
+    f = mdl.make_rhs(m)
+    g = ReferenceRHS(m)
+    q0 = static_equilibrium(m, 0.0)
+    rng = np.random.default_rng(seed)
+    worst = 0.0
+    n = m.n_dof
+    for _ in range(trials):
+        # displacements of the static deflection's size (so contacts open and close at random),
+        # velocities ~1 mm/s or mrad/s (every damper active)
+        q = q0 + 0.5 * (np.abs(q0) + 1e-7) * rng.standard_normal(n)
+        v = 1e-3 * rng.standard_normal(n)
+        y = np.concatenate([q, v])
+        t = float(rng.uniform(0.0, 0.5))
+        a, b = f(t, y), g(t, y)
+        assert np.array_equal(a[:n], b[:n])
+        worst = max(worst, float(np.max(np.abs(a[n:] - b[n:])) / np.max(np.abs(a[n:]))))
+    return worst
+
+
+@pytest.mark.parametrize("fault", [None, ToothFaults({0: (BrokenTooth(0.5),)}), ToothFaults(wear=Wear(20e-6))],
+                         ids=["healthy", "broken", "worn"])
+def test_reference_rhs_equals_compiled_rhs(fault):
+    m = prepare(P0, fault, output_speed_deg_s=45.0, load_Nm=100.0)
+    if fault is not None and fault.wear is not None:
+        assert m.tables.shape[0] == 2  # the profile-deviation path is exercised
+    assert _max_rel_diff(m, seed=1) < 1e-9
+
+
+def test_reference_rhs_equals_compiled_rhs_other_settings():
+    """1000 rpm, rated load, frozen excitation, no damping, no Coriolis, bilateral contacts."""
+    m = prepare(P0, input_speed_rpm=1000.0)
+    assert _max_rel_diff(m, seed=2) < 1e-9
+    st = ModelSettings(excitation=False, damping=False, coriolis=False)
+    assert _max_rel_diff(prepare(P0, output_speed_deg_s=30.0, load_Nm=50.0, settings=st), seed=3) < 1e-9
+    assert _max_rel_diff(prepare(P0, output_speed_deg_s=30.0, load_Nm=50.0).with_P(BILATERAL=1.0), seed=4) < 1e-9
+
+
+def test_random_states_open_and_close_pin_contacts():
+    """The random states of the comparison switch pin contacts (so a wrong contact condition or a
+    wrong damper gate would show), and the loaded static state has about half the pins in contact."""
+    m = prepare(P0, output_speed_deg_s=45.0, load_Nm=100.0)
+    q0 = static_equilibrium(m, 0.0)
+    g = ReferenceRHS(m)
+    closed0 = g.pin_deflections(0.0, q0) > 0.0
+    assert closed0.shape == (2, 40)
+    assert 10 <= closed0.sum(axis=1).min() and closed0.sum(axis=1).max() <= 30
+    rng = np.random.default_rng(1)
+    changed = 0
+    for _ in range(8):
+        q = q0 + 0.5 * (np.abs(q0) + 1e-7) * rng.standard_normal(q0.size)
+        changed += int(np.sum((g.pin_deflections(0.0, q) > 0.0) != closed0))
+    assert changed > 0
