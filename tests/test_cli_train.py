@@ -195,3 +195,38 @@ def test_evaluate_accuracy_against_added_noise(cnn_model, store, capsys):
     assert code == 0 and "accuracy against added-noise SNR" in out
     code, _, err = run(["evaluate", cnn_model, store, "--snr-db", "loud"], capsys)
     assert code == 2 and "--snr-db" in err
+
+
+def test_train_with_added_noise_is_recorded_and_seeded(store, tmp_path, capsys):
+    from rvdiag.models.persistence import read_card
+
+    """--snr-db adds seeded noise to the training and test samples; the card records it; at -30 dB the tones
+    drown and the test accuracy falls towards chance."""
+    def train(out, snr):
+        args = ["train", store, "--model", "svm", "--features", "spectrum", "--out", out, "--json", "--seed", "2"]
+        code, text, err = run(args + (["--snr-db", snr] if snr is not None else []), capsys)
+        assert code == 0, err
+        return json.loads(text)["metrics"]["accuracy"], read_card(out)
+
+    clean, card0 = train(tmp_path / "a", None)
+    noisy, card = train(tmp_path / "b", "-30")
+    again, _ = train(tmp_path / "c", "-30")
+    assert "added_noise" not in card0 and card["added_noise"]["snr_db"] == -30.0
+    assert noisy == again and noisy < clean and noisy <= 0.6
+
+
+def test_snr_curve_example_trains_one_model_per_level(store, tmp_path):
+    """examples/snr_curve.py: one train per level, JSON with the curve, and a PNG figure."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "examples" / "snr_curve.py"
+    out = tmp_path / "snr"
+    proc = subprocess.run([sys.executable, str(script), str(store), "--levels=-30,30", "--out", str(out),
+                           "--model", "svm", "--features", "spectrum"], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    rows = json.loads((out / "snr_curve.json").read_text())
+    assert [r["snr_db"] for r in rows] == [-30.0, 30.0]
+    assert rows[0]["accuracy"] < rows[1]["accuracy"] and "--snr-db -30" in rows[0]["command"]
+    assert (out / "snr_curve.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -32,6 +32,16 @@ def _content_hash(store) -> str:
     return h.hexdigest()[:16]
 
 
+def _with_noise(samples, snr_db: float, seed: list[int]):
+    """``samples`` with white Gaussian noise at ``snr_db`` below each sample's power (seeded)."""
+    import dataclasses
+
+    from rvdiag.dynamics.noise import add_awgn
+
+    noisy = add_awgn(samples.X, float(snr_db), np.random.default_rng(seed)).astype(np.float32)
+    return dataclasses.replace(samples, X=noisy)
+
+
 def validation_groups(store, samples):
     """Groups for the early-stopping validation split: the simulation (``unit``) of each sample when the
     store's segments overlap (a split by segment would then leak: neighbours share points), else None
@@ -135,6 +145,10 @@ def register(app: typer.Typer) -> None:
         representation: str = typer.Option("waveform", "--representation",
                                            help="CNN input: waveform (the time window, as in the paper) | logspec "
                                                 "(log-magnitude spectrum of each window; docs/models.md)."),
+        snr_db: float = typer.Option(None, "--snr-db",
+                                     help="Add white Gaussian noise at this SNR (dB, per sample) to the training and "
+                                          "test samples before training, seeded by --seed: one point of an "
+                                          "accuracy-against-SNR curve from a clean library (docs/results.md)."),
         json_out: bool = typer.Option(False, "--json", help="Print the test metrics (and repeat summary) as JSON."),
         quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
     ) -> None:
@@ -170,6 +184,8 @@ def register(app: typer.Typer) -> None:
             probe._check_params(store.length)  # the samples must be at least one network input long
         tr = store.load("train")
         te = store.load("test") if "test" in store.splits() else None
+        if snr_db is not None:
+            tr, te = _with_noise(tr, snr_db, [seed, 0]), (None if te is None else _with_noise(te, snr_db, [seed, 1]))
         labels = [c for c in store.classes if c in set(tr.y.tolist())]
         if len(labels) < 2:
             raise StoreError(f"{data}: the train split holds fewer than 2 classes")
@@ -203,7 +219,8 @@ def register(app: typer.Typer) -> None:
         store_info = {"path": str(Path(data).resolve()),
                       "config_hash": store.attrs.get("config_hash") or _content_hash(store),
                       "kind": store.attrs.get("kind"), "n_train": int(len(tr.y))}
-        extra = {}
+        extra = {} if snr_db is None else {"added_noise": {"snr_db": float(snr_db), "seed": [seed, 0],
+                                                           "applies_to": "train and test splits"}}
         summary = None
         if repeat > 1 and runs:
             summary = repeat_summary(runs)
