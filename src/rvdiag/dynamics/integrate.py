@@ -32,7 +32,11 @@ import numba
 import numpy as np
 
 from rvdiag.dynamics import model as mdl
+from rvdiag.dynamics.numba_cache import drop_stale_cache
 from rvdiag.errors import SimulationError
+
+# the kernels below inline model.py's force kernels: recompile them when model.py changes
+drop_stale_cache(__file__, [mdl.__file__])
 
 OK, NONFINITE, UNBOUNDED = 0, 1, 2
 FASTMATH = mdl.FASTMATH
