@@ -24,8 +24,9 @@ def register(app: typer.Typer) -> None:
                                help="Also give the accuracy per value/bin of a metadata column, e.g. noise_snr_db "
                                     "(accuracy against SNR); JSON key 'by'."),
         snr_db: str = typer.Option(None, "--snr-db",
-                                   help="Also score the split with white noise added at each of these SNRs, "
-                                        "e.g. -5,0,5,10,15,20 (accuracy against SNR); JSON key 'snr'."),
+                                   help="Also score the split with white noise added at each of these SNRs, e.g. "
+                                        "--snr-db=-5,0,5,10,15,20 (the '=' lets the list start with a minus); "
+                                        "accuracy against SNR, JSON key 'snr'."),
         seed: int = typer.Option(0, "--seed", help="Seed of the noise added by --snr-db."),
     ) -> None:
         """Score a saved model on a split of a sample store."""
