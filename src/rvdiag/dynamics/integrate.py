@@ -93,12 +93,7 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms, 
                 ay = k1[n + iR + 1] + k1[n + iR + 2] * sx
                 for c in range(nch):
                     out[c, s] = sensor[c, 0] * ax + sensor[c, 1] * ay
-            c = cb * cdb - sb * sdb
-            sb = sb * cdb + cb * sdb
-            cb = c
-            c = cw * cdw - sw * sdw
-            sw = sw * cdw + cw * sdw
-            cw = c
+            cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
             mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gb, rb)
             for i in range(n2):
                 ytmp[i] = y[i] + hh * k1[i]
@@ -111,12 +106,7 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms, 
             if sub == substeps - 1:
                 cb, sb, cw, sw = mdl.frame_angles(t1, P)
             else:
-                c = cb * cdb - sb * sdb
-                sb = sb * cdb + cb * sdb
-                cb = c
-                c = cw * cdw - sw * sdw
-                sw = sw * cdw + cw * sdw
-                cw = c
+                cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
             mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gc, rc)
             for i in range(n2):
                 ytmp[i] = y[i] + h * k2[i]
@@ -127,22 +117,9 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms, 
             # the end geometry is the next step's start geometry
             ga, gc = gc, ga
             ra, rc = rc, ra
-        big = 0.0
-        bigr = 0.0
-        for i in range(n):
-            a = abs(y[i])
-            if not (a < math.inf):
-                return NONFINITE, s
-            if i % 3 == 2:
-                if a > bigr:
-                    bigr = a
-            elif a > big:
-                big = a
-        for i in range(n, n2):
-            if not (abs(y[i]) < math.inf):
-                return NONFINITE, s
-        if big > lim or bigr > limr:
-            return UNBOUNDED, s
+        st = _check_state(y, n, lim, limr)
+        if st != OK:
+            return st, s
     return OK, n_samples
 
 
@@ -190,22 +167,12 @@ def rk38_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms,
                 ay = k1[n + iR + 1] + k1[n + iR + 2] * sx
                 for c in range(nch):
                     out[c, s] = sensor[c, 0] * ax + sensor[c, 1] * ay
-            c = cb * cdb - sb * sdb
-            sb = sb * cdb + cb * sdb
-            cb = c
-            c = cw * cdw - sw * sdw
-            sw = sw * cdw + cw * sdw
-            cw = c
+            cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
             mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gb, rb)
             for i in range(n2):
                 ytmp[i] = y[i] + h3 * k1[i]
             mdl.rhs_with_geometry(ta, ytmp, P, mass, planet, tvms, gb, rb, Q, k2)
-            c = cb * cdb - sb * sdb
-            sb = sb * cdb + cb * sdb
-            cb = c
-            c = cw * cdw - sw * sdw
-            sw = sw * cdw + cw * sdw
-            cw = c
+            cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
             mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gc, rc)
             for i in range(n2):
                 ytmp[i] = y[i] + h * (k2[i] - k1[i] / 3.0)
@@ -213,12 +180,7 @@ def rk38_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms,
             if sub == substeps - 1:
                 cb, sb, cw, sw = mdl.frame_angles(t1, P)
             else:
-                c = cb * cdb - sb * sdb
-                sb = sb * cdb + cb * sdb
-                cb = c
-                c = cw * cdw - sw * sdw
-                sw = sw * cdw + cw * sdw
-                cw = c
+                cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
             mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gd, rd)
             for i in range(n2):
                 ytmp[i] = y[i] + h * (k1[i] - k2[i] + k3[i])
@@ -231,6 +193,12 @@ def rk38_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms,
         if st != OK:
             return st, s
     return OK, n_samples
+
+
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
+def _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw):
+    """Rotate the frame angles' (cos, sin) pairs by one fixed increment each (angle addition)."""
+    return cb * cdb - sb * sdb, sb * cdb + cb * sdb, cw * cdw - sw * sdw, sw * cdw + cw * sdw
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
