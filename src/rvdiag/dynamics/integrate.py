@@ -43,8 +43,8 @@ FASTMATH = mdl.FASTMATH
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
-def rk4_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms, cosk, sink, sensor, out,
-            geo0, rot0, geo1, rot1, geo2, rot2, Q, k1, k2, k3, k4, ytmp):
+def rk4_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tvms, cosk, sink, sensor, out,
+            geo0, rot0, mt0, geo1, rot1, mt1, geo2, rot2, mt2, geo3, rot3, geo4, rot4, Q, k1, k2, k3, ytmp):
     """Advance ``y`` in place over ``n_samples`` output samples starting at sample index ``k_start``.
 
     Sample ``k`` is at ``t = k / fs``.  When ``record`` is true, ``out[c, s]`` receives the sensor
@@ -63,9 +63,13 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms, 
     # every time is an integer number of half steps times h/2, so a chunk boundary changes nothing
     hh = 0.5 * h
     h6 = h / 6.0
-    # three geometry slots (start, half, end of the step); the end slot becomes the next step's
-    # start by swapping references, not by copying
-    ga, ra, gb, rb, gc, rc = geo0, rot0, geo1, rot1, geo2, rot2
+    inv_s = 1.0 / substeps
+    # pin geometry: exact at the sample's start (gS), middle (gM) and end (gE), interpolated
+    # (quadratic) at the half steps (gH) and the inner step ends (gT); gE becomes the next sample's gS
+    # by swapping references.  Mesh terms (start, half, end of the step: ma, mb, mc) are exact at every
+    # stage time.
+    gS, rS, gE, rE, gH, rH, gT, rT, gM, rM = geo0, rot0, geo1, rot1, geo2, rot2, geo3, rot3, geo4, rot4
+    ma, mb, mc = mt0, mt1, mt2
     # The frame angles b_0 = beta_0 - Zp Omega t and W = Omega t advance linearly, so within an output
     # sample their cos/sin are rotated by the half-step increments instead of recomputed (issue 3;
     # REFERENCE.md sec. 5); every sample end t_(k+1) is re-anchored with exact cos/sin, so rounding
@@ -77,46 +81,64 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms, 
     sdb = math.sin(db)
     cdw = math.cos(dw)
     sdw = math.sin(dw)
+    # half-sample rotation back from the sample's end to its middle
+    cdbm = math.cos(-db * substeps)
+    sdbm = math.sin(-db * substeps)
+    cdwm = math.cos(-dw * substeps)
+    sdwm = math.sin(-dw * substeps)
     cb, sb, cw, sw = mdl.frame_angles((2 * k_start * substeps) * hh, P)
-    mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, ga, ra)
+    mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gS, rS)
+    mdl.mesh_terms((2 * k_start * substeps) * hh, P, tvms, ma)
     ks = k3  # running sum k1 + 2 k2 + 2 k3 (same order of additions as the textbook formula)
     for s in range(n_samples):
         kk = k_start + s
+        ce, se, cwe, swe = mdl.frame_angles((2 * (kk + 1) * substeps) * hh, P)
+        mdl.pin_geometry_cs(ce, se, cwe, swe, P, cosk, sink, gE, rE)
+        cm, sm, cwm, swm = _advance_frames(ce, se, cwe, swe, cdbm, sdbm, cdwm, sdwm)
+        mdl.pin_geometry_cs(cm, sm, cwm, swm, P, cosk, sink, gM, rM)
         for sub in range(substeps):
             idx = kk * substeps + sub
-            t = (2 * idx) * hh
             th = (2 * idx + 1) * hh
             t1 = (2 * idx + 2) * hh
-            mdl.rhs_with_geometry(t, y, P, mass, planet, tvms, ga, ra, Q, k1)
+            if sub == 0:
+                mdl.rhs_with_terms(y, P, inv_mass, planet, ma, gS, rS, Q, k1)
+            else:
+                mdl.rhs_with_terms(y, P, inv_mass, planet, ma, gT, rT, Q, k1)
             if sub == 0 and record:
                 ax = k1[n + iR] - k1[n + iR + 2] * sy
                 ay = k1[n + iR + 1] + k1[n + iR + 2] * sx
                 for c in range(nch):
                     out[c, s] = sensor[c, 0] * ax + sensor[c, 1] * ay
             cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
-            mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gb, rb)
+            mdl.frame_rotations(cb, sb, cw, sw, P, rH)
+            mdl.interpolate_geometry(gS, gM, gE, (sub + 0.5) * inv_s, P, gH)
+            mdl.mesh_terms(th, P, tvms, mb)
             for i in range(n2):
                 ytmp[i] = y[i] + hh * k1[i]
                 ks[i] = k1[i]
-            mdl.rhs_with_geometry(th, ytmp, P, mass, planet, tvms, gb, rb, Q, k2)
+            mdl.rhs_with_terms(ytmp, P, inv_mass, planet, mb, gH, rH, Q, k2)
             for i in range(n2):
                 ytmp[i] = y[i] + hh * k2[i]
                 ks[i] += 2.0 * k2[i]
-            mdl.rhs_with_geometry(th, ytmp, P, mass, planet, tvms, gb, rb, Q, k2)
-            if sub == substeps - 1:
-                cb, sb, cw, sw = mdl.frame_angles(t1, P)
-            else:
-                cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
-            mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gc, rc)
+            mdl.rhs_with_terms(ytmp, P, inv_mass, planet, mb, gH, rH, Q, k2)
+            mdl.mesh_terms(t1, P, tvms, mc)
             for i in range(n2):
                 ytmp[i] = y[i] + h * k2[i]
                 ks[i] += 2.0 * k2[i]
-            mdl.rhs_with_geometry(t1, ytmp, P, mass, planet, tvms, gc, rc, Q, k2)
+            if sub == substeps - 1:
+                cb, sb, cw, sw = ce, se, cwe, swe
+                mdl.rhs_with_terms(ytmp, P, inv_mass, planet, mc, gE, rE, Q, k2)
+            else:
+                cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
+                mdl.frame_rotations(cb, sb, cw, sw, P, rT)
+                mdl.interpolate_geometry(gS, gM, gE, (sub + 1) * inv_s, P, gT)
+                mdl.rhs_with_terms(ytmp, P, inv_mass, planet, mc, gT, rT, Q, k2)
             for i in range(n2):
                 y[i] += h6 * (ks[i] + k2[i])
-            # the end geometry is the next step's start geometry
-            ga, gc = gc, ga
-            ra, rc = rc, ra
+            # the step's end terms are the next step's start terms
+            ma, mc = mc, ma
+        gS, gE = gE, gS
+        rS, rE = rE, rS
         st = _check_state(y, n, lim, limr)
         if st != OK:
             return st, s
@@ -124,8 +146,8 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms, 
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
-def rk38_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms, cosk, sink, sensor, out,
-             geo0, rot0, geo1, rot1, geo2, rot2, geo3, rot3, Q, k1, k2, k3, k4, ytmp):
+def rk38_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tvms, cosk, sink, sensor, out,
+             geo0, rot0, mt0, geo1, rot1, mt1, geo2, rot2, mt2, geo3, rot3, mt3, Q, k1, k2, k3, k4, ytmp):
     """:func:`rk4_run` with Kutta's 3/8-rule fourth-order method (stage times t, t + h/3, t + 2h/3,
     t + h; weights 1/8, 3/8, 3/8, 1/8; Kutta 1901; Hairer, Norsett & Wanner 1993, section II.1).
 
@@ -143,7 +165,8 @@ def rk38_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms,
     nch = sensor.shape[0]
     h3 = h / 3.0
     h8 = h / 8.0
-    ga, ra, gb, rb, gc, rc, gd, rd = geo0, rot0, geo1, rot1, geo2, rot2, geo3, rot3
+    ga, ra, ma, gb, rb, mb, gc, rc, mc, gd, rd, md = (geo0, rot0, mt0, geo1, rot1, mt1, geo2, rot2, mt2,
+                                                      geo3, rot3, mt3)
     frozen = P[mdl.I_TFROZEN] >= 0.0
     db = 0.0 if frozen else -P[mdl.I_ZP] * P[mdl.I_OMEGA] * h3
     dw = 0.0 if frozen else P[mdl.I_OMEGA] * h3
@@ -153,15 +176,15 @@ def rk38_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms,
     sdw = math.sin(dw)
     cb, sb, cw, sw = mdl.frame_angles((3 * k_start * substeps) * h3, P)
     mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, ga, ra)
+    mdl.mesh_terms((3 * k_start * substeps) * h3, P, tvms, ma)
     for s in range(n_samples):
         kk = k_start + s
         for sub in range(substeps):
             idx = kk * substeps + sub
-            t = (3 * idx) * h3
             ta = (3 * idx + 1) * h3
             tb = (3 * idx + 2) * h3
             t1 = (3 * idx + 3) * h3
-            mdl.rhs_with_geometry(t, y, P, mass, planet, tvms, ga, ra, Q, k1)
+            mdl.rhs_with_terms(y, P, inv_mass, planet, ma, ga, ra, Q, k1)
             if sub == 0 and record:
                 ax = k1[n + iR] - k1[n + iR + 2] * sy
                 ay = k1[n + iR + 1] + k1[n + iR + 2] * sx
@@ -169,26 +192,30 @@ def rk38_run(y, k_start, n_samples, substeps, fs, record, P, mass, planet, tvms,
                     out[c, s] = sensor[c, 0] * ax + sensor[c, 1] * ay
             cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
             mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gb, rb)
+            mdl.mesh_terms(ta, P, tvms, mb)
             for i in range(n2):
                 ytmp[i] = y[i] + h3 * k1[i]
-            mdl.rhs_with_geometry(ta, ytmp, P, mass, planet, tvms, gb, rb, Q, k2)
+            mdl.rhs_with_terms(ytmp, P, inv_mass, planet, mb, gb, rb, Q, k2)
             cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
             mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gc, rc)
+            mdl.mesh_terms(tb, P, tvms, mc)
             for i in range(n2):
                 ytmp[i] = y[i] + h * (k2[i] - k1[i] / 3.0)
-            mdl.rhs_with_geometry(tb, ytmp, P, mass, planet, tvms, gc, rc, Q, k3)
+            mdl.rhs_with_terms(ytmp, P, inv_mass, planet, mc, gc, rc, Q, k3)
             if sub == substeps - 1:
                 cb, sb, cw, sw = mdl.frame_angles(t1, P)
             else:
                 cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
             mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gd, rd)
+            mdl.mesh_terms(t1, P, tvms, md)
             for i in range(n2):
                 ytmp[i] = y[i] + h * (k1[i] - k2[i] + k3[i])
-            mdl.rhs_with_geometry(t1, ytmp, P, mass, planet, tvms, gd, rd, Q, k4)
+            mdl.rhs_with_terms(ytmp, P, inv_mass, planet, md, gd, rd, Q, k4)
             for i in range(n2):
                 y[i] += h8 * (k1[i] + 3.0 * (k2[i] + k3[i]) + k4[i])
             ga, gd = gd, ga
             ra, rd = rd, ra
+            ma, md = md, ma
         st = _check_state(y, n, lim, limr)
         if st != OK:
             return st, s
@@ -244,9 +271,10 @@ def integrate(
         raise SimulationError(f"initial state must have {2 * n} entries, got {y.shape}")
     nd, nz = model.n_discs, model.cosk.size
     rk38 = st.method == "rk38"
-    geo = [np.zeros((nd, 3, nz)) for _ in range(4 if rk38 else 3)]
-    rot = [np.zeros((nd, 4)) for _ in range(4 if rk38 else 3)]
-    work = [np.zeros(n)] + [np.zeros(2 * n) for _ in range(5)]  # Q, k1..k4, ytmp
+    geo = [np.zeros((nd, 3, nz)) for _ in range(4 if rk38 else 5)]
+    rot = [np.zeros((nd, 4)) for _ in range(4 if rk38 else 5)]
+    mts = [mdl.mesh_array(model) for _ in range(4 if rk38 else 3)]
+    work = [np.zeros(n)] + [np.zeros(2 * n) for _ in range(5 if rk38 else 4)]  # Q, k1..k3 (k4), ytmp
     out = np.zeros((model.sensor.shape[0], n_samples))
     chunk = max(1, int(st.chunk_samples))
     cbuf = np.zeros((model.sensor.shape[0], chunk))
@@ -258,9 +286,11 @@ def integrate(
         rec = k >= 0
         if not rec:
             m = min(m, -k)
-        slots = [a for pair in zip(geo, rot) for a in pair]
+        slots = [a for triple in zip(geo, rot, mts) for a in triple]
+        if not rk38:
+            slots += [geo[3], rot[3], geo[4], rot[4]]
         run = rk38_run if rk38 else rk4_run
-        status, s = run(y, k, m, S, float(fs), rec, model.P, model.mass, model.planet, model.tables,
+        status, s = run(y, k, m, S, float(fs), rec, model.P, model.inv_mass, model.planet, model.tables,
                         model.cosk, model.sink, model.sensor, cbuf, *slots, *work)
         if status != OK:
             _raise_unstable(model, status, (k + s) / fs, fs)

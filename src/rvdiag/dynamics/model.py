@@ -235,6 +235,8 @@ class Model:
     #: ``(2, n)`` C-contiguous ``[tvms, tvms_error]`` (``(1, n)`` when the error is zero): the mesh
     #: table the compiled kernels take
     tables: np.ndarray = field(init=False, repr=False, compare=False)
+    #: ``1 / mass``: the kernels multiply by it (a division per coordinate costs ~15 % of a right-hand side)
+    inv_mass: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         k = np.asarray(self.tvms, dtype=float)
@@ -245,6 +247,7 @@ class Model:
         # without a deviation the kernels get the stiffness row only and skip the error terms
         rows = [k, e] if np.any(e != 0.0) else [k]
         object.__setattr__(self, "tables", np.ascontiguousarray(np.stack(rows)))
+        object.__setattr__(self, "inv_mass", 1.0 / np.asarray(self.mass, dtype=float))
 
     @property
     def n_dof(self) -> int:
@@ -432,6 +435,24 @@ def frame_angles(t, P):
     return math.cos(b0), math.sin(b0), math.cos(Om * te), math.sin(Om * te)
 
 
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
+def frame_rotations(cb0, sb0, cw, sw, P, rot):
+    """``rot[j] = (cos b_j, sin b_j, cos B_j, sin B_j)`` of every disc from the cosines and sines of
+    :func:`frame_angles`: ``b_j = b_0 + j phi`` and ``B_j = b_j + Omega t`` by angle addition."""
+    cph = P[I_CPH]
+    sph = P[I_SPH]
+    cb = cb0
+    sb = sb0
+    for j in range(rot.shape[0]):
+        rot[j, 0] = cb
+        rot[j, 1] = sb
+        rot[j, 2] = cb * cw - sb * sw
+        rot[j, 3] = sb * cw + cb * sw
+        c = cb * cph - sb * sph
+        sb = sb * cph + cb * sph
+        cb = c
+
+
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def pin_geometry_cs(cb0, sb0, cw, sw, P, cosk, sink, geo, rot):
     """:func:`pin_geometry` from the cosines and sines of :func:`frame_angles` (no trigonometry:
@@ -442,100 +463,114 @@ def pin_geometry_cs(cb0, sb0, cw, sw, P, cosk, sink, geo, rot):
     Rp = P[I_RP]
     eZp = e * Zp
     eZc = e * Zc
-    D = int(P[I_NDISC])
     nz = cosk.size
-    # b_j = b_0 + j phi and B_j = b_j + Omega t by angle addition
-    cph = P[I_CPH]
-    sph = P[I_SPH]
-    cb = cb0
-    sb = sb0
-    for j in range(D):
-        rot[j, 0] = cb
-        rot[j, 1] = sb
-        rot[j, 2] = cb * cw - sb * sw
-        rot[j, 3] = sb * cw + cb * sw
-        c = cb * cph - sb * sph
-        sb = sb * cph + cb * sph
-        cb = c
-    ng = 1 if P[I_GSHARED] != 0.0 else D
+    frame_rotations(cb0, sb0, cw, sw, P, rot)
+    ng = 1 if P[I_GSHARED] != 0.0 else rot.shape[0]
     for j in range(ng):
         # eta_0 = Zc Omega t - beta0 - j phi = -B_j
         c0 = rot[j, 2]
         s0 = -rot[j, 3]
-        gx = geo[j, 0]
-        gy = geo[j, 1]
-        gl = geo[j, 2]
         for k in range(nz):
             dx = Rp * (c0 * cosk[k] - s0 * sink[k]) - eZp
             dy = Rp * (s0 * cosk[k] + c0 * sink[k])
             inv = 1.0 / math.sqrt(dx * dx + dy * dy)
-            gx[k] = dx * inv
-            gy[k] = dy * inv
-            gl[k] = eZc * dy * inv
+            geo[j, 0, k] = dx * inv
+            geo[j, 1, k] = dy * inv
+            geo[j, 2, k] = eZc * dy * inv
+
+
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def interpolate_geometry(g0, gm, g1, s, P, out):
+    """Pin geometry at a fraction ``s`` of an output sample: the quadratic through the exact geometries
+    ``g0, gm, g1`` at the sample's start, middle and end (Lagrange, nodes 0, 1/2, 1; only the used
+    geometries: one when ``P[I_GSHARED]``).
+
+    The pin angles advance by ``(Zp - 1) Omega / fs`` per sample (1e-3 rad at 1000 rpm), so the
+    interpolation error is ~7e-10 of the unit normals at 1000 rpm and 3e-8 at 3000 rpm, against 1e-6
+    and 1e-5 for linear interpolation.  Linear is not enough: the pin forces carry the whole output
+    torque while the vibration is a small part of them, so 1e-6 in the normals moved the output by 1e-4
+    (bench/HISTORY.md 2026-11-23, "slice-free kernels").  An exact evaluation costs 40 square roots
+    per stage time (72 ns); this costs two per sample.
+    """
+    c0 = 2.0 * (s - 0.5) * (s - 1.0)
+    cm = -4.0 * s * (s - 1.0)
+    c1 = 2.0 * s * (s - 0.5)
+    ng = 1 if P[I_GSHARED] != 0.0 else g0.shape[0]
+    for j in range(ng):
+        for r in range(3):
+            for k in range(g0.shape[2]):
+                out[j, r, k] = c0 * g0[j, r, k] + cm * gm[j, r, k] + c1 * g1[j, r, k]
+
+
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def mesh_terms(t, P, tvms, mt):
+    """Mesh stiffness and profile deviation of every sun-planet mesh at time t (they depend on time only).
+
+    ``mt[i] = (k_i, e_i, e_i')``: the TVMS (N/m) and profile deviation (m) of planet i's mesh, linearly
+    interpolated in ``tvms`` (``Model.tables``) at the sun angle relative to planet i,
+    ``phi = w_rel t - 2 pi i / N``, and the deviation's rate ``de/dt = w_rel de/dphi`` (0 when the
+    time-varying terms are frozen).  Computed once per distinct stage time by the integrator and shared by
+    the stages that use it.
+    """
+    te = eval_time(t, P)
+    N = int(P[I_NPL])
+    nt = tvms.shape[1]
+    has_e = tvms.shape[0] > 1
+    inv_n = 1.0 / N
+    x0 = P[I_WREL] * te * (1.0 / TWO_PI)
+    erate = P[I_WREL] * nt * (1.0 / TWO_PI) if P[I_TFROZEN] < 0.0 else 0.0
+    for i in range(N):
+        x = x0 - i * inv_n
+        x = (x - math.floor(x)) * nt
+        j0 = int(x)
+        fr = x - j0
+        if j0 >= nt:
+            j0 = 0
+        j1 = j0 + 1
+        if j1 >= nt:
+            j1 = 0
+        mt[i, 0] = tvms[0, j0] + fr * (tvms[0, j1] - tvms[0, j0])
+        if has_e:
+            de = tvms[1, j1] - tvms[1, j0]
+            mt[i, 1] = tvms[1, j0] + fr * de
+            mt[i, 2] = erate * de
+        else:
+            mt[i, 1] = 0.0
+            mt[i, 2] = 0.0
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
-def _pin_sums(gx, gy, gl, ux, uy, th, wx, wy, om, kp, cp, bil):
-    """Sums of F n_x, F n_y and F l over the pins of one disc, F = k d + c d' where d > 0, else 0.
+def _pin_sums(geo, g, ux, uy, th, wx, wy, om, kp, cp, dlim):
+    """Sums of F n_x, F n_y and F l over the pins of one disc, F = k d + c d' where d > dlim, else 0.
 
-    Four interleaved partial sums (pins k, k+1, k+2, k+3) break the serial dependency of the
-    reduction so the loop runs at throughput, without fast-math reassociation; the order of the
-    additions is fixed, so results are deterministic.
+    ``geo[g, 0..2, k]`` is pin k's normal and lever arm (:func:`pin_geometry`); ``dlim`` is 0 for
+    compression-only contacts and -inf for the bilateral check.  The sums are plain reductions that the
+    kernels' ``reassoc`` fast-math flag lets LLVM vectorise; the order is fixed by the compiled code, so
+    results are deterministic.
     """
-    sx0 = sx1 = sx2 = sx3 = 0.0
-    sy0 = sy1 = sy2 = sy3 = 0.0
-    sm0 = sm1 = sm2 = sm3 = 0.0
-    nz = gx.size
-    n4 = nz - nz % 4
-    for k in range(0, n4, 4):
-        d0 = ux * gx[k] + uy * gy[k] + th * gl[k]
-        d1 = ux * gx[k + 1] + uy * gy[k + 1] + th * gl[k + 1]
-        d2 = ux * gx[k + 2] + uy * gy[k + 2] + th * gl[k + 2]
-        d3 = ux * gx[k + 3] + uy * gy[k + 3] + th * gl[k + 3]
-        f0 = kp * d0 + cp * (wx * gx[k] + wy * gy[k] + om * gl[k])
-        f1 = kp * d1 + cp * (wx * gx[k + 1] + wy * gy[k + 1] + om * gl[k + 1])
-        f2 = kp * d2 + cp * (wx * gx[k + 2] + wy * gy[k + 2] + om * gl[k + 2])
-        f3 = kp * d3 + cp * (wx * gx[k + 3] + wy * gy[k + 3] + om * gl[k + 3])
-        f0 = f0 if (d0 > 0.0 or bil != 0.0) else 0.0
-        f1 = f1 if (d1 > 0.0 or bil != 0.0) else 0.0
-        f2 = f2 if (d2 > 0.0 or bil != 0.0) else 0.0
-        f3 = f3 if (d3 > 0.0 or bil != 0.0) else 0.0
-        sx0 += f0 * gx[k]
-        sx1 += f1 * gx[k + 1]
-        sx2 += f2 * gx[k + 2]
-        sx3 += f3 * gx[k + 3]
-        sy0 += f0 * gy[k]
-        sy1 += f1 * gy[k + 1]
-        sy2 += f2 * gy[k + 2]
-        sy3 += f3 * gy[k + 3]
-        sm0 += f0 * gl[k]
-        sm1 += f1 * gl[k + 1]
-        sm2 += f2 * gl[k + 2]
-        sm3 += f3 * gl[k + 3]
-    for k in range(n4, nz):
-        d = ux * gx[k] + uy * gy[k] + th * gl[k]
-        f = kp * d + cp * (wx * gx[k] + wy * gy[k] + om * gl[k])
-        f = f if (d > 0.0 or bil != 0.0) else 0.0
-        sx0 += f * gx[k]
-        sy0 += f * gy[k]
-        sm0 += f * gl[k]
-    return (sx0 + sx1) + (sx2 + sx3), (sy0 + sy1) + (sy2 + sy3), (sm0 + sm1) + (sm2 + sm3)
+    sx = sy = sm = 0.0
+    for k in range(geo.shape[2]):
+        nx = geo[g, 0, k]
+        ny = geo[g, 1, k]
+        lk = geo[g, 2, k]
+        d = ux * nx + uy * ny + th * lk
+        f = kp * d + cp * (wx * nx + wy * ny + om * lk)
+        f = f if d > dlim else 0.0
+        sx += f * nx
+        sy += f * ny
+        sm += f * lk
+    return sx, sy, sm
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
-def _pin_sums_pair(gx, gy, gl, ux, uy, th, wx, wy, om, vx, vy, ph, zx, zy, ps, kp, cp, bil):
-    """:func:`_pin_sums` for two discs that share one pin geometry, in one fused pass.
-
-    The six sums are plain reductions; the kernels' ``reassoc`` fast-math flag lets LLVM vectorise
-    them (bench/HISTORY.md: pin part ~150 -> ~85 ns per right-hand side).  The summation order is
-    fixed by the compiled code, so results are deterministic.
-    """
-    dlim = -np.inf if bil != 0.0 else 0.0
+def _pin_sums_pair(geo, ux, uy, th, wx, wy, om, vx, vy, ph, zx, zy, ps, kp, cp, dlim):
+    """:func:`_pin_sums` for two discs that share pin geometry 0, in one fused pass (one load of the
+    geometry for both discs)."""
     s0x = s0y = s0m = s1x = s1y = s1m = 0.0
-    for k in range(gx.size):
-        nx = gx[k]
-        ny = gy[k]
-        lk = gl[k]
+    for k in range(geo.shape[2]):
+        nx = geo[0, 0, k]
+        ny = geo[0, 1, k]
+        lk = geo[0, 2, k]
         d = ux * nx + uy * ny + th * lk
         f = kp * d + cp * (wx * nx + wy * ny + om * lk)
         f = f if d > dlim else 0.0
@@ -552,41 +587,50 @@ def _pin_sums_pair(gx, gy, gl, ux, uy, th, wx, wy, om, vx, vy, ph, zx, zy, ps, k
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
-def generalized_forces(t, q, v, P, planet, tvms, geo, rot, Q):
+def generalized_forces(y, P, planet, mt, geo, rot, Q):
     """Generalized forces Q(t, q, v) of all springs, contacts, dampers and the external torques.
 
-    ``geo, rot`` must hold :func:`pin_geometry` at the same ``t``.  The equations are in docs/model.md.
-    ``tvms`` is ``Model.tables``, shape ``(2, n)`` or ``(1, n)``: row 0 the mesh stiffness, row 1
-    (when present) the profile deviation ``e`` (m) subtracted from each sun-planet mesh deflection, force
-    ``k g(delta - e) + c (delta' - e')`` (transmission-error excitation, Kahraman & Singh 1990).
+    ``y = [q, v]`` (the first-order state; ``Q`` has ``n = y.size / 2`` entries).  ``mt`` must hold
+    :func:`mesh_terms` and ``geo, rot`` :func:`pin_geometry` at the same ``t``.  The equations are in
+    docs/model.md.  Each sun-planet mesh force is ``k g(delta - e) + c (delta' - e')`` with the
+    deviation ``e`` (transmission-error excitation, Kahraman & Singh 1990).
+
+    Written for speed (bench/HISTORY.md 2026-11-23, "slice-free kernels"): no array views (each view
+    costs numba reference counting), the forces of the sun, planets, cranks, carrier and pin wheel are
+    summed in local variables and stored once, and only the discs' are accumulated in ``Q``.
     """
-    te = eval_time(t, P)
-    N = int(P[I_NPL])
-    D = int(P[I_NDISC])
+    N = int(P[I_NPL]) & 255
+    D = int(P[I_NDISC]) & 255
+    n = Q.size & 65535
     iC0 = 3 + 3 * N
     iD0 = 3 + 6 * N
     iH = iD0 + 3 * D
     iR = iH + 3
-    nq = iR + 3
-    for i in range(nq):
-        Q[i] = 0.0
     a = P[I_A]
     e = P[I_E]
+    for i in range(iD0, iH):
+        Q[i] = 0.0
     # ---- sun: support and input coupling (motor at constant speed), th_s relative to the motor angle
     kss = P[I_KSS]
     css = P[I_CSS]
-    Q[0] -= kss * q[0] + css * v[0]
-    Q[1] -= kss * q[1] + css * v[1]
-    Q[2] -= P[I_KIN] * q[2] + P[I_CIN] * v[2]
+    S0 = -(kss * y[0] + css * y[n])
+    S1 = -(kss * y[1] + css * y[n + 1])
+    S2 = -(P[I_KIN] * y[2] + P[I_CIN] * y[n + 2])
     # ---- carrier: support, load torque
-    Q[iH] -= P[I_KHS] * q[iH] + P[I_CHS] * v[iH]
-    Q[iH + 1] -= P[I_KHS] * q[iH + 1] + P[I_CHS] * v[iH + 1]
-    Q[iH + 2] -= P[I_TLOAD]
+    qH0 = y[iH]
+    qH1 = y[iH + 1]
+    qH2 = y[iH + 2]
+    vH0 = y[n + iH]
+    vH1 = y[n + iH + 1]
+    vH2 = y[n + iH + 2]
+    H0 = -(P[I_KHS] * qH0 + P[I_CHS] * vH0)
+    H1 = -(P[I_KHS] * qH1 + P[I_CHS] * vH1)
+    H2 = -P[I_TLOAD]
     # ---- pin wheel on the housing (fixed frame)
-    Q[iR] -= P[I_KRH] * q[iR] + P[I_CRH] * v[iR]
-    Q[iR + 1] -= P[I_KRH] * q[iR + 1] + P[I_CRH] * v[iR + 1]
-    Q[iR + 2] -= P[I_KRT] * q[iR + 2] + P[I_CRT] * v[iR + 2]
-    # ---- sun-planet meshes
+    R0 = -(P[I_KRH] * y[iR] + P[I_CRH] * y[n + iR])
+    R1 = -(P[I_KRH] * y[iR + 1] + P[I_CRH] * y[n + iR + 1])
+    R2 = -(P[I_KRT] * y[iR + 2] + P[I_CRT] * y[n + iR + 2])
+    # ---- sun-planet meshes, planet-crank splines, crank bearings
     sa = P[I_SINA]
     ca = P[I_COSA]
     kpr = P[I_KPR]
@@ -597,17 +641,11 @@ def generalized_forces(t, q, v, P, planet, tvms, geo, rot, Q):
     ccc = P[I_CCC]
     kcd = P[I_KCD]
     ccd = P[I_CCD]
-    inv_n = 1.0 / N
     rb1 = P[I_RB1]
     rb2 = P[I_RB2]
     hb = P[I_HALF_BACKLASH]
     cm = P[I_CMESH]
-    nt = tvms.shape[1]
-    has_e = tvms.shape[0] > 1
     bil = P[I_BILATERAL]
-    phi = P[I_WREL] * te
-    # d(e)/dt = e'(phi) * w_rel of the profile deviation (table slope per grid step); 0 when frozen
-    erate = P[I_WREL] * nt * (1.0 / TWO_PI) if P[I_TFROZEN] < 0.0 else 0.0
     for i in range(N):
         ip = 3 + 3 * i
         ic = iC0 + 3 * i
@@ -615,25 +653,22 @@ def generalized_forces(t, q, v, P, planet, tvms, geo, rot, Q):
         sps = planet[i, 1]
         sap = planet[i, 2]
         cap = planet[i, 3]
-        # TVMS at the sun angle relative to planet i
-        x = phi * (1.0 / TWO_PI) - i * inv_n
-        x = (x - math.floor(x)) * nt
-        j0 = int(x)
-        fr = x - j0
-        if j0 >= nt:
-            j0 = 0
-        j1 = j0 + 1
-        if j1 >= nt:
-            j1 = 0
-        km = tvms[0, j0] + fr * (tvms[0, j1] - tvms[0, j0])
-        d = q[0] * sap + q[1] * cap + rb1 * q[2] - q[ip] * sa - q[ip + 1] * ca + rb2 * q[ip + 2]
-        dd = v[0] * sap + v[1] * cap + rb1 * v[2] - v[ip] * sa - v[ip + 1] * ca + rb2 * v[ip + 2]
-        if has_e:
-            # profile deviation e (transmission-error excitation) reduces the approach: delta - e
-            e0 = tvms[1, j0]
-            de = tvms[1, j1] - e0
-            d -= e0 + fr * de
-            dd -= erate * de
+        qp0 = y[ip]
+        qp1 = y[ip + 1]
+        qp2 = y[ip + 2]
+        vp0 = y[n + ip]
+        vp1 = y[n + ip + 1]
+        vp2 = y[n + ip + 2]
+        qc0 = y[ic]
+        qc1 = y[ic + 1]
+        qc2 = y[ic + 2]
+        vc0 = y[n + ic]
+        vc1 = y[n + ic + 1]
+        vc2 = y[n + ic + 2]
+        # mesh deflection along the line of action minus the profile deviation e
+        d = y[0] * sap + y[1] * cap + rb1 * y[2] - qp0 * sa - qp1 * ca + rb2 * qp2 - mt[i, 1]
+        dd = y[n] * sap + y[n + 1] * cap + rb1 * y[n + 2] - vp0 * sa - vp1 * ca + rb2 * vp2 - mt[i, 2]
+        km = mt[i, 0]
         F = 0.0
         if bil != 0.0:
             F = km * (d - bil * hb) + cm * dd
@@ -641,96 +676,121 @@ def generalized_forces(t, q, v, P, planet, tvms, geo, rot, Q):
             F = km * (d - hb) + cm * dd
         elif d < -hb:
             F = km * (d + hb) + cm * dd
-        Q[0] -= F * sap
-        Q[1] -= F * cap
-        Q[2] -= F * rb1
-        Q[ip] += F * sa
-        Q[ip + 1] += F * ca
-        Q[ip + 2] -= F * rb2
+        S0 -= F * sap
+        S1 -= F * cap
+        S2 -= F * rb1
         # planet-crank spline (radial and torsional), both in the orbiting frame
-        for m in range(2):
-            f = kpr * (q[ip + m] - q[ic + m]) + cpr * (v[ip + m] - v[ic + m])
-            Q[ip + m] -= f
-            Q[ic + m] += f
-        f = kpt * (q[ip + 2] - q[ic + 2]) + cpt * (v[ip + 2] - v[ic + 2])
-        Q[ip + 2] -= f
-        Q[ic + 2] += f
+        fr0 = kpr * (qp0 - qc0) + cpr * (vp0 - vc0)
+        fr1 = kpr * (qp1 - qc1) + cpr * (vp1 - vc1)
+        ft = kpt * (qp2 - qc2) + cpt * (vp2 - vc2)
+        Q[ip] = F * sa - fr0
+        Q[ip + 1] = F * ca - fr1
+        Q[ip + 2] = -F * rb2 - ft
         # crank-carrier bearing: d = u_c - R^T u_H - a th_H e_t (orbiting frame)
-        dx = q[ic] - (cps * q[iH] + sps * q[iH + 1])
-        dy = q[ic + 1] - (-sps * q[iH] + cps * q[iH + 1]) - a * q[iH + 2]
-        vx = v[ic] - (cps * v[iH] + sps * v[iH + 1])
-        vy = v[ic + 1] - (-sps * v[iH] + cps * v[iH + 1]) - a * v[iH + 2]
+        dx = qc0 - (cps * qH0 + sps * qH1)
+        dy = qc1 - (-sps * qH0 + cps * qH1) - a * qH2
+        vx = vc0 - (cps * vH0 + sps * vH1)
+        vy = vc1 - (-sps * vH0 + cps * vH1) - a * vH2
         fx = kcc * dx + ccc * vx
         fy = kcc * dy + ccc * vy
-        Q[ic] -= fx
-        Q[ic + 1] -= fy
-        Q[iH] += cps * fx - sps * fy
-        Q[iH + 1] += sps * fx + cps * fy
-        Q[iH + 2] += a * fy
+        C0 = fr0 - fx
+        C1 = fr1 - fy
+        C2 = ft
+        H0 += cps * fx - sps * fy
+        H1 += sps * fx + cps * fy
+        H2 += a * fy
         # crank-cycloid bearings (carrier frame): d = R u_c + th_c e t_j - u_d - th_d a e_t(psi)
-        ucx = cps * q[ic] - sps * q[ic + 1]
-        ucy = sps * q[ic] + cps * q[ic + 1]
-        vcx = cps * v[ic] - sps * v[ic + 1]
-        vcy = sps * v[ic] + cps * v[ic + 1]
+        ucx = cps * qc0 - sps * qc1
+        ucy = sps * qc0 + cps * qc1
+        vcx = cps * vc0 - sps * vc1
+        vcy = sps * vc0 + cps * vc1
+        asp = a * sps
+        acp = a * cps
         for jd in range(D):
             idd = iD0 + 3 * jd
             tx = -e * rot[jd, 1]
             ty = e * rot[jd, 0]
-            dx = ucx + q[ic + 2] * tx - q[idd] + q[idd + 2] * a * sps
-            dy = ucy + q[ic + 2] * ty - q[idd + 1] - q[idd + 2] * a * cps
-            vx = vcx + v[ic + 2] * tx - v[idd] + v[idd + 2] * a * sps
-            vy = vcy + v[ic + 2] * ty - v[idd + 1] - v[idd + 2] * a * cps
+            qd2 = y[idd + 2]
+            vd2 = y[n + idd + 2]
+            dx = ucx + qc2 * tx - y[idd] + qd2 * asp
+            dy = ucy + qc2 * ty - y[idd + 1] - qd2 * acp
+            vx = vcx + vc2 * tx - y[n + idd] + vd2 * asp
+            vy = vcy + vc2 * ty - y[n + idd + 1] - vd2 * acp
             fx = kcd * dx + ccd * vx
             fy = kcd * dy + ccd * vy
-            Q[ic] -= cps * fx + sps * fy
-            Q[ic + 1] -= -sps * fx + cps * fy
-            Q[ic + 2] -= tx * fx + ty * fy
+            C0 -= cps * fx + sps * fy
+            C1 -= -sps * fx + cps * fy
+            C2 -= tx * fx + ty * fy
             Q[idd] += fx
             Q[idd + 1] += fy
-            Q[idd + 2] += a * (-sps * fx + cps * fy)
+            Q[idd + 2] += asp * -fx + acp * fy
+        Q[ic] = C0
+        Q[ic + 1] = C1
+        Q[ic + 2] = C2
     # ---- cycloid-pin contacts, in each disc's eccentric frame
     kp = P[I_KPIN]
     cp = P[I_CPIN]
     rr = P[I_ZP] / P[I_ZC]
+    dlim = -np.inf if bil != 0.0 else 0.0
     gsh = P[I_GSHARED] != 0.0
+    qR0 = y[iR]
+    qR1 = y[iR + 1]
+    qR2 = y[iR + 2]
+    vR0 = y[n + iR]
+    vR1 = y[n + iR + 1]
+    vR2 = y[n + iR + 2]
     jd = 0
     while jd < D:
-        a0, a1, a2, a3, a4, a5 = _disc_frame(jd, q, v, rot, iD0, iR, rr)
+        a0, a1, a2, a3, a4, a5 = _disc_frame(jd, y, n, rot, iD0, qR0, qR1, qR2, vR0, vR1, vR2, rr)
         if gsh and jd + 1 < D:
-            g = geo[0]
-            b0, b1, b2, b3, b4, b5 = _disc_frame(jd + 1, q, v, rot, iD0, iR, rr)
+            b0, b1, b2, b3, b4, b5 = _disc_frame(jd + 1, y, n, rot, iD0, qR0, qR1, qR2, vR0, vR1, vR2, rr)
             s0x, s0y, s0m, s1x, s1y, s1m = _pin_sums_pair(
-                g[0], g[1], g[2], a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, kp, cp, bil)
-            _apply_pin_sums(jd, s0x, s0y, s0m, iD0, iR, rr, rot, Q)
-            _apply_pin_sums(jd + 1, s1x, s1y, s1m, iD0, iR, rr, rot, Q)
+                geo, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, kp, cp, dlim)
+            r0, r1, r2 = _apply_pin_sums(jd, s0x, s0y, s0m, iD0, rr, rot, Q)
+            R0 += r0
+            R1 += r1
+            R2 += r2
+            r0, r1, r2 = _apply_pin_sums(jd + 1, s1x, s1y, s1m, iD0, rr, rot, Q)
             jd += 2
         else:
-            g = geo[0] if gsh else geo[jd]
-            sx, sy, sm = _pin_sums(g[0], g[1], g[2], a0, a1, a2, a3, a4, a5, kp, cp, bil)
-            _apply_pin_sums(jd, sx, sy, sm, iD0, iR, rr, rot, Q)
+            sx, sy, sm = _pin_sums(geo, 0 if gsh else jd, a0, a1, a2, a3, a4, a5, kp, cp, dlim)
+            r0, r1, r2 = _apply_pin_sums(jd, sx, sy, sm, iD0, rr, rot, Q)
             jd += 1
+        R0 += r0
+        R1 += r1
+        R2 += r2
+    Q[0] = S0
+    Q[1] = S1
+    Q[2] = S2
+    Q[iH] = H0
+    Q[iH + 1] = H1
+    Q[iH + 2] = H2
+    Q[iR] = R0
+    Q[iR + 1] = R1
+    Q[iR + 2] = R2
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
-def _disc_frame(jd, q, v, rot, iD0, iR, rr):
+def _disc_frame(jd, y, n, rot, iD0, qR0, qR1, qR2, vR0, vR1, vR2, rr):
     """Disc-minus-pin-wheel displacement, rotation and their rates in disc jd's eccentric frame."""
     idd = iD0 + 3 * jd
     cb = rot[jd, 0]
     sb = rot[jd, 1]
     cB = rot[jd, 2]
     sB = rot[jd, 3]
-    ux = cb * q[idd] + sb * q[idd + 1] - (cB * q[iR] + sB * q[iR + 1])
-    uy = -sb * q[idd] + cb * q[idd + 1] - (-sB * q[iR] + cB * q[iR + 1])
-    th = q[idd + 2] - rr * q[iR + 2]
-    wx = cb * v[idd] + sb * v[idd + 1] - (cB * v[iR] + sB * v[iR + 1])
-    wy = -sb * v[idd] + cb * v[idd + 1] - (-sB * v[iR] + cB * v[iR + 1])
-    om = v[idd + 2] - rr * v[iR + 2]
+    ux = cb * y[idd] + sb * y[idd + 1] - (cB * qR0 + sB * qR1)
+    uy = -sb * y[idd] + cb * y[idd + 1] - (-sB * qR0 + cB * qR1)
+    th = y[idd + 2] - rr * qR2
+    wx = cb * y[n + idd] + sb * y[n + idd + 1] - (cB * vR0 + sB * vR1)
+    wy = -sb * y[n + idd] + cb * y[n + idd + 1] - (-sB * vR0 + cB * vR1)
+    om = y[n + idd + 2] - rr * vR2
     return ux, uy, th, wx, wy, om
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
-def _apply_pin_sums(jd, sx, sy, sm, iD0, iR, rr, rot, Q):
-    """Disc jd gets -sum F n and -sum F l; the pin wheel +sum F n and +sum F l Zp/Zc (rotated back)."""
+def _apply_pin_sums(jd, sx, sy, sm, iD0, rr, rot, Q):
+    """Disc jd gets -sum F n and -sum F l; returns the pin wheel's +sum F n and +sum F l Zp/Zc (rotated
+    back to the fixed frame)."""
     idd = iD0 + 3 * jd
     cb = rot[jd, 0]
     sb = rot[jd, 1]
@@ -739,61 +799,58 @@ def _apply_pin_sums(jd, sx, sy, sm, iD0, iR, rr, rot, Q):
     Q[idd] -= cb * sx - sb * sy
     Q[idd + 1] -= sb * sx + cb * sy
     Q[idd + 2] -= sm
-    Q[iR] += cB * sx - sB * sy
-    Q[iR + 1] += sB * sx + cB * sy
-    Q[iR + 2] += rr * sm
+    return cB * sx - sB * sy, sB * sx + cB * sy, rr * sm
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
-def accelerations(t, q, v, P, mass, planet, tvms, geo, rot, Q, acc):
-    """acc = M^-1 (Q + rotating-frame and nominal inertial terms), the second-order equations."""
-    generalized_forces(t, q, v, P, planet, tvms, geo, rot, Q)
-    te = eval_time(t, P)
-    N = int(P[I_NPL])
-    D = int(P[I_NDISC])
-    n = q.size
+def accelerations(y, P, inv_mass, planet, mt, geo, rot, Q, dydt):
+    """``dydt[n:] = M^-1 (Q + rotating-frame and nominal inertial terms)`` (``inv_mass`` = diag M^-1), the second-order equations
+    (``y = [q, v]``; the time-varying terms come in through ``mt``, ``geo`` and ``rot``)."""
+    generalized_forces(y, P, planet, mt, geo, rot, Q)
+    N = int(P[I_NPL]) & 255
+    D = int(P[I_NDISC]) & 255
+    n = Q.size & 65535
     iR = n - 3
     Om = P[I_OMEGA]
-    cor = P[I_CORIOLIS]
     for i in range(n):
-        acc[i] = Q[i] / mass[i]
+        dydt[n + i] = Q[i] * inv_mass[i]
     # nominal centripetal accelerations of orbiting bodies (moved to the right-hand side)
     oa = Om * Om * P[I_A]
     for i in range(N):
-        acc[3 + 3 * i] += oa
-        acc[3 + 3 * N + 3 * i] += oa
+        dydt[n + 3 + 3 * i] += oa
+        dydt[n + 3 + 3 * N + 3 * i] += oa
     iD0 = 3 + 6 * N
     wz = P[I_ZC] * Om
     ue = P[I_E] * wz * wz
     for jd in range(D):
-        idd = iD0 + 3 * jd
-        acc[idd] += ue * rot[jd, 0]
-        acc[idd + 1] += ue * rot[jd, 1]
-    if cor != 0.0:
+        idd = n + iD0 + 3 * jd
+        dydt[idd] += ue * rot[jd, 0]
+        dydt[idd + 1] += ue * rot[jd, 1]
+    if P[I_CORIOLIS] != 0.0:
         O2 = Om * Om
+        tO = 2.0 * Om
         for b in range(iR // 3):
             i = 3 * b
-            acc[i] += 2.0 * Om * v[i + 1] + O2 * q[i]
-            acc[i + 1] += -2.0 * Om * v[i] + O2 * q[i + 1]
-    return te
+            dydt[n + i] += tO * y[n + i + 1] + O2 * y[i]
+            dydt[n + i + 1] += -tO * y[n + i] + O2 * y[i + 1]
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
-def rhs_with_geometry(t, y, P, mass, planet, tvms, geo, rot, Q, dydt):
-    """First-order right-hand side dy/dt, y = [q, v], using precomputed pin geometry at t."""
-    n = mass.size
-    q = y[:n]
-    v = y[n:]
+def rhs_with_terms(y, P, inv_mass, planet, mt, geo, rot, Q, dydt):
+    """First-order right-hand side dy/dt, y = [q, v], from the time-varying terms precomputed at the
+    stage time (:func:`mesh_terms`, :func:`pin_geometry`); ``inv_mass`` is ``Model.inv_mass``."""
+    n = Q.size & 65535
     for i in range(n):
         dydt[i] = y[n + i]
-    accelerations(t, q, v, P, mass, planet, tvms, geo, rot, Q, dydt[n:])
+    accelerations(y, P, inv_mass, planet, mt, geo, rot, Q, dydt)
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
-def rhs(t, y, P, mass, planet, tvms, cosk, sink, geo, rot, Q, dydt):
-    """First-order right-hand side dy/dt computing the pin geometry itself (for scipy and checks)."""
+def rhs(t, y, P, inv_mass, planet, tvms, cosk, sink, geo, rot, mt, Q, dydt):
+    """First-order right-hand side dy/dt computing the time-varying terms itself (for scipy and checks)."""
     pin_geometry(t, P, cosk, sink, geo, rot)
-    rhs_with_geometry(t, y, P, mass, planet, tvms, geo, rot, Q, dydt)
+    mesh_terms(t, P, tvms, mt)
+    rhs_with_terms(y, P, inv_mass, planet, mt, geo, rot, Q, dydt)
 
 
 def work_arrays(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -802,27 +859,41 @@ def work_arrays(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             np.zeros(model.n_dof))
 
 
+def mesh_array(model: Model) -> np.ndarray:
+    """A fresh ``(n_planets, 3)`` array for :func:`mesh_terms`."""
+    return np.zeros((model.n_planets, 3))
+
+
 def make_rhs(model: Model):
     """A Python callable ``f(t, y) -> dy/dt`` on the compiled right-hand side (for scipy.solve_ivp)."""
     geo, rot, Q = work_arrays(model)
+    mt = mesh_array(model)
     m = model
 
     def f(t: float, y: np.ndarray) -> np.ndarray:
         out = np.empty_like(y)
-        rhs(float(t), np.ascontiguousarray(y, dtype=np.float64), m.P, m.mass, m.planet, m.tables,
-            m.cosk, m.sink, geo, rot, Q, out)
+        rhs(float(t), np.ascontiguousarray(y, dtype=np.float64), m.P, m.inv_mass, m.planet, m.tables,
+            m.cosk, m.sink, geo, rot, mt, Q, out)
         return out
 
     return f
 
 
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def _forces_at(t, y, P, planet, tvms, cosk, sink, geo, rot, mt, Q):
+    pin_geometry(t, P, cosk, sink, geo, rot)
+    mesh_terms(t, P, tvms, mt)
+    generalized_forces(y, P, planet, mt, geo, rot, Q)
+
+
 def forces(model: Model, t: float, q: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
     """Generalized forces Q(t, q, v) (Python wrapper, for static and linear analysis)."""
     geo, rot, Q = work_arrays(model)
-    pin_geometry(float(t), model.P, model.cosk, model.sink, geo, rot)
+    q = np.asarray(q, float)
     v = np.zeros_like(q) if v is None else np.asarray(v, float)
-    generalized_forces(float(t), np.asarray(q, float), v, model.P, model.planet, model.tables, geo, rot, Q)
-    return Q[: model.n_dof].copy()
+    _forces_at(float(t), np.concatenate([q, v]), model.P, model.planet, model.tables, model.cosk,
+               model.sink, geo, rot, mesh_array(model), Q)
+    return Q.copy()
 
 
 def sensor_acceleration(model: Model, acc: np.ndarray) -> np.ndarray:
