@@ -479,7 +479,7 @@ def pin_geometry_cs(cb0, sb0, cw, sw, P, cosk, sink, geo, rot):
             geo[j, 2, k] = eZc * dy * inv
 
 
-@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
 def interpolate_geometry(g0, gm, g1, s, P, out):
     """Pin geometry at a fraction ``s`` of an output sample: the quadratic through the exact geometries
     ``g0, gm, g1`` at the sample's start, middle and end (Lagrange, nodes 0, 1/2, 1; only the used
@@ -496,9 +496,10 @@ def interpolate_geometry(g0, gm, g1, s, P, out):
     cm = -4.0 * s * (s - 1.0)
     c1 = 2.0 * s * (s - 0.5)
     ng = 1 if P[I_GSHARED] != 0.0 else g0.shape[0]
+    nz = g0.shape[2]
     for j in range(ng):
         for r in range(3):
-            for k in range(g0.shape[2]):
+            for k in range(nz):
                 out[j, r, k] = c0 * g0[j, r, k] + cm * gm[j, r, k] + c1 * g1[j, r, k]
 
 
