@@ -2,20 +2,22 @@
 
 The classical fourth-order Runge-Kutta method (Hairer, Norsett & Wanner, *Solving ODEs I*, 1993,
 section II.1) advances ``substeps`` steps of ``h = 1 / (fs substeps)`` per output sample
-(``ModelSettings(method="rk38")``: Kutta's 3/8 rule instead, :func:`rk38_run`).  The
-cycloid-pin contact geometry depends on time only, so it is computed once per distinct stage time
-(t, t + h/2, t + h) and shared by the stages and by both discs' force loops; the pin angles come
-by angle addition from a precomputed table, and the two frame angles are rotated by fixed half-step
-increments within an output sample and recomputed exactly at each sample (REFERENCE.md section 5):
-one sin/cos pair per output sample instead of four per step.
+(``ModelSettings(method="rk38")``: Kutta's 3/8 rule instead, :func:`rk38_run`).  What depends on
+time only is computed once per distinct stage time (t, t + h/2, t + h) and shared by the stages: the mesh
+stiffness and profile deviation of each sun-planet mesh (:func:`rvdiag.dynamics.model.mesh_terms`), the
+frame rotations (rotated by fixed half-step increments within an output sample and recomputed exactly at
+each sample: one sin/cos pair per sample; REFERENCE.md section 5) and the cycloid-pin geometry.  RK4 takes
+the geometry exactly at each sample's start, middle and end and interpolates it quadratically at the
+inner stage times (:func:`rvdiag.dynamics.model.interpolate_geometry`; output change 1e-8 to 2e-7 relative
+against the exact geometry at every stage); the 3/8 rule evaluates it exactly at every stage time.
 
 The sensor output at sample ``k`` is the housing acceleration at ``t_k``, read from the first RK4
 stage of the step that starts there (no extra right-hand-side evaluation).  Only the current state
 and the output chunk live in memory: memory stays flat for any signal length.
 
-The force kernels (``generalized_forces``, ``accelerations``) are inlined into the compiled
-right-hand side (numba ``inline="always"``): one call per stage instead of three nested ones, -21 %
-CPU per step (bench/HISTORY.md 2026-11-23, "speed at the same accuracy").
+The force kernels (``generalized_forces``, ``accelerations``) are slice-free and inlined into one
+compiled right-hand side, :func:`rvdiag.dynamics.model.rhs_with_terms` (bench/HISTORY.md 2026-11-23,
+"speed at the same accuracy" and "slice-free force kernels": 368 -> 271 -> 173 ns per evaluation).
 
 Instability (a non-finite state, or a vibratory displacement beyond ``max_displacement_m``, or a
 rotation beyond ``max_rotation_rad``) stops

@@ -1,0 +1,119 @@
+"""GPU ensemble probe: numba-cuda compiles the CPU integrator ``rk4_run`` as a device function.
+
+One CUDA thread per simulation calls :func:`rvdiag.dynamics.integrate.rk4_run` on its own views of
+ensemble arrays.  Prints the agreement with the CPU integrator and the ensemble throughput (simulated s
+per wall s) for two memory layouts, and one CPU core's rate in the same run.  Needs a CUDA GPU and
+numba-cuda; on numpy >= 2.5 numba-cuda needs ``np.row_stack`` (set below).  Results: bench/HISTORY.md
+2026-11-23 "GPU ensemble, probed (not built)".
+
+    PYTHONPATH=src python bench/gpu_ensemble_probe.py        # writes $OUT/gpu_probe.json (or /tmp)
+
+Environment: ``PROBE_N`` samples of the correctness run (480), ``PROBE_SKIP_SCALING=1`` to skip the
+throughput runs.
+"""
+import json, os, time
+import numpy as np
+np.row_stack = np.vstack
+from numba import cuda
+from rvdiag.dynamics import prepare
+from rvdiag.dynamics.integrate import integrate, rk4_run
+from rvdiag.dynamics.linear import static_equilibrium
+
+dev = cuda.get_current_device() if hasattr(cuda, "get_current_device") else None
+res = {"device": str(getattr(dev, "name", "simulator"))}
+print(res, flush=True)
+
+@cuda.jit
+def kern(Y, k_start, n_samples, S, fs, P, inv_mass, planet, tables, cosk, sink, sensor, OUT,
+         G0, R0, M0, G1, R1, M1, G2, R2, M2, G3, R3, G4, R4, Q, K1, K2, K3, YT, ST):
+    i = cuda.grid(1)
+    if i < Y.shape[0]:
+        st, s = rk4_run(Y[i], k_start, n_samples, S, fs, True, P[i], inv_mass[i], planet[i], tables[i], cosk, sink,
+                        sensor, OUT[i], G0[i], R0[i], M0[i], G1[i], R1[i], M1[i], G2[i], R2[i], M2[i], G3[i], R3[i],
+                        G4[i], R4[i], Q[i], K1[i], K2[i], K3[i], YT[i])
+        ST[i, 0] = st
+        ST[i, 1] = s
+
+def run_ensemble(models, y0s, fs, n, block=64):
+    M = len(models); m0 = models[0]; n2 = 2 * m0.n_dof; nd, nz, npl = m0.n_discs, m0.cosk.size, m0.n_planets
+    d = cuda.to_device
+    Y = d(np.array(y0s)); P = d(np.array([m.P for m in models])); IM = d(np.array([m.inv_mass for m in models]))
+    PL = d(np.array([m.planet for m in models])); TB = d(np.array([m.tables for m in models]))
+    OUT = cuda.device_array((M, m0.sensor.shape[0], n))
+    G = [cuda.device_array((M, nd, 3, nz)) for _ in range(5)]; R = [cuda.device_array((M, nd, 4)) for _ in range(5)]
+    MT = [cuda.device_array((M, npl, 3)) for _ in range(3)]
+    Q = cuda.device_array((M, m0.n_dof)); K = [cuda.device_array((M, n2)) for _ in range(4)]
+    ST = cuda.device_array((M, 2), dtype=np.int64)
+    grid = (M + block - 1) // block
+    cuda.synchronize(); t0 = time.perf_counter()
+    kern[grid, block](Y, 0, n, m0.settings.substeps, fs, P, IM, PL, TB, d(m0.cosk), d(m0.sink), d(m0.sensor), OUT,
+                      G[0], R[0], MT[0], G[1], R[1], MT[1], G[2], R[2], MT[2], G[3], R[3], G[4], R[4], Q, K[0], K[1], K[2], K[3], ST)
+    cuda.synchronize(); dt = time.perf_counter() - t0
+    return OUT.copy_to_host(), ST.copy_to_host(), dt
+
+
+@cuda.jit
+def kernT(Y, k_start, n_samples, S, fs, P, inv_mass, planet, tables, cosk, sink, sensor, OUT,
+          G0, R0, M0, G1, R1, M1, G2, R2, M2, G3, R3, G4, R4, Q, K1, K2, K3, YT, ST):
+    i = cuda.grid(1)
+    if i < Y.shape[1]:
+        st, s = rk4_run(Y[:, i], k_start, n_samples, S, fs, True, P[:, i], inv_mass[:, i], planet[:, :, i],
+                        tables[:, :, i], cosk, sink, sensor, OUT[:, :, i], G0[:, :, :, i], R0[:, :, i], M0[:, :, i],
+                        G1[:, :, :, i], R1[:, :, i], M1[:, :, i], G2[:, :, :, i], R2[:, :, i], M2[:, :, i],
+                        G3[:, :, :, i], R3[:, :, i], G4[:, :, :, i], R4[:, :, i], Q[:, i], K1[:, i], K2[:, i],
+                        K3[:, i], YT[:, i])
+        ST[i, 0] = st
+        ST[i, 1] = s
+
+
+def run_ensemble_T(models, y0s, fs, n, block=64):
+    """Ensemble index last (struct of arrays): neighbouring threads touch neighbouring addresses."""
+    M = len(models); m0 = models[0]; n2 = 2 * m0.n_dof; nd, nz, npl = m0.n_discs, m0.cosk.size, m0.n_planets
+    d = lambda a: cuda.to_device(np.ascontiguousarray(np.moveaxis(np.asarray(a), 0, -1)))
+    Y = d(y0s); P = d([m.P for m in models]); IM = d([m.inv_mass for m in models])
+    PL = d([m.planet for m in models]); TB = d([m.tables for m in models])
+    OUT = cuda.device_array((m0.sensor.shape[0], n, M))
+    G = [cuda.device_array((nd, 3, nz, M)) for _ in range(5)]; R = [cuda.device_array((nd, 4, M)) for _ in range(5)]
+    MT = [cuda.device_array((npl, 3, M)) for _ in range(3)]
+    Q = cuda.device_array((m0.n_dof, M)); K = [cuda.device_array((n2, M)) for _ in range(4)]
+    ST = cuda.device_array((M, 2), dtype=np.int64)
+    grid = (M + block - 1) // block
+    cuda.synchronize(); t0 = time.perf_counter()
+    kernT[grid, block](Y, 0, n, m0.settings.substeps, fs, P, IM, PL, TB, cuda.to_device(m0.cosk), cuda.to_device(m0.sink),
+                       cuda.to_device(m0.sensor), OUT, G[0], R[0], MT[0], G[1], R[1], MT[1], G[2], R[2], MT[2], G[3], R[3],
+                       G[4], R[4], Q, K[0], K[1], K[2], K[3], ST)
+    cuda.synchronize(); dt = time.perf_counter() - t0
+    return np.moveaxis(OUT.copy_to_host(), -1, 0), ST.copy_to_host(), dt
+
+fs = 48000.0
+base = prepare(input_speed_rpm=1000.0)
+q0 = static_equilibrium(base, 0.0); y0 = np.concatenate([q0, np.zeros_like(q0)])
+n = int(os.environ.get("PROBE_N", 480))
+t0 = time.perf_counter()
+try:
+    out, st, dt = run_ensemble_T([base, base], [y0, y0], fs, n)
+    res["compile_and_first_run_s"] = time.perf_counter() - t0
+    ref, _ = integrate(base, y0, fs, n)
+    res["max_rel_diff_vs_cpu"] = float(np.abs(out[0] - ref).max() / np.abs(ref).max())
+    res["status"] = st.tolist()
+except Exception as e:
+    import traceback; traceback.print_exc()
+    res["error"] = repr(e)[:2000]
+print(json.dumps(res), flush=True)
+if "error" not in res and not os.environ.get("PROBE_SKIP_SCALING"):
+    n = 2400
+    for layout, runner, sizes in (("ensemble index first", run_ensemble, (256, 1024, 4096, 8192)),
+                                  ("ensemble index last", run_ensemble_T, (1024, 4096, 16384, 32768))):
+        for M in sizes:
+            block = 32
+            out, st, dt = runner([base] * M, [y0] * M, fs, n, block)
+            r = {"layout": layout, "M": M, "block": block, "wall_s": dt, "sim_s_per_wall_s": M * n / fs / dt,
+                 "ok": int((st[:, 0] == 0).sum())}
+            print(json.dumps(r), flush=True)
+            res.setdefault("scaling", []).append(r)
+# CPU reference in the same run, one core
+
+t0 = time.process_time(); integrate(base, y0, fs, 24000); res["cpu_one_core_sim_s_per_cpu_s"] = 0.5 / (time.process_time() - t0)
+print(json.dumps(res), flush=True)
+out_dir = os.environ.get("OUT", "/tmp")
+json.dump(res, open(os.path.join(out_dir, "gpu_probe.json"), "w"), indent=1)
