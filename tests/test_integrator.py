@@ -45,10 +45,10 @@ def _rel_err(settings: ModelSettings, ref) -> float:
 
 def test_matches_scipy_dop853_over_50ms(dop853_reference):
     """Default settings (48 kHz, RK4, 9 sub-steps) against solve_ivp DOP853, rtol 1e-9, on the same
-    right-hand side: relative L2 error of the sensor signal below 1e-3 (measured 8.6e-4; 1.18e-3 with 8
-    sub-steps, 7.0e-4 with 10; 8.4e-4 at 1000 rpm rated load, 6.2e-4 at 2000 rpm 50 N m; bench/HISTORY.md
-    2026-11-23).  Higher-order and low-dispersion schemes do not do better per right-hand side: the
-    error comes from the non-smooth TVMS ramps and pin contacts (docs/model.md section 7)."""
+    right-hand side: relative L2 error of the sensor signal below 1e-3 (measured 6.0e-4 with the steps cut
+    at the mesh-table events, 8.6e-4 without; 8.7e-4 with 8 sub-steps, 4.1e-4 with 10; 6.3e-4 at 1000 rpm
+    rated load; bench/HISTORY.md 2026-11-23).  Higher-order and low-dispersion schemes do not do better
+    per right-hand side (docs/model.md section 7)."""
     err = _rel_err(ModelSettings(), dop853_reference)
     assert err < 1e-3, err
 
@@ -142,17 +142,25 @@ def test_energy_conserved_with_rk38():
 
 
 def _rk4_exact_terms(m, y0, fs, n, S):
-    """Textbook RK4 on ``make_rhs`` (pin geometry and mesh terms evaluated exactly at every stage),
-    sensor output read like the integrator's: the reference for the per-sample geometry interpolation."""
+    """Textbook RK4 on ``make_rhs`` (pin geometry and mesh terms evaluated exactly at every stage) on the
+    integrator's step grid (table events included), sensor output read like the integrator's: the
+    reference for the per-sample geometry interpolation."""
+    from rvdiag.dynamics.integrate import sample_breaks, step_grid
+
     f = mdl.make_rhs(m)
-    h = 1.0 / (fs * S)
+    dts = 1.0 / fs
+    f_rel = m.P[mdl.I_WREL] / (2 * np.pi)
+    breaks, grid = np.zeros(64), np.zeros(S + 66)
     y = y0.copy()
     out = np.zeros((m.sensor.shape[0], n))
     for k in range(n):
-        for s in range(S):
-            t = (k * S + s) * h
+        t0, t_end = k * dts, (k + 1) * dts
+        nb = sample_breaks(t0, dts, f_rel, m.events, 1e-6 * dts / S, breaks)
+        M = step_grid(t0, t_end, S, dts / S, breaks, nb, grid)
+        for j in range(M):
+            t, h = grid[j], grid[j + 1] - grid[j]
             k1 = f(t, y)
-            if s == 0:
+            if j == 0:
                 out[:, k] = mdl.sensor_acceleration(m, k1[m.n_dof:])
             k2 = f(t + h / 2, y + h / 2 * k1)
             k3 = f(t + h / 2, y + h / 2 * k2)
@@ -175,3 +183,66 @@ def test_interpolated_pin_geometry_changes_the_output_by_less_than_1e6(rpm):
     sig, _ = integrate(m, y0, fs, n)
     err = np.linalg.norm(sig - ref) / np.linalg.norm(ref)
     assert err < 1e-6, err
+
+
+def test_steps_are_cut_at_the_mesh_table_events():
+    """The stiffness ramps (tooth pairs entering and leaving) are known in advance; the integrator puts
+    step boundaries there.  Every event falls on a step boundary, the grid is ordered and covers the
+    sample, and no step is longer than the nominal one."""
+    from rvdiag.dynamics.integrate import sample_breaks, step_grid
+
+    m = prepare(P0, input_speed_rpm=3000.0)
+    fs, S = 48000.0, 9
+    dts = 1.0 / fs
+    f_rel = m.P[mdl.I_WREL] / (2 * np.pi)
+    breaks, grid = np.zeros(64), np.zeros(S + 66)
+    found = 0
+    for k in range(2000):
+        t0 = k * dts
+        nb = sample_breaks(t0, dts, f_rel, m.events, 1e-6 * dts / S, breaks)
+        M = step_grid(t0, (k + 1) * dts, S, dts / S, breaks, nb, grid)
+        g = grid[:M + 1]
+        assert g[0] == t0 and g[-1] == (k + 1) * dts and np.all(np.diff(g) > 0)
+        assert np.diff(g).max() <= dts / S * (1 + 1e-9)
+        assert S <= M <= S + nb
+        for te in breaks[:nb]:
+            assert np.min(np.abs(g - te)) < 1e-15
+            phase = (te * f_rel) % 1.0
+            assert np.min(np.abs((m.events - phase + 0.5) % 1.0 - 0.5)) < 1e-9
+        found += nb
+    # every event phase passes once per relative revolution; those on a sample boundary need no cut
+    span = 2000 * dts
+    times = np.sort(np.concatenate([(c + m.events) / f_rel for c in range(int(span * f_rel) + 2)]))
+    times = times[times < span]
+    inside = np.abs((times * fs + 0.5) % 1.0 - 0.5) > 1e-6
+    assert found == int(inside.sum()) > 50
+
+
+def test_table_events_are_the_stiffness_ramps():
+    """Healthy RV-20E table: the kinks are the 2 ends of the 2 ramps per tooth (11 teeth), seen by both
+    planets half a revolution apart; everything else in the table is smooth."""
+    m = prepare(P0, input_speed_rpm=1000.0)
+    k = m.tables[0]
+    d2 = np.abs(np.roll(k, -1) - 2 * k + np.roll(k, 1)) / k.mean()
+    big = np.flatnonzero(d2 > mdl.EVENT_STIFFNESS_KINK)
+    assert big.size == 44
+    assert d2[d2 <= mdl.EVENT_STIFFNESS_KINK].max() < 1e-4 < 0.1 < d2[big].min()
+    expect = np.unique(np.concatenate([big / k.size, (big / k.size + 0.5) % 1.0]))
+    assert_array_equal(m.events, expect)
+
+
+def test_high_speed_matches_scipy_within_1e3():
+    """4500 rpm, 50 N m: one table cell lasts ~1.3 sub-steps, so a step that straddles a stiffness ramp
+    used to cost accuracy (2.6e-3 at 9 sub-steps before the steps were cut at the table events,
+    7.3e-4 after; bench/HISTORY.md 2026-11-23)."""
+    m = prepare(P0, input_speed_rpm=4500.0, load_Nm=50.0)
+    q0 = static_equilibrium(m, 0.0)
+    y0 = np.concatenate([q0, np.zeros_like(q0)])
+    fs, n = 48000.0, 1200
+    f = mdl.make_rhs(m)
+    te = np.arange(n) / fs
+    sol = solve_ivp(f, (0.0, te[-1]), y0, method="DOP853", rtol=1e-9, atol=1e-15, t_eval=te)
+    ref = mdl.sensor_acceleration(m, np.array([f(t, sol.y[:, k])[m.n_dof:] for k, t in enumerate(te)]))
+    sig, _ = integrate(m, y0, fs, n)
+    err = float(np.linalg.norm(sig - ref) / np.linalg.norm(ref))
+    assert err < 1e-3, err

@@ -78,10 +78,11 @@ class ModelSettings:
         Runge-Kutta steps per output sample.  The stiffest mode of the RV-20E is near 34 kHz (crank
         shafts); RK4 is stable for ``omega h < 2.78``, so at 48 kHz at least 2 are needed.  Accuracy,
         not stability, sets the default 9: the output stays within 1e-3 (relative L2) of scipy's DOP853
-        at rtol 1e-9 over 0.05 s at 48 kHz (8.6e-4; 8 sub-steps: 1.18e-3, 10: 7.0e-4; 8.4e-4 at
-        1000 rpm rated load; docs/model.md section 7, tests/test_integrator.py); at other rates keep
-        ``fs * substeps`` near 430 kHz.  At high input speed the contact events call for more: 3000 rpm,
-        50 N m gives 1.16e-3 at 9 and 8.1e-4 at 12 sub-steps.
+        at rtol 1e-9 over 0.05 s at 48 kHz (6.0e-4; 8 sub-steps: 8.7e-4, 10: 4.1e-4; 6.3e-4 at
+        1000 rpm rated load, 8.1e-4 at 3000 rpm and 7.3e-4 at 4500 rpm, 50 N m; docs/model.md
+        section 7, tests/test_integrator.py); at other rates keep ``fs * substeps`` near 430 kHz.
+        A sample is further cut at the mesh table's kinks (:func:`table_events`), so a step may be
+        shorter than ``1 / (fs substeps)``.
     method : str
         ``"rk4"`` (default): classical RK4, stage times t, t + h/2, t + h (pin geometry exact three
         times per sample, interpolated in between).  ``"rk38"``: Kutta's 3/8 rule, same order and
@@ -239,6 +240,9 @@ class Model:
     tables: np.ndarray = field(init=False, repr=False, compare=False)
     #: ``1 / mass``: the kernels multiply by it (a division per coordinate costs ~15 % of a right-hand side)
     inv_mass: np.ndarray = field(init=False, repr=False, compare=False)
+    #: sorted phases in [0, 1) of a relative sun revolution at which some planet's mesh reaches a kink of
+    #: the table (:func:`table_events`); the integrator puts step boundaries there
+    events: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         k = np.asarray(self.tvms, dtype=float)
@@ -250,6 +254,7 @@ class Model:
         rows = [k, e] if np.any(e != 0.0) else [k]
         object.__setattr__(self, "tables", np.ascontiguousarray(np.stack(rows)))
         object.__setattr__(self, "inv_mass", 1.0 / np.asarray(self.mass, dtype=float))
+        object.__setattr__(self, "events", table_events(self.tables, self.n_planets))
 
     @property
     def n_dof(self) -> int:
@@ -271,6 +276,36 @@ class Model:
         for k, v in changes.items():
             P[globals()[f"I_{k}"]] = v
         return _replace_P(self, P)
+
+
+#: a table node is an event where the stiffness's second difference exceeds this fraction of its mean
+#: (single/double tooth contact changes: ~0.55; elsewhere below 4e-5 for every fault state) ...
+EVENT_STIFFNESS_KINK = 1e-3
+#: ... or the profile deviation's exceeds this fraction of its largest value (the load-share steps of an
+#: Archard wear profile: up to ~1; the smooth parts below 1e-3)
+EVENT_DEVIATION_KINK = 1e-2
+
+
+def table_events(tables: np.ndarray, n_planets: int) -> np.ndarray:
+    """Phases (fractions of a relative sun revolution, sorted, in [0, 1)) at which a planet's mesh passes
+    a kink of the linearly interpolated mesh table: the ends of the stiffness ramps where the number of
+    tooth pairs in contact changes, and the steps of a wear deviation.
+
+    The mesh terms depend on time only, so these instants are known before integrating; the RK4 kernel
+    cuts its steps there (a fixed step that straddles a kink loses an order of accuracy).  Planet i sees
+    table phase ``x`` at relative phase ``x + i / N``.  Choosing the nodes changes no equation, only where
+    the steps fall.
+    """
+    k = tables[0]
+    kink = np.abs(np.roll(k, -1) - 2.0 * k + np.roll(k, 1)) > EVENT_STIFFNESS_KINK * np.abs(k).mean()
+    if tables.shape[0] > 1:
+        e = tables[1]
+        emax = np.abs(e).max()
+        if emax > 0.0:
+            kink |= np.abs(np.roll(e, -1) - 2.0 * e + np.roll(e, 1)) > EVENT_DEVIATION_KINK * emax
+    nodes = np.flatnonzero(kink) / k.size
+    phases = (nodes[None, :] + np.arange(n_planets)[:, None] / n_planets) % 1.0
+    return np.unique(phases)
 
 
 def _replace_P(m: Model, P: np.ndarray) -> Model:
