@@ -58,7 +58,8 @@ def register(app: typer.Typer) -> None:
         fs: float = typer.Option(48000.0, "--fs", help="Sampling rate, Hz."),
         noise_snr: Optional[float] = typer.Option(None, "--noise-snr", help="Add white Gaussian noise at this SNR (dB)."),
         seed: int = typer.Option(0, "--seed", help="Seed of the noise."),
-        substeps: int = typer.Option(10, "--substeps", help="RK4 steps per output sample (see ModelSettings)."),
+        substeps: int = typer.Option(9, "--substeps", help="RK4 steps per output sample (default as ModelSettings: "
+                                     "9, within 1e-3 of scipy's DOP853 up to 4500 rpm at 48 kHz)."),
         transient: float = typer.Option(0.1, "--transient", help="Discarded start-up time, s."),
         out: Path = typer.Option(..., "--out", help="Output .npz (signal, fs, settings)."),
         quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
