@@ -28,7 +28,7 @@ RVDIAG = [sys.executable, "-m", "rvdiag"]
 # The demo's choices (see docs/models.md for why this model).
 DEMO_CONFIG = ROOT / "configs" / "demo.toml"
 # the motor-current paper's CNN: its flatten + FC head keeps where in frequency a pattern sits, which the log
-# spectrum needs (demo 90.0 % against 85.7 % for cnn1d-lean; paper mode 100 % on 5 seeds; docs/results.md)
+# spectrum needs (demo 87.6-90.0 % against 85.7 % for cnn1d-lean; paper mode 100 % on 5 seeds; docs/results.md)
 DEMO_MODEL = "mcsa-cnn"
 DEMO_EPOCHS = "40"
 # lr 1e-3 learned too slowly (docs/models.md); the log spectrum shows the crack sidebands that the waveform
