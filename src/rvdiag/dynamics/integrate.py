@@ -360,6 +360,11 @@ def integrate(
     out = np.zeros((model.sensor.shape[0], n_samples))
     chunk = max(1, int(st.chunk_samples))
     cbuf = np.zeros((model.sensor.shape[0], chunk))
+    slots = [a for triple in zip(geo, rot, mts) for a in triple]
+    if not rk38:
+        slots += [geo[3], rot[3], geo[4], rot[4]]
+    run = rk38_run if rk38 else rk4_run
+    extra = () if rk38 else (model.events, breaks, grid)
     total = n_transient + n_samples
     done = 0
     k = -n_transient
@@ -368,11 +373,6 @@ def integrate(
         rec = k >= 0
         if not rec:
             m = min(m, -k)
-        slots = [a for triple in zip(geo, rot, mts) for a in triple]
-        if not rk38:
-            slots += [geo[3], rot[3], geo[4], rot[4]]
-        run = rk38_run if rk38 else rk4_run
-        extra = () if rk38 else (model.events, breaks, grid)
         status, s = run(y, k, m, S, float(fs), rec, model.P, model.inv_mass, model.planet, model.tables,
                         model.cosk, model.sink, model.sensor, cbuf, *slots, *work, *extra)
         if status != OK:
