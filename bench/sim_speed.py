@@ -21,7 +21,14 @@ The development machine is shared, so the CPU time of this process (``time.proce
 beside the wall time: ``sim_s_per_cpu_s``, ``scipy_sim_s_per_cpu_s``,
 ``scipy_compiled_rhs_sim_s_per_cpu_s``, ``ratio_cpu`` and ``ratio_compiled_rhs_cpu`` (JSON keys too).
 
-Usage: ``python bench/sim_speed.py [--json] [--duration S] [--scipy-duration S] [--numpy-duration S]``
+With ``--workers N`` (N > 1) the same record is also simulated in N time segments on N threads
+(``ModelSettings.segment_s`` = ``--segment``, default duration / N; :mod:`rvdiag.dynamics.segments`):
+``parallel_sim_s_per_wall_s``, ``parallel_speedup`` (over the one-core continuous run of this same run)
+and ``parallel_seam_error`` (relative L2 difference from that continuous run).  The headline
+``sim_s_per_wall_s`` stays the one-core continuous figure.
+
+Usage: ``python bench/sim_speed.py [--json] [--duration S] [--scipy-duration S] [--numpy-duration S]
+[--workers N [--segment S]]``
 """
 
 from __future__ import annotations
@@ -31,6 +38,7 @@ import os
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
+import dataclasses  # noqa: E402
 import json  # noqa: E402
 import time  # noqa: E402
 
@@ -54,6 +62,8 @@ def main() -> None:
     ap.add_argument("--mesh-source", default="auto")
     ap.add_argument("--substeps", type=int, default=None, help="RK4 sub-steps (default: ModelSettings')")
     ap.add_argument("--repeat", type=int, default=3, help="best of this many rvdiag runs")
+    ap.add_argument("--workers", type=int, default=1, help="also time N segments on N threads (N > 1)")
+    ap.add_argument("--segment", type=float, default=None, help="segment length, s (default duration / N)")
     args = ap.parse_args()
     st = ModelSettings() if args.substeps is None else ModelSettings(substeps=args.substeps)
     kw = dict(input_speed_rpm=1000.0, fs=48000.0, mesh_source=args.mesh_source)
@@ -85,6 +95,18 @@ def main() -> None:
            "scipy_compiled_rhs_sim_s_per_wall_s": crate_c, "ratio_compiled_rhs": rate / crate_c,
            "scipy_compiled_rhs_sim_s_per_cpu_s": ccrate_c, "ratio_compiled_rhs_cpu": crate / ccrate_c,
            "substeps": int(model.settings.substeps)}
+    if args.workers > 1:
+        seg = args.segment or args.duration / args.workers
+        pst = dataclasses.replace(st, segment_s=seg)
+        pwall = float("inf")
+        for _ in range(max(1, args.repeat)):
+            t0 = time.perf_counter()
+            par = simulate(duration_s=args.duration, settings=pst, workers=args.workers, **kw)
+            pwall = min(pwall, time.perf_counter() - t0)
+        out.update({"workers": args.workers, "segment_s": seg, "segments": par.settings["segments"],
+                    "parallel_sim_s_per_wall_s": args.duration / pwall, "parallel_speedup": wall / pwall,
+                    "parallel_seam_error": float(np.linalg.norm(par.signal - res.signal)
+                                                 / np.linalg.norm(res.signal))})
     if args.json:
         print(json.dumps(out))
     else:
@@ -98,6 +120,10 @@ def main() -> None:
         print(f"per CPU second (this process; the machine may be shared): rvdiag {crate:.3f}, "
               f"scipy NumPy RHS {scrate:.5f} (ratio {crate / scrate:.0f}x), scipy compiled RHS {ccrate_c:.5f} "
               f"(ratio {crate / ccrate_c:.0f}x)")
+        if args.workers > 1:
+            print(f"{out['segments']} segments of {out['segment_s']:g} s on {args.workers} threads: "
+                  f"{out['parallel_sim_s_per_wall_s']:.3f} simulated s per wall s "
+                  f"({out['parallel_speedup']:.2f}x the one-core run; seam error {out['parallel_seam_error']:.1e})")
 
 
 if __name__ == "__main__":

@@ -61,6 +61,12 @@ def register(app: typer.Typer) -> None:
         substeps: int = typer.Option(9, "--substeps", help="RK4 steps per output sample (default as ModelSettings: "
                                      "9, within 1e-3 of scipy's DOP853 up to 4500 rpm at 48 kHz)."),
         transient: float = typer.Option(0.1, "--transient", help="Discarded start-up time, s."),
+        workers: int = typer.Option(1, "--workers", help="Time segments integrated at once (threads); the "
+                                    "signal does not depend on it."),
+        segment: Optional[float] = typer.Option(None, "--segment", help="Cut the record into segments of this "
+                                                "many seconds, each started --transient ahead and integrated "
+                                                "on its own (0: one continuous run; default 0, or 1 s with "
+                                                "--workers > 1)."),
         out: Path = typer.Option(..., "--out", help="Output .npz (signal, fs, settings)."),
         quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
     ) -> None:
@@ -80,10 +86,15 @@ def register(app: typer.Typer) -> None:
         severities = fault_severities(wear_depth_mm, crack_depth_mm, crack_angle, broken_fraction)
         fault = ToothFaults.for_state(state, **severities)
         _check_severities(fault.label or state.upper(), severities)
+        if workers < 1:
+            raise ParameterError(f"--workers must be >= 1, got {workers}")
         p = ReducerParams.load(params)
-        settings = ModelSettings(substeps=substeps, transient_s=transient)
+        if segment is None:
+            segment = 1.0 if workers > 1 else 0.0
+        settings = ModelSettings(substeps=substeps, transient_s=transient, segment_s=segment)
         kw = dict(input_speed_rpm=input_speed, output_speed_deg_s=output_speed, load_Nm=load,
-                  duration_s=duration, fs=fs, noise_snr_db=noise_snr, seed=seed, settings=settings)
+                  duration_s=duration, fs=fs, noise_snr_db=noise_snr, seed=seed, settings=settings,
+                  workers=workers)
         if quiet:
             res = simulate(p, None if fault.is_healthy else fault, **kw)
         else:

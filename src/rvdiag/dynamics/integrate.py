@@ -105,7 +105,7 @@ def step_grid(t0, t_end, substeps, hnom, breaks, nb, grid):
     return M
 
 
-@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", nogil=True)
 def rk4_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tvms, cosk, sink, sensor, out,
             geo0, rot0, mt0, geo1, rot1, mt1, geo2, rot2, mt2, geo3, rot3, geo4, rot4, Q, k1, k2, k3, ytmp,
             events, breaks, grid):
@@ -223,7 +223,7 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tv
     return OK, n_samples
 
 
-@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", nogil=True)
 def rk38_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tvms, cosk, sink, sensor, out,
              geo0, rot0, mt0, geo1, rot1, mt1, geo2, rot2, mt2, geo3, rot3, mt3, Q, k1, k2, k3, k4, ytmp):
     """:func:`rk4_run` with Kutta's 3/8-rule fourth-order method (stage times t, t + h/3, t + 2h/3,
@@ -335,8 +335,10 @@ def integrate(
     n_samples: int,
     n_transient: int = 0,
     progress: Callable[[int, int], None] | None = None,
+    first_sample: int = 0,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Integrate from sample ``-n_transient`` (state ``y0``) and record ``n_samples`` sensor samples.
+    """Integrate from sample ``first_sample - n_transient`` (state ``y0``) and record ``n_samples`` sensor
+    samples from sample ``first_sample`` on (time ``first_sample / fs``).
 
     Returns ``(signal, y_end)``, ``signal`` of shape (channels, n_samples) in m/s^2.  ``progress`` is
     called as ``progress(done, total)`` after each chunk (total counts transient samples too).
@@ -367,18 +369,18 @@ def integrate(
     extra = () if rk38 else (model.events, breaks, grid)
     total = n_transient + n_samples
     done = 0
-    k = -n_transient
+    k = first_sample - n_transient
     while done < total:
         m = min(chunk, total - done)
-        rec = k >= 0
+        rec = k >= first_sample
         if not rec:
-            m = min(m, -k)
+            m = min(m, first_sample - k)
         status, s = run(y, k, m, S, float(fs), rec, model.P, model.inv_mass, model.planet, model.tables,
                         model.cosk, model.sink, model.sensor, cbuf, *slots, *work, *extra)
         if status != OK:
             _raise_unstable(model, status, (k + s) / fs, fs)
         if rec:
-            out[:, k:k + m] = cbuf[:, :m]
+            out[:, k - first_sample:k - first_sample + m] = cbuf[:, :m]
         k += m
         done += m
         if progress is not None:
