@@ -19,7 +19,8 @@ import pytest
 from rvdiag.datasets import SampleStore, StoreBuilder
 from rvdiag.errors import ConfigError, StoreError
 from rvdiag.library import LibraryConfig, build_library, config_from_store, make_plan, run_unit
-from rvdiag.library.build import Job, add_noise
+from rvdiag.dynamics.noise import add_awgn
+from rvdiag.library.build import Job
 
 SYN = "rvdiag.library.synthetic:simulate"
 
@@ -278,11 +279,28 @@ def test_paper_mode_splits_segments_of_one_simulation(tmp_path):
     np.testing.assert_array_equal(X[0, 250:], X[1, :250])
 
 
+def test_library_noise_is_add_awgn_at_each_units_snr(tmp_path, monkeypatch):
+    """Every unit's signal gets its noise from rvdiag.dynamics.noise.add_awgn at the unit's SNR."""
+    from rvdiag.dynamics import noise
+    from rvdiag.library.build import make_plan
+
+    seen = []
+
+    def spy(x, snr_db, rng):
+        seen.append(snr_db)
+        return add_awgn(x, snr_db, rng)
+
+    monkeypatch.setattr(noise, "add_awgn", spy)
+    build_library(tiny(), tmp_path / "n.zarr", workers=0, progress=False)
+    assert sorted(seen) == sorted(u.noise_snr_db for u in make_plan(tiny()))
+
+
 def test_noise_has_the_requested_snr():
+    """add_awgn is MATLAB's ``awgn(x, snr, 'measured')``."""
     rng = np.random.default_rng(0)
     x = np.sin(np.linspace(0, 400 * np.pi, 200_000)) * 3.0
     for snr in (0.0, 10.0, 20.0):
-        noisy = add_noise(x, snr, rng)
+        noisy = add_awgn(x, snr, rng)
         measured = 10 * np.log10(np.mean(x**2) / np.mean((noisy - x) ** 2))
         assert abs(measured - snr) < 0.05
 

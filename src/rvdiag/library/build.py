@@ -203,12 +203,6 @@ def segment_starts(n_points: int, length: int, hop: int) -> np.ndarray:
     return np.arange(0, n_points - length + 1, hop, dtype=np.int64)
 
 
-def add_noise(x: np.ndarray, snr_db: float, rng: np.random.Generator) -> np.ndarray:
-    """``x`` plus white Gaussian noise of power mean(x^2) / 10^(snr_db/10) (MATLAB ``awgn(x, snr, 'measured')``)."""
-    power = float(np.mean(np.square(x)))
-    return x + np.sqrt(power / 10.0 ** (snr_db / 10.0)) * rng.standard_normal(x.shape[0])
-
-
 def run_unit(unit: Unit, job: Job) -> UnitResult:
     """Simulate one unit and cut it into samples (the Dask task; pure function of its arguments)."""
     from rvdiag.params import ReducerParams
@@ -240,7 +234,9 @@ def run_unit(unit: Unit, job: Job) -> UnitResult:
     if not np.all(np.isfinite(x)):
         raise SimulationError(f"unit {unit.index} ({unit.state}): the simulated signal contains NaN or Inf")
     if unit.noise_snr_db is not None:
-        x = add_noise(x, unit.noise_snr_db, np.random.default_rng(noise_ss))
+        from rvdiag.dynamics.noise import add_awgn  # here: keep numba out of `import rvdiag.library`
+
+        x = add_awgn(x, unit.noise_snr_db, np.random.default_rng(noise_ss))
     starts = segment_starts(x.shape[0], job.segment_length, job.hop)
     if job.mode == "paper":
         n = starts.shape[0]
