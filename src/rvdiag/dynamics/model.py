@@ -85,11 +85,11 @@ class ModelSettings:
         shorter than ``1 / (fs substeps)``.
     method : str
         ``"rk4"`` (default): classical RK4, stage times t, t + h/2, t + h (pin geometry exact three
-        times per sample, interpolated in between).  ``"rk38"``: Kutta's 3/8 rule, same order and
-        stability, 25-30 % smaller error at the same sub-steps (9: 6.0e-4) but the exact pin geometry
-        at three stage times per step (10.0 against 9.0 us per sample at 9 sub-steps); at 8 sub-steps
-        it is not reliably within 1e-3 (9.3e-4 to 1.05e-3 over three operating points), hence not the
-        default.  Higher-order (Butcher 6, Verner 6(5),
+        times per sample, interpolated in between).  ``"rk38"``: Kutta's 3/8 rule on the same step
+        grid, same order and stability, 5-12 % smaller error at 9 sub-steps (5.3e-4 to 7.8e-4 from
+        45 deg/s to 4500 rpm) but the exact pin geometry at three stage times per step (~10.0 against
+        ~9.3 us per sample); at 8 sub-steps it is not within 1e-3 (1.57e-3 at 3000 rpm 50 N m),
+        hence not the default.  Higher-order (Butcher 6, Verner 6(5),
         DOP853 fixed-step) and low-dispersion schemes (Berland et al. 2006 RK4-6) were measured and
         do not do better per right-hand side on this non-smooth model (docs/model.md section 7).
     transient_s : float
