@@ -161,6 +161,8 @@ def simulate(
             raise ParameterError(f"{name} must be a number > 0, got {val!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ParameterError(f"seed must be a whole number >= 0, got {seed!r}")
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise ParameterError(f"workers must be a whole number >= 1, got {workers!r}")
     n_samples = int(round(duration_s * fs))
     if n_samples < 1:
         raise ParameterError(f"duration {duration_s} s at {fs} Hz gives no sample")
