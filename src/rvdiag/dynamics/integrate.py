@@ -105,6 +105,32 @@ def step_grid(t0, t_end, substeps, hnom, breaks, nb, grid):
     return M
 
 
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
+def _time_rates(P):
+    """``(f_rel, rate_b, rate_w)``: relative sun revolutions per second (the mesh table's period) and the
+    rates of the frame angles b_0 = beta_0 - Zp Omega t and W = Omega t; all zero for a frozen model."""
+    if P[mdl.I_TFROZEN] >= 0.0:
+        return 0.0, 0.0, 0.0
+    return P[mdl.I_WREL] / (2.0 * math.pi), -P[mdl.I_ZP] * P[mdl.I_OMEGA], P[mdl.I_OMEGA]
+
+
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
+def _rotation_increments(angle_b, angle_w):
+    """(cos, sin) of the two frame-angle increments, for :func:`_advance_frames`."""
+    return math.cos(angle_b), math.sin(angle_b), math.cos(angle_w), math.sin(angle_w)
+
+
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
+def _record_sensor(dydt, n, sx, sy, sensor, out, s):
+    """``out[c, s]``: the housing acceleration at the sensor point ``(sx, sy)`` (pin-wheel translation
+    plus its rotation's tangential part, docs/model.md section 6) along each sensor direction ``c``."""
+    iR = n - 3
+    ax = dydt[n + iR] - dydt[n + iR + 2] * sy
+    ay = dydt[n + iR + 1] + dydt[n + iR + 2] * sx
+    for c in range(sensor.shape[0]):
+        out[c, s] = sensor[c, 0] * ax + sensor[c, 1] * ay
+
+
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", nogil=True)
 def rk4_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tvms, cosk, sink, sensor, out,
             geo0, rot0, mt0, geo1, rot1, mt1, geo2, rot2, mt2, geo3, rot3, geo4, rot4, Q, k1, k2, k3, ytmp,
@@ -123,26 +149,18 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tv
     """
     n2 = y.size
     n = n2 // 2
-    iR = n - 3
     dts = 1.0 / fs
     hnom = dts / substeps
     sx = P[mdl.I_SENSX]
     sy = P[mdl.I_SENSY]
     lim = P[mdl.I_DISPLIM]
     limr = P[mdl.I_ROTLIM]
-    nch = sensor.shape[0]
-    frozen = P[mdl.I_TFROZEN] >= 0.0
-    f_rel = 0.0 if frozen else P[mdl.I_WREL] / (2.0 * math.pi)
     tol = 1e-6 * hnom
     # frame angles b_0 = beta_0 - Zp Omega t and W = Omega t advance linearly: within a sample their
     # cos/sin are rotated by half-step increments (angle addition, REFERENCE.md section 5) from the exact
     # values at the sample's start; libm's sincos at every stage time would cost ~8 % of the run
-    rate_b = 0.0 if frozen else -P[mdl.I_ZP] * P[mdl.I_OMEGA]
-    rate_w = 0.0 if frozen else P[mdl.I_OMEGA]
-    cdb0 = math.cos(0.5 * rate_b * hnom)
-    sdb0 = math.sin(0.5 * rate_b * hnom)
-    cdw0 = math.cos(0.5 * rate_w * hnom)
-    sdw0 = math.sin(0.5 * rate_w * hnom)
+    f_rel, rate_b, rate_w = _time_rates(P)
+    cdb0, sdb0, cdw0, sdw0 = _rotation_increments(0.5 * rate_b * hnom, 0.5 * rate_w * hnom)
     # pin geometry: exact at the sample's start (gS), middle (gM) and end (gE), interpolated
     # (quadratic) at the half steps (gH) and the inner step ends (gT); gE becomes the next sample's gS
     # by swapping references.  Mesh terms (start, half, end of the step: ma, mb, mc) are exact at every
@@ -173,17 +191,11 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tv
             hh = 0.5 * h
             th = ta + hh
             if nb > 0:  # unequal steps in this sample: their own increments
-                cdb = math.cos(rate_b * hh)
-                sdb = math.sin(rate_b * hh)
-                cdw = math.cos(rate_w * hh)
-                sdw = math.sin(rate_w * hh)
+                cdb, sdb, cdw, sdw = _rotation_increments(rate_b * hh, rate_w * hh)
             if j == 0:
                 mdl.rhs_with_terms(y, P, inv_mass, planet, ma, gS, rS, Q, k1)
                 if record:
-                    ax = k1[n + iR] - k1[n + iR + 2] * sy
-                    ay = k1[n + iR + 1] + k1[n + iR + 2] * sx
-                    for c in range(nch):
-                        out[c, s] = sensor[c, 0] * ax + sensor[c, 1] * ay
+                    _record_sensor(k1, n, sx, sy, sensor, out, s)
             else:
                 mdl.rhs_with_terms(y, P, inv_mass, planet, ma, gT, rT, Q, k1)
             cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
@@ -235,25 +247,17 @@ def rk38_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, t
     """
     n2 = y.size
     n = n2 // 2
-    iR = n - 3
     dts = 1.0 / fs
     hnom = dts / substeps
     sx = P[mdl.I_SENSX]
     sy = P[mdl.I_SENSY]
     lim = P[mdl.I_DISPLIM]
     limr = P[mdl.I_ROTLIM]
-    nch = sensor.shape[0]
     ga, ra, ma, gb, rb, mb, gc, rc, mc, gd, rd, md = (geo0, rot0, mt0, geo1, rot1, mt1, geo2, rot2, mt2,
                                                       geo3, rot3, mt3)
-    frozen = P[mdl.I_TFROZEN] >= 0.0
-    f_rel = 0.0 if frozen else P[mdl.I_WREL] / (2.0 * math.pi)
     tol = 1e-6 * hnom
-    rate_b = 0.0 if frozen else -P[mdl.I_ZP] * P[mdl.I_OMEGA]
-    rate_w = 0.0 if frozen else P[mdl.I_OMEGA]
-    cdb0 = math.cos(rate_b * hnom / 3.0)
-    sdb0 = math.sin(rate_b * hnom / 3.0)
-    cdw0 = math.cos(rate_w * hnom / 3.0)
-    sdw0 = math.sin(rate_w * hnom / 3.0)
+    f_rel, rate_b, rate_w = _time_rates(P)
+    cdb0, sdb0, cdw0, sdw0 = _rotation_increments(rate_b * hnom / 3.0, rate_w * hnom / 3.0)
     cb, sb, cw, sw = mdl.frame_angles(k_start * dts, P)
     mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, ga, ra)
     mdl.mesh_terms(k_start * dts, P, tvms, ma)
@@ -271,16 +275,10 @@ def rk38_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, t
             ta = grid[j] + h3
             tb = grid[j] + 2.0 * h3
             if nb > 0:  # unequal steps in this sample: their own increments
-                cdb = math.cos(rate_b * h3)
-                sdb = math.sin(rate_b * h3)
-                cdw = math.cos(rate_w * h3)
-                sdw = math.sin(rate_w * h3)
+                cdb, sdb, cdw, sdw = _rotation_increments(rate_b * h3, rate_w * h3)
             mdl.rhs_with_terms(y, P, inv_mass, planet, ma, ga, ra, Q, k1)
             if j == 0 and record:
-                ax = k1[n + iR] - k1[n + iR + 2] * sy
-                ay = k1[n + iR + 1] + k1[n + iR + 2] * sx
-                for c in range(nch):
-                    out[c, s] = sensor[c, 0] * ax + sensor[c, 1] * ay
+                _record_sensor(k1, n, sx, sy, sensor, out, s)
             cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
             mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gb, rb)
             mdl.mesh_terms(ta, P, tvms, mb)
