@@ -127,3 +127,32 @@ def test_add_awgn_snr_and_validation():
     for bad in (float("nan"), "10", True):
         with pytest.raises(ParameterError):
             add_awgn(x, bad)
+
+
+def test_cli_workers_and_segment(tmp_path, capsys):
+    """`--workers 2 --segment 0.01`: recorded in the settings, and the same bits as the serial segmented run."""
+    path = tmp_path / "s.npz"
+    argv = ["simulate", "--input-speed", "1000", "--duration", "0.03", "--transient", "0.02", "--workers", "2",
+            "--segment", "0.01", "--quiet", "--out", str(path)]
+    code, _, err = run(argv, capsys)
+    assert code in (0, None), err
+    with np.load(path) as z:
+        settings = json.loads(str(z["settings"]))
+        signal = z["signal"]
+    assert settings["model_settings"]["segment_s"] == 0.01 and settings["segments"] == 3
+    serial = simulate(duration_s=0.03, settings=ModelSettings(transient_s=0.02, segment_s=0.01),
+                      input_speed_rpm=1000.0, fs=48000.0)
+    assert np.array_equal(signal, serial.signal)
+
+
+@pytest.mark.parametrize("extra, match", [
+    (["--workers", "0"], "--workers must be >= 1"),
+    (["--segment", "-1"], "segment_s must be >= 0"),
+    (["--segment", "0.01", "--transient", "0"], "transient_s > 0"),
+])
+def test_cli_bad_segment_options(tmp_path, capsys, extra, match):
+    path = tmp_path / "s.npz"
+    code, _, err = run(["simulate", "--input-speed", "1000", "--duration", "0.01", "--quiet",
+                        "--out", str(path), *extra], capsys)
+    assert code == 2 and match in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1 and not path.exists()

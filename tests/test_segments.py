@@ -1,15 +1,12 @@
 """Time-parallel segments (rvdiag.dynamics.segments): the damped model forgets its start, so a record cut
 into independently started segments equals the continuous run; the output does not depend on the
-number of workers."""
+number of workers.  The `rvdiag simulate --workers/--segment` options are tested in test_cli_simulate.py."""
 
 from __future__ import annotations
-
-import json
 
 import numpy as np
 import pytest
 
-from rvdiag.cli import main
 from rvdiag.dynamics import ModelSettings, simulate
 from rvdiag.dynamics.segments import segment_bounds
 from rvdiag.errors import ParameterError, SimulationError
@@ -94,41 +91,6 @@ def test_bad_workers_and_unstable_segments():
     with pytest.raises(SimulationError, match="unstable"):
         simulate(duration_s=0.02, settings=ModelSettings(substeps=1, transient_s=0.01, segment_s=0.005),
                  workers=2, **KW)
-
-
-def run(argv, capsys):
-    with pytest.raises(SystemExit) as exc:
-        main(argv)
-        raise SystemExit(0)
-    out = capsys.readouterr()
-    return exc.value.code, out.out, out.err
-
-
-def test_cli_workers_and_segment(tmp_path, capsys):
-    path = tmp_path / "s.npz"
-    argv = ["simulate", "--input-speed", "1000", "--duration", "0.03", "--transient", "0.02", "--workers", "2",
-            "--segment", "0.01", "--quiet", "--out", str(path)]
-    code, _, err = run(argv, capsys)
-    assert code in (0, None), err
-    with np.load(path) as z:
-        settings = json.loads(str(z["settings"]))
-        signal = z["signal"]
-    assert settings["model_settings"]["segment_s"] == 0.01 and settings["segments"] == 3
-    serial = simulate(duration_s=0.03, settings=ModelSettings(transient_s=0.02, segment_s=0.01), **KW)
-    assert np.array_equal(signal, serial.signal)
-
-
-@pytest.mark.parametrize("extra, match", [
-    (["--workers", "0"], "--workers must be >= 1"),
-    (["--segment", "-1"], "segment_s must be >= 0"),
-    (["--segment", "0.01", "--transient", "0"], "transient_s > 0"),
-])
-def test_cli_bad_segment_options(tmp_path, capsys, extra, match):
-    path = tmp_path / "s.npz"
-    code, _, err = run(["simulate", "--input-speed", "1000", "--duration", "0.01", "--quiet",
-                        "--out", str(path), *extra], capsys)
-    assert code == 2 and match in err and "Traceback" not in err
-    assert len(err.strip().splitlines()) == 1 and not path.exists()
 
 
 def test_segments_of_a_broken_tooth_keep_its_spectrum():
