@@ -153,7 +153,7 @@ def simulate(
     SimulationResult
         ``signal`` of shape (channels, samples) in m/s^2.
     """
-    from rvdiag.dynamics.segments import integrate_segments
+    from rvdiag.dynamics.segments import check_workers, integrate_segments
 
     st = settings or ModelSettings()
     for name, val in (("duration_s", duration_s), ("fs", fs)):
@@ -161,8 +161,7 @@ def simulate(
             raise ParameterError(f"{name} must be a number > 0, got {val!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ParameterError(f"seed must be a whole number >= 0, got {seed!r}")
-    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
-        raise ParameterError(f"workers must be a whole number >= 1, got {workers!r}")
+    check_workers(workers)
     n_samples = int(round(duration_s * fs))
     if n_samples < 1:
         raise ParameterError(f"duration {duration_s} s at {fs} Hz gives no sample")

@@ -27,6 +27,12 @@ from rvdiag.dynamics.integrate import integrate
 from rvdiag.errors import ParameterError
 
 
+def check_workers(workers: object) -> None:
+    """Raise :class:`ParameterError` unless ``workers`` is a whole number >= 1."""
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise ParameterError(f"workers must be a whole number >= 1, got {workers!r}")
+
+
 def segment_bounds(n_samples: int, segment_samples: int) -> list[tuple[int, int]]:
     """``(first, count)`` of each segment of a record of ``n_samples`` cut every ``segment_samples``
     (``segment_samples <= 0``: one segment).  A last piece shorter than half a segment joins the one
@@ -56,8 +62,7 @@ def integrate_segments(
     Returns ``(signal, number of segments)``; ``progress(done, total)`` counts every segment's samples,
     run-ins included.
     """
-    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
-        raise ParameterError(f"workers must be a whole number >= 1, got {workers!r}")
+    check_workers(workers)
     seg = int(round(model.settings.segment_s * fs))
     bounds = segment_bounds(n_samples, seg)
     out = np.zeros((model.sensor.shape[0], n_samples))
