@@ -61,6 +61,7 @@ from rvdiag.errors import ParameterError
 from rvdiag.models.cnn import ARCHITECTURES, DEFAULT_INPUT_LENGTH, build_network
 
 NORMALIZATIONS = ("window", "global", "none")
+LONG_INPUT = ("window", "crop")
 REPRESENTATIONS = ("waveform", "logspec")
 LOGSPEC_EPS = 1e-12
 
@@ -78,7 +79,6 @@ def log_spectrum(windows: np.ndarray) -> np.ndarray:
 def network_length(window: int, representation: str) -> int:
     """Length of the network input for ``window`` points in the given representation."""
     return int(window) if representation == "waveform" else int(window) // 2 + 1
-LONG_INPUT = ("window", "crop")
 
 
 def resolve_device(device: str) -> torch.device:
