@@ -10,6 +10,7 @@ with ``--repeat N`` trains N seeds (seed, seed+1, ...) and prints best / mean ac
 
 from __future__ import annotations
 
+import functools
 import json
 from pathlib import Path
 
@@ -164,10 +165,11 @@ def register(app: typer.Typer) -> None:
             raise ParameterError(f"--epochs must be >= 1, got {epochs}")
         if out.exists() and not out.is_dir():
             raise ParameterError(f"--out {out} exists and is not a directory")
-        probe = build_estimator(model, features, epochs=epochs, device=device, seed=seed, batch_size=batch_size, lr=lr,
-                        input_length=input_length, patience=patience,
-                        validation_fraction=validation_fraction, normalize=normalize,
-                        representation=representation)  # checks --model/--features before any work
+        new_estimator = functools.partial(build_estimator, model, features, epochs=epochs, device=device,
+                                          batch_size=batch_size, lr=lr, input_length=input_length,
+                                          patience=patience, validation_fraction=validation_fraction,
+                                          normalize=normalize, representation=representation)
+        probe = new_estimator(seed=seed)  # checks --model/--features before any work
         if features is not None and model in CLASSICAL_MODELS:
             from rvdiag.features import feature_names
 
@@ -196,10 +198,7 @@ def register(app: typer.Typer) -> None:
         runs, first = [], None
         for r in range(repeat):
             s = seed + r
-            est = build_estimator(model, features, epochs=epochs, device=device, seed=s, batch_size=batch_size,
-                                  lr=lr, input_length=input_length, patience=patience,
-                                  validation_fraction=validation_fraction, normalize=normalize,
-                                  representation=representation)
+            est = new_estimator(seed=s)
             if r == 0 and model in CNN_MODELS:
                 W = est._check_params(store.length)
                 starts = window_starts(store.length, W, est.long_input)
