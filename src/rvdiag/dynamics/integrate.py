@@ -340,6 +340,23 @@ def _check_state(y, n, lim, limr):
     return OK
 
 
+_step_kernels_loaded = False
+
+
+def _load_step_kernels(model: mdl.Model) -> None:
+    """Load the kernels ``rk4_run`` and ``rk38_run`` call before them, callees first, once per process
+    (:func:`rvdiag.dynamics.model.load_kernels` says why: the same bits from a fresh compile and from the
+    cache)."""
+    global _step_kernels_loaded
+    mdl.load_kernels(model)
+    if _step_kernels_loaded:
+        return
+    out = np.zeros(4)
+    nb = sample_breaks(0.0, 1.0, 0.5, np.array([0.25]), 1e-9, out)
+    step_grid(0.0, 1.0, 2, 0.5, out, nb, np.zeros(8))
+    _step_kernels_loaded = True
+
+
 def integrate(
     model: mdl.Model,
     y0: np.ndarray,
@@ -355,6 +372,7 @@ def integrate(
     Returns ``(signal, y_end)``, ``signal`` of shape (channels, n_samples) in m/s^2.  ``progress`` is
     called as ``progress(done, total)`` after each chunk (total counts transient samples too).
     """
+    _load_step_kernels(model)
     st = model.settings
     S = int(st.substeps)
     n = model.n_dof

@@ -32,6 +32,7 @@ kernels' ``tvms`` argument is ``Model.tables`` (stiffness and profile deviation,
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import asdict, dataclass, field
 
 import numba
@@ -906,6 +907,43 @@ def rhs(t, y, P, inv_mass, planet, tvms, cosk, sink, geo, rot, mt, Q, dydt):
     rhs_with_terms(y, P, inv_mass, planet, mt, geo, rot, Q, dydt)
 
 
+_kernels_loaded = False
+_kernels_lock = threading.Lock()
+
+
+def load_kernels(model: Model) -> None:
+    """Compile (or load from numba's cache) the kernels that other kernels call, callees first; once per
+    process, before any kernel runs.
+
+    Why the order matters: numba links a callee's code into each caller's library as a weak symbol.  In a
+    process that compiles, the callee is compiled on its own first and every caller's call binds to that
+    standalone copy.  In a process that loads the caller from the cache, the standalone copy is absent and
+    the call binds to the caller's private copy: the same source, compiled in another context, which with
+    the kernels' fast-math flags (reassociation, FMA contraction) rounds differently in the last bits.
+    Runs were thus bit-identical within a compile mode but not across one (9e-14 relative for T6 at
+    45 deg/s, 2e-9 at 3000 rpm where the broken-tooth impacts amplify it; bench/HISTORY.md, "determinism
+    across compile modes").  Loading the standalone callees first, with the argument types the callers
+    use, makes a cache-loaded process bind as a compiling one does
+    (``tests/test_integrator.py::test_output_is_identical_from_a_fresh_compile_and_from_the_cache``).
+    """
+    global _kernels_loaded
+    if _kernels_loaded:
+        return
+    with _kernels_lock:
+        if _kernels_loaded:
+            return
+        geo, rot, Q = work_arrays(model)
+        mt = mesh_array(model)
+        y = np.zeros(2 * model.n_dof)
+        eval_time(0.0, model.P)
+        frame_angles(0.0, model.P)
+        pin_geometry_cs(1.0, 0.0, 1.0, 0.0, model.P, model.cosk, model.sink, geo, rot)
+        pin_geometry(0.0, model.P, model.cosk, model.sink, geo, rot)
+        mesh_terms(0.0, model.P, model.tables, mt)
+        rhs_with_terms(y, model.P, model.inv_mass, model.planet, mt, geo, rot, Q, np.empty_like(y))
+        _kernels_loaded = True
+
+
 def work_arrays(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Fresh (geo, rot, Q) work arrays for :func:`rhs`; ``Q`` holds the n generalized forces."""
     return (np.zeros((model.n_discs, 3, model.cosk.size)), np.zeros((model.n_discs, 4)),
@@ -919,6 +957,7 @@ def mesh_array(model: Model) -> np.ndarray:
 
 def make_rhs(model: Model):
     """A Python callable ``f(t, y) -> dy/dt`` on the compiled right-hand side (for scipy.solve_ivp)."""
+    load_kernels(model)
     geo, rot, Q = work_arrays(model)
     mt = mesh_array(model)
     m = model
@@ -941,6 +980,7 @@ def _forces_at(t, y, P, planet, tvms, cosk, sink, geo, rot, mt, Q):
 
 def forces(model: Model, t: float, q: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
     """Generalized forces Q(t, q, v) (Python wrapper, for static and linear analysis)."""
+    load_kernels(model)
     geo, rot, Q = work_arrays(model)
     q = np.asarray(q, float)
     v = np.zeros_like(q) if v is None else np.asarray(v, float)
