@@ -351,10 +351,11 @@ def _load_step_kernels(model: mdl.Model) -> None:
     mdl.load_kernels(model)
     if _step_kernels_loaded:
         return
-    out = np.zeros(4)
-    nb = sample_breaks(0.0, 1.0, 0.5, np.array([0.25]), 1e-9, out)
-    step_grid(0.0, 1.0, 2, 0.5, out, nb, np.zeros(8))
-    _step_kernels_loaded = True
+    with mdl._kernels_lock:
+        out = np.zeros(4)
+        nb = sample_breaks(0.0, 1.0, 0.5, np.array([0.25]), 1e-9, out)
+        step_grid(0.0, 1.0, 2, 0.5, out, nb, np.zeros(8))
+        _step_kernels_loaded = True
 
 
 def integrate(
