@@ -509,7 +509,7 @@ def discussion(report: dict) -> str:
             for k, v in r["errors_by_file"].items():
                 errs[k] = errs.get(k, 0) + v
         if errs:
-            parts.append(f"  - Remaining errors of the best pipeline, windows by file: "
+            parts.append("  - Remaining errors of the best pipeline, windows by file: "
                          + ", ".join(f"{k} {v}" for k, v in sorted(errs.items(), key=lambda kv: -kv[1])) + ".")
     order = ["KELM (raw window)", "EEMD-KELM", "EEMD-GA-KELM", "EEMD-PSO-KELM", "EEMD-MPA-KELM"]
     held = []
