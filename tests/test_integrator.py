@@ -95,8 +95,8 @@ def test_output_is_identical_from_a_fresh_compile_and_from_the_cache(tmp_path):
 
     Without ``model.load_kernels`` (its flags set beforehand) they differ by 2e-12 relative here (T6 at
     3000 rpm: the broken-tooth impacts amplify last-bit differences), because a cache-loaded caller binds
-    its calls to its private copy of each callee.  Two fresh interpreters share an empty ``NUMBA_CACHE_DIR``: the first compiles
-    (~10 s), the second loads.
+    its calls to its private copy of each callee.  Two fresh interpreters share an empty
+    ``NUMBA_CACHE_DIR``: the first compiles (~10 s), the second loads.
     """
     import subprocess
     import sys

@@ -922,8 +922,8 @@ def load_kernels(model: Model) -> None:
     the kernels' fast-math flags (reassociation, FMA contraction) rounds differently in the last bits.
     Runs were thus bit-identical within a compile mode but not across one (9e-14 relative for T6 at
     45 deg/s, 2e-9 at 3000 rpm where the broken-tooth impacts amplify it; bench/HISTORY.md, fourth pass,
-    "the same bits from a fresh compile and from the cache").  Loading the standalone callees first, with the argument types the callers
-    use, makes a cache-loaded process bind as a compiling one does
+    "the same bits from a fresh compile and from the cache").  Loading the standalone callees first, with
+    the argument types the callers use, makes a cache-loaded process bind as a compiling one does
     (``tests/test_integrator.py::test_output_is_identical_from_a_fresh_compile_and_from_the_cache``).
     """
     global _kernels_loaded
