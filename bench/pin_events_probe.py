@@ -169,6 +169,7 @@ def run_located(y, n_samples, S, fs, P, invm, planet, tv, cosk, sink, sensor, ou
             pos = grid[jg]
             t1 = grid[jg + 1]
             first = jg == 0
+            d0_current = False  # d0 holds the indicators at pos
             while True:
                 h = t1 - pos
                 n_rhs += rk_step(pos, h, y, ynew, K, yt, A, b, c, P, invm, planet, tv, cosk, sink, geo, rot,
@@ -183,13 +184,12 @@ def run_located(y, n_samples, S, fs, P, invm, planet, tv, cosk, sink, sensor, ou
                 best = 2.0
                 bj = -1
                 bk = -1
-                have_d0 = False
                 for j in range(D):
                     for k in range(nz):
                         if (d1[j, k] > 0) != (mode[j, k] == 1):
-                            if not have_d0:
+                            if not d0_current:
                                 contact_indicators(pos, y, P, cosk, sink, geo, rot, d0)
-                                have_d0 = True
+                                d0_current = True
                             fr = d0[j, k] / (d0[j, k] - d1[j, k]) if d0[j, k] != d1[j, k] else 0.5
                             fr = min(max(fr, 0.0), 1.0)
                             if fr < best:
@@ -220,6 +220,7 @@ def run_located(y, n_samples, S, fs, P, invm, planet, tv, cosk, sink, sensor, ou
                 mode[bj, bk] = 1 - mode[bj, bk]
                 located += 1
                 contact_indicators(pos, y, P, cosk, sink, geo, rot, d0)
+                d0_current = True
                 for j in range(D):
                     for k in range(nz):
                         if not (j == bj and k == bk) and (d0[j, k] > 0) != (mode[j, k] == 1):
