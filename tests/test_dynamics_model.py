@@ -33,8 +33,11 @@ def test_dof_layout_27_named_coordinates():
 
 
 def test_forces_are_minus_gradient_of_independent_potential():
-    """M a(v=0) of the compiled kernel equals -dV/dq of the NumPy potential (docs/model.md)."""
-    m = prepare(P0, output_speed_deg_s=45.0, load_Nm=100.0)
+    """M a(v=0) of the compiled kernel equals -dV/dq of the NumPy potential (docs/model.md), with every tooth
+    pair's separation (relief, ISO 1328 errors) in it.  Damping off: at v = 0 a damper still sees the
+    separations' rate, which no potential holds."""
+    m = prepare(P0, output_speed_deg_s=45.0, load_Nm=100.0, settings=mdl.ModelSettings(damping=False))
+    assert np.ptp(m.pairs[:, 1, :]) > 1e-6  # the separations are exercised
     q0 = static_equilibrium(m, 0.37)
     rng = np.random.default_rng(3)
     q = q0 + 1e-7 * rng.standard_normal(m.n_dof)
@@ -65,13 +68,16 @@ def test_static_torque_balance(loaded):
 def test_static_meshes_loaded_and_pins_half_in_contact(loaded):
     m, q = loaded
     P = m.P
-    # sun-planet mesh deflection beyond half the backlash on the driving flank, shared ~equally
-    d = []
+    # every sun-planet mesh is loaded: some tooth pair's approach exceeds its separation plus half the backlash
+    mt = mdl.mesh_array(m)
+    mdl.mesh_terms(0.0, P, m.tables, mt)
+    S = int(P[mdl.I_NSLOT])
     for i, (cps, sps, sap, cap) in enumerate(m.planet):
         ip = 3 + 3 * i
-        d.append(q[0] * sap + q[1] * cap + P[mdl.I_RB1] * q[2] - q[ip] * P[mdl.I_SINA]
-                 - q[ip + 1] * P[mdl.I_COSA] + P[mdl.I_RB2] * q[ip + 2])
-    assert min(d) > P[mdl.I_HALF_BACKLASH]
+        d = (q[0] * sap + q[1] * cap + P[mdl.I_RB1] * q[2] - q[ip] * P[mdl.I_SINA]
+             - q[ip + 1] * P[mdl.I_COSA] + P[mdl.I_RB2] * q[ip + 2])
+        loaded_pairs = [s for s in range(S) if mt[i, 4 * s] > 0 and d - mt[i, 4 * s + 1] > P[mdl.I_HALF_BACKLASH]]
+        assert loaded_pairs, (i, d, mt[i])
     geo, rot, _ = mdl.work_arrays(m)
     mdl.pin_geometry(0.0, P, m.cosk, m.sink, geo, rot)
     lay = mdl.dof_layout(2, 2)
@@ -257,23 +263,40 @@ def test_interpolated_pin_geometry_is_within_1e8_of_the_exact_one():
 
 
 def test_mesh_terms_interpolate_the_table_at_each_planets_phase():
-    """``mesh_terms``: TVMS and profile deviation linear in the table at the sun angle relative to each
-    planet, and the deviation's rate, against numpy.interp on the periodic table."""
+    """``mesh_terms``: every tooth-pair slot's stiffness, separation, damping and the separation's rate linear in
+    the table at the sun angle relative to each planet, against numpy.interp on the periodic table."""
     from rvdiag.library.states import tooth_faults
 
     m = prepare(P0, tooth_faults("T3", wear_depth=10e-6), output_speed_deg_s=45.0, load_Nm=100.0)
-    assert m.tables.shape[0] == 2
+    S = int(m.P[mdl.I_NSLOT])
+    assert S == 3 and m.tables.shape[0] == 4 * S + 2
     nt = m.tables.shape[1]
     grid = np.arange(nt + 1) / nt
+
+    def at(row, x):
+        return np.interp(x, grid, np.append(m.tables[row], m.tables[row, 0]))
+
     mt = mdl.mesh_array(m)
+    checked = 0
     for t in (0.0, 0.00123, 0.0471):
         mdl.mesh_terms(t, m.P, m.tables, mt)
         for i in range(m.n_planets):
             x = (m.P[mdl.I_WREL] * t / (2 * np.pi) - i / m.n_planets) % 1.0
-            k = np.interp(x, grid, np.append(m.tables[0], m.tables[0, 0]))
-            e = np.interp(x, grid, np.append(m.tables[1], m.tables[1, 0]))
-            assert mt[i, 0] == pytest.approx(k, rel=1e-12)
-            assert mt[i, 1] == pytest.approx(e, rel=1e-9, abs=1e-18)
-            j = int(x * nt) % nt
-            rate = m.P[mdl.I_WREL] * nt / (2 * np.pi) * (m.tables[1, (j + 1) % nt] - m.tables[1, j])
-            assert mt[i, 2] == pytest.approx(rate, rel=1e-9, abs=1e-15)
+            for s in range(S):
+                assert mt[i, 4 * s] == pytest.approx(at(s, x), rel=1e-12, abs=1e-3)
+                assert mt[i, 4 * s + 1] == pytest.approx(at(S + s, x), rel=1e-9, abs=1e-18)
+                assert mt[i, 4 * s + 3] == pytest.approx(at(2 * S + s, x), rel=1e-9, abs=1e-12)
+                rate = m.P[mdl.I_WREL] * nt / (2 * np.pi) * at(3 * S + s, x)
+                assert mt[i, 4 * s + 2] == pytest.approx(rate, rel=1e-9, abs=1e-15)
+                checked += mt[i, 4 * s + 2] != 0.0
+            assert mt[i, 4 * S] == pytest.approx(at(4 * S, x), rel=1e-12)
+    assert checked > 0  # the separation's rate is exercised
+
+
+def test_separation_slopes_are_central_differences_inside_a_pair_and_zero_outside():
+    k = np.array([[0.0, 1.0, 1.0, 1.0, 0.0, 0.0]])
+    e = np.array([[9.0, 1.0, 3.0, 7.0, 9.0, 9.0]])
+    sl = mdl.separation_slopes(np.stack([k, e], axis=1))
+    np.testing.assert_allclose(sl[0], [0.0, 2.0, 3.0, 4.0, 0.0, 0.0])
+
+

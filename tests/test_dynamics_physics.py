@@ -69,12 +69,13 @@ def spectra():
     return healthy, broken
 
 
-def test_healthy_peaks_at_mesh_harmonics(spectra):
-    """Sensor y direction: the 3 largest spectral peaks are harmonics of the stage-1 mesh frequency fsp
-    (or of the stage-2 fcs) of `rvdiag freqs`, within 2 Hz (one bin at 0.5 s).  (The next peaks are
-    harmonics too, or their sidebands at multiples of the crank speed relative to the carrier, Zp f_H,
-    from the rotating crank eccentrics; see docs/model.md.)"""
-    healthy, _ = spectra
+def test_healthy_peaks_at_mesh_harmonics():
+    """Perfect involutes (ISO 1328 errors off), sensor y direction: the 3 largest spectral peaks are harmonics
+    of the stage-1 mesh frequency fsp (or of the stage-2 fcs) of `rvdiag freqs`, within 2 Hz (one bin at
+    0.5 s)."""
+    perfect = P0.replace(modification={"iso1328_grade": 0})
+    healthy = simulate(perfect, None, output_speed_deg_s=45.0, load_Nm=100.0, duration_s=0.5, fs=48000.0,
+                       settings=ModelSettings(substeps=10, transient_s=0.02))
     fr = characteristic_frequencies(P0, output_speed_deg_s=45.0)
     f, amp = healthy.spectrum(1)
     for p in _peaks(f, amp, 3):
@@ -82,10 +83,25 @@ def test_healthy_peaks_at_mesh_harmonics(spectra):
         assert off <= 2.0, (p, p / fr.fsp)
 
 
+def test_pitch_errors_modulate_the_healthy_mesh_once_per_sun_revolution(spectra):
+    """The default ISO 1328 grade 5 sun carries seeded pitch errors, so even the healthy mesh repeats only once
+    per relative sun revolution: among the 8 largest peaks is one at n fsp +- (f_s - f_H) k (k >= 1), which
+    a perfect gear (previous test) does not have."""
+    healthy, _ = spectra
+    fr = characteristic_frequencies(P0, output_speed_deg_s=45.0)
+    f_rev = fr.f_sun_fault / P0.stage1.n_planets  # f_s - f_H
+    f, amp = healthy.spectrum(1)
+    side = [p for p in _peaks(f, amp, 8)
+            if abs(p - round(p / fr.fsp) * fr.fsp) > 2.0 and abs(p - round(p / f_rev) * f_rev) <= 2.0]
+    assert side, _peaks(f, amp, 8)
+
+
 def test_broken_sun_tooth_adds_sidebands_at_sun_fault_frequency(spectra):
     """Around the 3 strongest stage-1 mesh harmonics n fsp, a broken sun tooth raises peaks at
-    n fsp +- f_sun_fault (two planets: 2 (f_s - f_H)) by more than 10x over the healthy spectrum.
-    Tolerance: the peak lies within one bin (2 Hz) of the predicted frequency."""
+    n fsp +- f_sun_fault (two planets: 2 (f_s - f_H)) by more than 4x over the healthy spectrum (measured
+    >= 5.5x; the healthy sun's pitch errors already put lines there), and by more than 20x in the median
+    over the first 79 harmonics (measured 46x).  Tolerance: the peak lies within one bin (2 Hz) of the
+    predicted frequency."""
     healthy, broken = spectra
     fr = characteristic_frequencies(P0, output_speed_deg_s=45.0)
     f, a_h = healthy.spectrum(1)
@@ -101,7 +117,13 @@ def test_broken_sun_tooth_adds_sidebands_at_sun_fault_frequency(spectra):
             kb = k - 1 + int(np.argmax(a_b[window]))
             assert a_b[kb] >= a_b[kb - 1] and a_b[kb] >= a_b[kb + 1], "no local peak"
             assert abs(f[kb] - target) <= df
-            assert a_b[kb] > 10 * a_h[window].max(), (n, side, a_b[kb], a_h[window].max())
+            assert a_b[kb] > 4 * a_h[window].max(), (n, side, a_b[kb], a_h[window].max())
+    ratios = []
+    for n in range(1, 80):
+        for side in (-1, 1):
+            k = int(np.argmin(np.abs(f - (n * fr.fsp + side * fr.f_sun_fault))))
+            ratios.append(a_b[k - 1:k + 2].max() / a_h[k - 1:k + 2].max())
+    assert np.median(ratios) > 20, np.median(ratios)
 
 
 def test_simulation_starts_from_the_bilateral_deflection_when_statics_do_not_converge(monkeypatch):

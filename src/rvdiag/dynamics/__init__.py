@@ -19,6 +19,7 @@ import numpy as np
 from rvdiag.dynamics.mesh import MeshTable, gears_available, mesh_table_from_gears, rectangular_mesh_table
 from rvdiag.dynamics.model import Model, ModelSettings, build_model
 from rvdiag.dynamics.noise import add_awgn
+from rvdiag.dynamics.transfer import apply_path
 from rvdiag.dynamics.results import SimulationResult
 from rvdiag.errors import ParameterError
 from rvdiag.kinematics import sun_speed_hz
@@ -151,7 +152,8 @@ def simulate(
     Returns
     -------
     SimulationResult
-        ``signal`` of shape (channels, samples) in m/s^2.
+        ``signal`` of shape (channels, samples) in m/s^2: the housing acceleration at the sensor point seen
+        through the sensor path of ``params.mounting`` (:mod:`rvdiag.dynamics.transfer`).
     """
     from rvdiag.dynamics.segments import check_workers, integrate_segments
 
@@ -177,6 +179,7 @@ def simulate(
         return np.concatenate([q0, np.zeros_like(q0)])
 
     signal, n_segments = integrate_segments(model, fs, n_samples, n_tr, start_state, workers, progress)
+    signal = apply_path(signal, fs, params.mounting)
     initial_state = starts[0] if len(set(starts)) == 1 else "; ".join(sorted(set(starts)))
     if noise_snr_db is not None:
         signal = add_awgn(signal, noise_snr_db, np.random.default_rng(seed))

@@ -146,18 +146,24 @@ def potential_energy(model: mdl.Model, t: float, q: np.ndarray) -> float:
     nt = model.tvms.size
     grid = np.arange(nt + 1) * (2 * np.pi / nt)
     ktab = np.append(model.tvms, model.tvms[0])
-    etab = np.append(model.tvms_error, model.tvms_error[0])  # profile deviation: delta - e
+    etab = np.append(model.tvms_error, model.tvms_error[0])
+    pk = np.concatenate([model.pairs[:, 0, :], model.pairs[:, 0, :1]], axis=1)  # per-slot stiffness
+    pe = np.concatenate([model.pairs[:, 1, :], model.pairs[:, 1, :1]], axis=1)  # per-slot separation
     bil = P[mdl.I_BILATERAL]
     beta = [P[mdl.I_BETA0] - Zp * Om * te + j * P[mdl.I_DISCPHASE] for j in range(D)]
     for i in range(N):
         psi = 2 * np.pi * i / N
         p, c = lay[f"planet{i}"], lay[f"crank{i}"]
-        km = np.interp(np.mod(P[mdl.I_WREL] * te - psi, 2 * np.pi), grid, ktab)
+        phase = np.mod(P[mdl.I_WREL] * te - psi, 2 * np.pi)
         d = (q[s] * np.sin(alpha - psi) + q[s + 1] * np.cos(alpha - psi) + rb1 * q[s + 2]
-             - q[p] * np.sin(alpha) - q[p + 1] * np.cos(alpha) + rb2 * q[p + 2]
-             - np.interp(np.mod(P[mdl.I_WREL] * te - psi, 2 * np.pi), grid, etab))
-        g = d - bil * hb if bil != 0 else (d - hb if d > hb else (d + hb if d < -hb else 0.0))
-        V += 0.5 * km * g * g
+             - q[p] * np.sin(alpha) - q[p + 1] * np.cos(alpha) + rb2 * q[p + 2])
+        if bil != 0:  # linearised: nominal TVMS, load-shared separation
+            V += 0.5 * np.interp(phase, grid, ktab) * (d - np.interp(phase, grid, etab) - bil * hb) ** 2
+        else:  # each tooth pair a spring beyond its separation and the half backlash
+            for ks, es in zip(pk, pe):
+                g = d - np.interp(phase, grid, es)
+                g = g - hb if g > hb else (g + hb if g < -hb else 0.0)
+                V += 0.5 * np.interp(phase, grid, ks) * g * g
         V += 0.5 * P[mdl.I_KPR] * ((q[p] - q[c]) ** 2 + (q[p + 1] - q[c + 1]) ** 2)
         V += 0.5 * P[mdl.I_KPT] * (q[p + 2] - q[c + 2]) ** 2
         Rm = np.array([[np.cos(psi), -np.sin(psi)], [np.sin(psi), np.cos(psi)]])

@@ -63,6 +63,8 @@ class MeshTable:
     period_rad: float = TWO_PI
     source: str = "table"
     error_m: np.ndarray | None = None
+    pair_stiffness_N_per_m: np.ndarray | None = None
+    pair_separation_m: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         a = np.asarray(self.angle_rad, dtype=float)
@@ -86,6 +88,17 @@ class MeshTable:
         object.__setattr__(self, "angle_rad", a)
         object.__setattr__(self, "stiffness_N_per_m", k)
         object.__setattr__(self, "error_m", e)
+        if (self.pair_stiffness_N_per_m is None) != (self.pair_separation_m is None):
+            raise ParameterError("mesh table: give both pair stiffnesses and pair separations, or neither")
+        if self.pair_stiffness_N_per_m is not None:
+            kp = np.atleast_2d(np.asarray(self.pair_stiffness_N_per_m, dtype=float))
+            ep = np.atleast_2d(np.asarray(self.pair_separation_m, dtype=float))
+            if kp.shape != ep.shape or kp.shape[1] != a.size or kp.shape[0] < 1:
+                raise ParameterError("mesh table: pair stiffnesses and separations must have shape (slots, angles)")
+            if not (np.all(np.isfinite(kp)) and np.all(np.isfinite(ep))) or np.any(kp < 0):
+                raise ParameterError("mesh table: pair stiffnesses must be finite and >= 0, separations finite")
+            object.__setattr__(self, "pair_stiffness_N_per_m", kp)
+            object.__setattr__(self, "pair_separation_m", ep)
 
     @property
     def has_error(self) -> bool:
@@ -101,6 +114,23 @@ class MeshTable:
         """Profile deviation (m) on the same uniform grid as :meth:`resample` (periodic linear interpolation)."""
         grid = np.arange(n) * (self.period_rad / n)
         return np.interp(grid, self.angle_rad, self.error_m, period=self.period_rad)
+
+    @property
+    def slots(self) -> int:
+        """Number of tooth-pair slots the dynamic model carries (1 for a table without pair data)."""
+        return 1 if self.pair_stiffness_N_per_m is None else int(self.pair_stiffness_N_per_m.shape[0])
+
+    def resample_pairs(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """Per-slot stiffness (N/m) and separation (m) on the uniform grid of :meth:`resample`, shape
+        ``(slots, n)``.  A table without pair data is one slot: the mesh stiffness and ``error_m``."""
+        if self.pair_stiffness_N_per_m is None:
+            return self.resample(n)[None, :], self.resample_error(n)[None, :]
+        grid = np.arange(n) * (self.period_rad / n)
+        k = np.stack([np.interp(grid, self.angle_rad, row, period=self.period_rad)
+                      for row in self.pair_stiffness_N_per_m])
+        e = np.stack([np.interp(grid, self.angle_rad, row, period=self.period_rad)
+                      for row in self.pair_separation_m])
+        return k, e
 
     def mean(self) -> float:
         """Mean stiffness over the period (N/m)."""
@@ -174,14 +204,24 @@ def gears_available() -> bool:
 
 
 def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_cycle: int = 360) -> MeshTable:
-    """Potential-energy TVMS of :mod:`rvdiag.gears` over one relative sun revolution (Z1 mesh cycles).
+    """Potential-energy TVMS of :mod:`rvdiag.gears` over one relative sun revolution (Z1 mesh cycles), with
+    the separation of every tooth pair.
 
     ``fault`` is ``None`` (healthy) or a :class:`rvdiag.gears.ToothFaults`; the faults sit on sun teeth.
-    The table's ``error_m`` is the load-shared profile deviation ``res.profile_error_m`` (wear depth
-    along the line of action, ``sum k_i e_i / sum k_i`` over the pairs in contact; zero when healthy
-    and at the pitch point, docs/tvms.md section 3).
+
+    The pairs in contact are kept apart in slots: the pair of sun tooth ``j`` in slot ``j mod ceil(eps)``, so
+    that pairs of one slot never overlap in contact, and the ``Z1 mod ceil(eps)`` last teeth in a slot each of
+    their own, so that the assignment is periodic over the revolution (3 slots for the RV-20E's 11 teeth).  Each slot carries its pair's stiffness
+    and *separation* (m, :mod:`rvdiag.gears.modification`): the tip and root relief of ``params.modification``
+    at the pair's roll position, the profile slope deviation and the sun tooth's position error of its
+    ISO 1328 grade, and the wear depth at the contact point (Archard profile, docs/tvms.md section 3).  The
+    planet's pitch errors repeat only every Z2 mesh cycles and are left out of this one-revolution table.
+    The table's ``error_m`` is the load-shared separation ``sum k_j e_j / sum k_j`` (the profile deviation a
+    single-spring model would use).
     """
     from rvdiag.gears import GearPair, mesh_stiffness
+    from rvdiag.gears.modification import (ProfileModification, iso1328_tolerances, profile_slope_separation,
+                                           relief_separation, tooth_position_errors)
 
     pair = GearPair.sun_planet(params)
     z1 = params.stage1.sun_teeth
@@ -189,9 +229,43 @@ def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_c
         fault = None
     res = mesh_stiffness(pair, fault=fault, cycles=z1, points_per_cycle=points_per_cycle)
     angle = np.asarray(res.angle_rad, dtype=float)
-    k = np.asarray(res.stiffness_N_per_m, dtype=float)
-    err = np.asarray(res.profile_error_m, dtype=float)
+    pair_index, roll, in_contact = pair.contact_state(angle)
+    kp = np.asarray(res.pair_stiffness_N_per_m, dtype=float)
+    wear = res.pair_profile_error_m
+    if wear is not None:
+        wear = np.asarray(wear, dtype=float)
+    L = pair.path_of_contact
+    n_slots = int(math.ceil(pair.contact_ratio - 1e-9))
+    md = params.modification
+    mod = ProfileModification(
+        tip_relief_driver=md.tip_relief_sun, tip_relief_driven=md.tip_relief_planet,
+        root_relief_driver=md.root_relief_sun, root_relief_driven=md.root_relief_planet,
+        tip_relief_length=md.tip_relief_length, root_relief_length=md.root_relief_length,
+        shape="parabolic" if md.relief_exponent == 2 else "linear")
+    sep = relief_separation(roll, L, mod)
+    if md.iso1328_grade > 0:
+        tol = iso1328_tolerances(params.stage1.module, params.stage1.module * z1, md.iso1328_grade)
+        sep = sep + profile_slope_separation(roll, L, tol)
+        sep = sep + tooth_position_errors(z1, tol, md.error_seed)[np.mod(pair_index, z1)]
+    if wear is not None:
+        sep = sep + wear
+    # slot of each pair, periodic over one revolution (the table wraps from sun tooth Z1 - 1 to tooth 0): pairs
+    # alternate over ceil(eps) slots, and the Z1 mod ceil(eps) last teeth of the revolution get a slot each of
+    # their own (an odd Z1 = 11 with eps < 2: teeth 0..9 alternate over slots 0 and 1, tooth 10 has slot 2)
+    tooth = np.mod(pair_index, z1)
+    rest = z1 % n_slots
+    slot = np.where(tooth < z1 - rest, np.mod(tooth, n_slots), n_slots + tooth - (z1 - rest))
+    n_slots += rest
+    k_slots = np.zeros((n_slots, angle.size))
+    e_slots = np.zeros((n_slots, angle.size))
+    for s_ in range(n_slots):
+        on = in_contact & (slot == s_)
+        k_slots[s_] = np.where(on, kp, 0.0).sum(axis=0)
+        e_slots[s_] = np.where(on, sep, 0.0).sum(axis=0)
+    k = k_slots.sum(axis=0)
+    err = np.divide((k_slots * e_slots).sum(axis=0), k, out=np.zeros_like(k), where=k > 0)
     angle = angle - angle[0]
     period = TWO_PI
     keep = angle < period - 1e-12
-    return MeshTable(angle[keep], k[keep], period, source="rvdiag.gears.mesh_stiffness", error_m=err[keep])
+    return MeshTable(angle[keep], k[keep], period, source="rvdiag.gears.mesh_stiffness", error_m=err[keep],
+                     pair_stiffness_N_per_m=k_slots[:, keep], pair_separation_m=e_slots[:, keep])

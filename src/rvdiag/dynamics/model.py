@@ -59,7 +59,15 @@ I_GSHARED = 46
 I_SINA, I_COSA = 47, 48
 I_ROTLIM = 49
 I_CPH, I_SPH = 50, 51  # cos and sin of the disc phase
-N_P = 52
+I_NSLOT = 52  # tooth-pair slots of each sun-planet mesh (rows of Model.tables: k, e, c per slot)
+I_IRAMP = 53  # 1 / MESH_DAMPING_RAMP_M
+N_P = 54
+
+#: approach (m) over which a tooth pair's damper grows from nothing to its full value once the flanks touch
+#: (a penetration-dependent damper, Hunt & Crossley 1975, J. Appl. Mech. 42, in its simplest, linear-ramp form):
+#: the contact force then starts from zero as the flanks meet, instead of jumping by c * (approach rate), so a
+#: pair touching or leaving within a step costs RK4 much less accuracy (docs/model.md section 7)
+MESH_DAMPING_RAMP_M = 0.1e-6
 
 TWO_PI = 2.0 * math.pi
 
@@ -79,20 +87,22 @@ class ModelSettings:
         Runge-Kutta steps per output sample.  The stiffest mode of the RV-20E is near 34 kHz (crank
         shafts); RK4 is stable for ``omega h < 2.78``, so at 48 kHz at least 2 are needed.  Accuracy,
         not stability, sets the default 9: the output stays within 1e-3 (relative L2) of scipy's DOP853
-        at rtol 1e-9 over 0.05 s at 48 kHz (6.0e-4; 8 sub-steps: 8.7e-4, 10: 4.1e-4; 6.3e-4 at
-        1000 rpm rated load, 8.1e-4 at 3000 rpm and 7.3e-4 at 4500 rpm, 50 N m; docs/model.md
-        section 7, tests/test_integrator.py); at other rates keep ``fs * substeps`` near 430 kHz.
+        at rtol 1e-9 over 0.05 s at 48 kHz with the default method (figures under ``method``;
+        docs/model.md section 7, tests/test_integrator.py); at other rates keep ``fs * substeps`` near
+        430 kHz.
         A sample is further cut at the mesh table's kinks (:func:`table_events`), so a step may be
         shorter than ``1 / (fs substeps)``.
     method : str
-        ``"rk4"`` (default): classical RK4, stage times t, t + h/2, t + h (pin geometry exact three
-        times per sample, interpolated in between).  ``"rk38"``: Kutta's 3/8 rule on the same step
-        grid, same order and stability, 5-12 % smaller error at 9 sub-steps (5.3e-4 to 7.8e-4 from
-        45 deg/s to 4500 rpm) but the exact pin geometry at three stage times per step (~10.0 against
-        ~9.3 us per sample); at 8 sub-steps it is not within 1e-3 (1.57e-3 at 3000 rpm 50 N m),
-        hence not the default.  Higher-order (Butcher 6, Verner 6(5),
-        DOP853 fixed-step) and low-dispersion schemes (Berland et al. 2006 RK4-6) were measured and
-        do not do better per right-hand side on this non-smooth model (docs/model.md section 7).
+        ``"rk38"`` (default): Kutta's 3/8 rule, the pin geometry exact at its three stage times per step;
+        ``"rk4"``: classical RK4, stage times t, t + h/2, t + h (pin geometry exact three times per sample,
+        interpolated in between; ~7 % faster).  Both on the same step grid.  With the tooth-pair contacts
+        (pairs that touch and part as their separations are crossed, docs/model.md section 3) the 3/8 rule
+        stays within 1e-3 of DOP853 at 9 sub-steps from 45 deg/s to 4500 rpm (6.2e-4 at 45 deg/s 100 N m,
+        2.7e-4 at 1000 rpm 167 N m, 4.2e-4 at 3000 rpm and 7.3e-4 at 4500 rpm 50 N m) and RK4 does not
+        above ~2500 rpm (9.0e-4, 1.3e-3, 2.2e-3 at 1000, 3000, 4500 rpm); before the tooth-pair contacts RK4 was
+        the default (6.0e-4 to 7.3e-4).  Higher-order (Butcher 6, Verner 6(5), DOP853 fixed-step) and
+        low-dispersion schemes (Berland et al. 2006 RK4-6) were measured and do not do better per right-hand
+        side on this non-smooth model (docs/model.md section 7).
     transient_s : float
         Simulated time discarded before output starts (start-up transient), s.
     segment_s : float
@@ -129,7 +139,7 @@ class ModelSettings:
     substeps: int = 9
     transient_s: float = 0.1
     segment_s: float = 0.0
-    method: str = "rk4"
+    method: str = "rk38"
     sensor_point_m: tuple[float, float] | None = None
     sensor_directions: tuple[tuple[float, float], ...] = ((1.0, 0.0), (0.0, 1.0))
     excitation: bool = True
@@ -250,8 +260,15 @@ class Model:
     #: mesh profile deviation (transmission-error excitation, m) on the same grid as ``tvms``;
     #: ``None`` means zeros (see :class:`rvdiag.dynamics.mesh.MeshTable`)
     tvms_error: np.ndarray | None = None
-    #: ``(2, n)`` C-contiguous ``[tvms, tvms_error]`` (``(1, n)`` when the error is zero): the mesh
-    #: table the compiled kernels take
+    #: ``(S, 2, n)``: stiffness (N/m) and separation (m) of each of the S tooth-pair slots on the grid of
+    #: ``tvms`` (:meth:`rvdiag.dynamics.mesh.MeshTable.resample_pairs`); ``None``: one slot, ``tvms`` with
+    #: ``tvms_error`` as its separation
+    pairs: np.ndarray | None = None
+    #: ``(4 S + 2, n)`` C-contiguous ``[k_0..k_S-1, e_0..e_S-1, c_0..c_S-1, e'_0..e'_S-1, tvms, tvms_error]``: the
+    #: per-slot stiffness, separation, damping ``c_s = c_mesh sqrt(k_s / mean(tvms))`` (a damping ratio held
+    #: per pair, so a pair out of contact has no damper either) and separation slope per table interval
+    #: (:func:`separation_slopes`), and the nominal TVMS and load-shared separation that the bilateral
+    #: (linearised) model uses: the mesh table the compiled kernels take
     tables: np.ndarray = field(init=False, repr=False, compare=False)
     #: ``1 / mass``: the kernels multiply by it (a division per coordinate costs ~15 % of a right-hand side)
     inv_mass: np.ndarray = field(init=False, repr=False, compare=False)
@@ -265,9 +282,19 @@ class Model:
         if e.shape != k.shape or not np.all(np.isfinite(e)):
             raise ParameterError("tvms_error must be finite and on the same grid as tvms")
         object.__setattr__(self, "tvms_error", e)
-        # without a deviation the kernels get the stiffness row only and skip the error terms
-        rows = [k, e] if np.any(e != 0.0) else [k]
-        object.__setattr__(self, "tables", np.ascontiguousarray(np.stack(rows)))
+        if self.pairs is None:
+            pairs = np.stack([k, e])[None, :, :]
+        else:
+            pairs = np.asarray(self.pairs, dtype=float)
+            if pairs.ndim != 3 or pairs.shape[1] != 2 or pairs.shape[2] != k.size:
+                raise ParameterError("pairs must have shape (slots, 2, len(tvms))")
+        object.__setattr__(self, "pairs", pairs)
+        kmean = float(np.mean(k)) if np.mean(k) > 0 else 1.0
+        damp = self.P[I_CMESH] * np.sqrt(np.clip(pairs[:, 0, :], 0.0, None) / kmean)
+        object.__setattr__(self, "tables", np.ascontiguousarray(
+            np.concatenate([pairs[:, 0, :], pairs[:, 1, :], damp, separation_slopes(pairs), k[None, :], e[None, :]])))
+        if self.P[I_NSLOT] != pairs.shape[0]:
+            self.P[I_NSLOT] = pairs.shape[0]
         object.__setattr__(self, "inv_mass", 1.0 / np.asarray(self.mass, dtype=float))
         object.__setattr__(self, "events", table_events(self.tables, self.n_planets))
 
@@ -311,21 +338,42 @@ def table_events(tables: np.ndarray, n_planets: int) -> np.ndarray:
     table phase ``x`` at relative phase ``x + i / N``.  Choosing the nodes changes no equation, only where
     the steps fall.
     """
-    k = tables[0]
-    kink = np.abs(np.roll(k, -1) - 2.0 * k + np.roll(k, 1)) > EVENT_STIFFNESS_KINK * np.abs(k).mean()
-    if tables.shape[0] > 1:
-        e = tables[1]
+    S = (tables.shape[0] - 2) // 4
+    ks = tables[:S]
+    kbar = max(float(np.abs(ks.sum(axis=0)).mean()), 1e-300)
+    kink = np.zeros(tables.shape[1], dtype=bool)
+    for k in ks:
+        kink |= np.abs(np.roll(k, -1) - 2.0 * k + np.roll(k, 1)) > EVENT_STIFFNESS_KINK * kbar
+    for k, e in zip(ks, tables[S:2 * S]):
+        e = np.where(k > 0, e, 0.0)
         emax = np.abs(e).max()
         if emax > 0.0:
             kink |= np.abs(np.roll(e, -1) - 2.0 * e + np.roll(e, 1)) > EVENT_DEVIATION_KINK * emax
-    nodes = np.flatnonzero(kink) / k.size
+    nodes = np.flatnonzero(kink) / tables.shape[1]
     phases = (nodes[None, :] + np.arange(n_planets)[:, None] / n_planets) % 1.0
     return np.unique(phases)
 
 
+def separation_slopes(pairs: np.ndarray) -> np.ndarray:
+    """Slope of each slot's separation at the table nodes, per node interval, shape ``(S, n)``.
+
+    Central differences where the pair is in contact on both sides of a node, one-sided at the ends of a
+    pair's contact, zero outside it.  The kernel interpolates these linearly, so the separation's rate in
+    the dampers is continuous in time; the rate of the linearly interpolated separation itself would jump at
+    every node (every ~17 us at 45 deg/s) and cost RK4 an order of accuracy (docs/model.md section 7).
+    """
+    k, e = pairs[:, 0, :], pairs[:, 1, :]
+    on = k > 0.0
+    on_prev, on_next = np.roll(on, 1, axis=1), np.roll(on, -1, axis=1)
+    fwd = np.roll(e, -1, axis=1) - e
+    bwd = e - np.roll(e, 1, axis=1)
+    out = np.where(on_prev & on_next, 0.5 * (fwd + bwd), np.where(on_next, fwd, np.where(on_prev, bwd, 0.0)))
+    return np.where(on, out, 0.0)
+
+
 def _replace_P(m: Model, P: np.ndarray) -> Model:
     return Model(P, m.mass, m.planet, m.tvms, m.cosk, m.sink, m.sensor, m.n_planets, m.n_discs,
-                 m.mesh_source, m.settings, m.extra, m.tvms_error)
+                 m.mesh_source, m.settings, m.extra, m.tvms_error, m.pairs)
 
 
 def build_model(
@@ -384,7 +432,11 @@ def build_model(
     for j in range(D):
         put(f"disc{j}", bp.cycloid.mass, bp.cycloid.inertia)
     put("carrier", bp.carrier.mass, bp.carrier.inertia)
-    put("pin_wheel", bp.pin_wheel.mass, bp.pin_wheel.inertia)
+    # the pin wheel carries the housing shell and the mounting flange ([mounting] housing_added_mass, a thin
+    # ring at the outer radius)
+    m_add = params.mounting.housing_added_mass
+    put("pin_wheel", bp.pin_wheel.mass + m_add,
+        bp.pin_wheel.inertia + m_add * params.bodies.pin_wheel_outer_radius**2)
 
     zb = dmp.bearing_damping_ratio if st.damping else 0.0
     zm = dmp.mesh_damping_ratio if st.damping else 0.0
@@ -418,10 +470,11 @@ def build_model(
     P[I_KPR], P[I_CPR] = kpr, c(zb, kpr, bp.planet.mass, bp.crank.mass)
     P[I_KPT], P[I_CPT] = br.planet_crank_torsional, c(zb, br.planet_crank_torsional, J_p, bp.crank.inertia)
     P[I_KHS], P[I_CHS] = br.carrier_support, c(zb, br.carrier_support, bp.carrier.mass)
-    P[I_KRH], P[I_CRH] = br.pin_wheel_housing, c(zb, br.pin_wheel_housing, bp.pin_wheel.mass)
-    P[I_KRT], P[I_CRT] = k_rt, c(zb, k_rt, bp.pin_wheel.inertia)
-    P[I_KPIN], P[I_CPIN] = k_pin, c(zp, k_pin, bp.cycloid.mass, bp.pin_wheel.mass)
+    P[I_KRH], P[I_CRH] = br.pin_wheel_housing, c(zb, br.pin_wheel_housing, mass[lay["pin_wheel"]])
+    P[I_KRT], P[I_CRT] = k_rt, c(zb, k_rt, mass[lay["pin_wheel"] + 2])
+    P[I_KPIN], P[I_CPIN] = k_pin, c(zp, k_pin, bp.cycloid.mass, mass[lay["pin_wheel"]])
     P[I_CMESH] = c(zm, k_mean, m_mesh)
+    P[I_IRAMP] = 1.0 / MESH_DAMPING_RAMP_M
     P[I_TLOAD] = load_Nm
     P[I_TFROZEN] = -1.0 if st.excitation else 0.0
     P[I_CORIOLIS] = 1.0 if st.coriolis else 0.0
@@ -444,8 +497,10 @@ def build_model(
     sensor = np.array([np.asarray(d, float) / math.hypot(*d) for d in st.sensor_directions])
     extra = {"k_pin_N_per_m": k_pin, "k_mesh_mean_N_per_m": k_mean, "carrier_speed_rad_s": Omega,
              "ratio": params.ratio}
+    pk, pe = mesh.resample_pairs(st.tvms_points)
+    P[I_NSLOT] = pk.shape[0]
     return Model(P, mass, planet, tv, np.cos(kk), np.sin(kk), sensor, N, D, mesh.source, st, extra,
-                 tvms_error=mesh.resample_error(st.tvms_points))
+                 tvms_error=mesh.resample_error(st.tvms_points), pairs=np.stack([pk, pe], axis=1))
 
 
 # ================================================================================ compiled kernels
@@ -557,18 +612,22 @@ def interpolate_geometry(g0, gm, g1, s, P, out):
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def mesh_terms(t, P, tvms, mt):
-    """Mesh stiffness and profile deviation of every sun-planet mesh at time t (they depend on time only).
+    """Stiffness, separation and damping of every tooth-pair slot of every sun-planet mesh at time t (they
+    depend on time only).
 
-    ``mt[i] = (k_i, e_i, e_i')``: the TVMS (N/m) and profile deviation (m) of planet i's mesh, linearly
-    interpolated in ``tvms`` (``Model.tables``) at the sun angle relative to planet i,
-    ``phi = w_rel t - 2 pi i / N``, and the deviation's rate ``de/dt = w_rel de/dphi`` (0 when the
-    time-varying terms are frozen).  Computed once per distinct stage time by the integrator and shared by
-    the stages that use it.
+    ``mt[i, 4 s + (0, 1, 2, 3)] = (k, e, e', c)`` of slot s of planet i's mesh: the pair stiffness (N/m),
+    separation (m), the separation's rate ``de/dt = w_rel de/dphi`` (from the node slopes of
+    :func:`separation_slopes`; 0 when the time-varying terms are frozen) and the pair's damping coefficient,
+    linearly interpolated in ``tvms`` (``Model.tables``, rows ``k, e, c, e'`` per slot, then the nominal
+    TVMS) at the sun angle relative to planet i,
+    ``phi = w_rel t - 2 pi i / N``; ``mt[i, 4 S]`` and ``mt[i, 4 S + 1]`` are the nominal TVMS and the
+    load-shared separation (bilateral model).  Computed once per
+    distinct stage time by the integrator and shared by the stages that use it.
     """
     te = eval_time(t, P)
     N = int(P[I_NPL])
+    S = int(P[I_NSLOT])
     nt = tvms.shape[1]
-    has_e = tvms.shape[0] > 1
     inv_n = 1.0 / N
     x0 = P[I_WREL] * te * (1.0 / TWO_PI)
     erate = P[I_WREL] * nt * (1.0 / TWO_PI) if P[I_TFROZEN] < 0.0 else 0.0
@@ -582,22 +641,23 @@ def mesh_terms(t, P, tvms, mt):
         j1 = j0 + 1
         if j1 >= nt:
             j1 = 0
-        mt[i, 0] = tvms[0, j0] + fr * (tvms[0, j1] - tvms[0, j0])
-        if has_e:
-            de = tvms[1, j1] - tvms[1, j0]
-            mt[i, 1] = tvms[1, j0] + fr * de
-            mt[i, 2] = erate * de
-        else:
-            mt[i, 1] = 0.0
-            mt[i, 2] = 0.0
+        for sl in range(S):
+            mt[i, 4 * sl] = tvms[sl, j0] + fr * (tvms[sl, j1] - tvms[sl, j0])
+            mt[i, 4 * sl + 1] = tvms[S + sl, j0] + fr * (tvms[S + sl, j1] - tvms[S + sl, j0])
+            mt[i, 4 * sl + 2] = erate * (tvms[3 * S + sl, j0] + fr * (tvms[3 * S + sl, j1] - tvms[3 * S + sl, j0]))
+            mt[i, 4 * sl + 3] = tvms[2 * S + sl, j0] + fr * (tvms[2 * S + sl, j1] - tvms[2 * S + sl, j0])
+        mt[i, 4 * S] = tvms[4 * S, j0] + fr * (tvms[4 * S, j1] - tvms[4 * S, j0])
+        mt[i, 4 * S + 1] = tvms[4 * S + 1, j0] + fr * (tvms[4 * S + 1, j1] - tvms[4 * S + 1, j0])
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
-def _pin_sums(geo, g, ux, uy, th, wx, wy, om, kp, cp, dlim):
-    """Sums of F n_x, F n_y and F l over the pins of one disc, F = k d + c d' where d > dlim, else 0.
+def _pin_sums(geo, g, ux, uy, th, wx, wy, om, kp, cp, dlim, flo):
+    """Sums of F n_x, F n_y and F l over the pins of one disc, F = max(k d + c d', flo) where d > dlim,
+    else 0.
 
-    ``geo[g, 0..2, k]`` is pin k's normal and lever arm (:func:`pin_geometry`); ``dlim`` is 0 for
-    compression-only contacts and -inf for the bilateral check.  The sums are plain reductions that the
+    ``geo[g, 0..2, k]`` is pin k's normal and lever arm (:func:`pin_geometry`); ``dlim`` and ``flo`` are 0
+    for compression-only contacts whose damper never pulls (Modelica ElastoBacklash: the contact force is
+    zero when spring + damper <= 0) and -inf for the bilateral check.  The sums are plain reductions that the
     kernels' ``reassoc`` fast-math flag lets LLVM vectorise; the order is fixed by the compiled code, so
     results are deterministic.
     """
@@ -607,7 +667,7 @@ def _pin_sums(geo, g, ux, uy, th, wx, wy, om, kp, cp, dlim):
         ny = geo[g, 1, k]
         lk = geo[g, 2, k]
         d = ux * nx + uy * ny + th * lk
-        f = kp * d + cp * (wx * nx + wy * ny + om * lk)
+        f = max(kp * d + cp * (wx * nx + wy * ny + om * lk), flo)
         f = f if d > dlim else 0.0
         sx += f * nx
         sy += f * ny
@@ -616,7 +676,7 @@ def _pin_sums(geo, g, ux, uy, th, wx, wy, om, kp, cp, dlim):
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
-def _pin_sums_pair(geo, ux, uy, th, wx, wy, om, vx, vy, ph, zx, zy, ps, kp, cp, dlim):
+def _pin_sums_pair(geo, ux, uy, th, wx, wy, om, vx, vy, ph, zx, zy, ps, kp, cp, dlim, flo):
     """:func:`_pin_sums` for two discs that share pin geometry 0, in one fused pass (one load of the
     geometry for both discs)."""
     s0x = s0y = s0m = s1x = s1y = s1m = 0.0
@@ -625,10 +685,10 @@ def _pin_sums_pair(geo, ux, uy, th, wx, wy, om, vx, vy, ph, zx, zy, ps, kp, cp, 
         ny = geo[0, 1, k]
         lk = geo[0, 2, k]
         d = ux * nx + uy * ny + th * lk
-        f = kp * d + cp * (wx * nx + wy * ny + om * lk)
+        f = max(kp * d + cp * (wx * nx + wy * ny + om * lk), flo)
         f = f if d > dlim else 0.0
         d2 = vx * nx + vy * ny + ph * lk
-        f2 = kp * d2 + cp * (zx * nx + zy * ny + ps * lk)
+        f2 = max(kp * d2 + cp * (zx * nx + zy * ny + ps * lk), flo)
         f2 = f2 if d2 > dlim else 0.0
         s0x += f * nx
         s0y += f * ny
@@ -698,7 +758,8 @@ def generalized_forces(y, P, planet, mt, geo, rot, Q):
     rb1 = P[I_RB1]
     rb2 = P[I_RB2]
     hb = P[I_HALF_BACKLASH]
-    cm = P[I_CMESH]
+    S = int(P[I_NSLOT]) & 255
+    iramp = P[I_IRAMP]
     bil = P[I_BILATERAL]
     for i in range(N):
         ip = 3 + 3 * i
@@ -719,17 +780,31 @@ def generalized_forces(y, P, planet, mt, geo, rot, Q):
         vc0 = y[n + ic]
         vc1 = y[n + ic + 1]
         vc2 = y[n + ic + 2]
-        # mesh deflection along the line of action minus the profile deviation e
-        d = y[0] * sap + y[1] * cap + rb1 * y[2] - qp0 * sa - qp1 * ca + rb2 * qp2 - mt[i, 1]
-        dd = y[n] * sap + y[n + 1] * cap + rb1 * y[n + 2] - vp0 * sa - vp1 * ca + rb2 * vp2 - mt[i, 2]
-        km = mt[i, 0]
+        # mesh approach along the line of action; each tooth pair s touches once it exceeds the pair's
+        # separation e_s (relief, errors, wear) plus half the backlash, and then pushes, never pulls:
+        # F_s = max(0, k_s (d - e_s - b) + c_s (d' - e_s')) (Modelica ElastoBacklash; docs/model.md)
+        d = y[0] * sap + y[1] * cap + rb1 * y[2] - qp0 * sa - qp1 * ca + rb2 * qp2
+        dd = y[n] * sap + y[n + 1] * cap + rb1 * y[n + 2] - vp0 * sa - vp1 * ca + rb2 * vp2
         F = 0.0
-        if bil != 0.0:
-            F = km * (d - bil * hb) + cm * dd
-        elif d > hb:
-            F = km * (d - hb) + cm * dd
-        elif d < -hb:
-            F = km * (d + hb) + cm * dd
+        if bil != 0.0:  # linearised: nominal TVMS, load-shared separation (bilateral start and modal analysis)
+            F = mt[i, 4 * S] * (d - mt[i, 4 * S + 1] - bil * hb)
+        for sl in range(S):
+            if bil != 0.0:
+                break
+            km = mt[i, 4 * sl]
+            g = d - mt[i, 4 * sl + 1]
+            gd = dd - mt[i, 4 * sl + 2]
+            cs = mt[i, 4 * sl + 3]
+            if g > hb:
+                x = g - hb
+                f = km * x + cs * min(x * iramp, 1.0) * gd
+                if f > 0.0:
+                    F += f
+            elif g < -hb:  # back flank: pulls the other way, never pushes
+                x = g + hb
+                f = km * x - cs * max(x * iramp, -1.0) * gd
+                if f < 0.0:
+                    F += f
         S0 -= F * sap
         S1 -= F * cap
         S2 -= F * rb1
@@ -799,7 +874,7 @@ def generalized_forces(y, P, planet, mt, geo, rot, Q):
         if gsh and jd + 1 < D:
             b0, b1, b2, b3, b4, b5 = _disc_frame(jd + 1, y, n, rot, iD0, qR0, qR1, qR2, vR0, vR1, vR2, rr)
             s0x, s0y, s0m, s1x, s1y, s1m = _pin_sums_pair(
-                geo, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, kp, cp, dlim)
+                geo, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, kp, cp, dlim, dlim)
             r0, r1, r2 = _apply_pin_sums(jd, s0x, s0y, s0m, iD0, rr, rot, Q)
             R0 += r0
             R1 += r1
@@ -807,7 +882,7 @@ def generalized_forces(y, P, planet, mt, geo, rot, Q):
             r0, r1, r2 = _apply_pin_sums(jd + 1, s1x, s1y, s1m, iD0, rr, rot, Q)
             jd += 2
         else:
-            sx, sy, sm = _pin_sums(geo, 0 if gsh else jd, a0, a1, a2, a3, a4, a5, kp, cp, dlim)
+            sx, sy, sm = _pin_sums(geo, 0 if gsh else jd, a0, a1, a2, a3, a4, a5, kp, cp, dlim, dlim)
             r0, r1, r2 = _apply_pin_sums(jd, sx, sy, sm, iD0, rr, rot, Q)
             jd += 1
         R0 += r0
@@ -951,8 +1026,8 @@ def work_arrays(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def mesh_array(model: Model) -> np.ndarray:
-    """A fresh ``(n_planets, 3)`` array for :func:`mesh_terms`."""
-    return np.zeros((model.n_planets, 3))
+    """A fresh ``(n_planets, 4 slots + 2)`` array for :func:`mesh_terms`."""
+    return np.zeros((model.n_planets, 4 * int(model.P[I_NSLOT]) + 2))
 
 
 def make_rhs(model: Model):

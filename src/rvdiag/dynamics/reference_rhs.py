@@ -51,8 +51,31 @@ class ReferenceRHS:
         self.n = model.n_dof
         self.mass = np.asarray(model.mass, dtype=float)
         self.k_table = np.asarray(model.tvms, dtype=float)
-        err = model.tvms_error
-        self.e_table = None if err is None or not np.any(err != 0.0) else np.asarray(err, dtype=float)
+        self.e_table = np.asarray(model.tvms_error, dtype=float)
+        # per tooth-pair slot: stiffness and separation (model.pairs), damping from the mesh damping ratio
+        # held per pair, c_s = c_mesh sqrt(k_s / mean(tvms)) (docs/model.md)
+        self.k_pairs = np.asarray(model.pairs[:, 0, :], dtype=float)
+        self.e_pairs = np.asarray(model.pairs[:, 1, :], dtype=float)
+        kmean = float(np.mean(self.k_table)) if np.mean(self.k_table) > 0 else 1.0
+        self.c_pairs = P[mdl.I_CMESH] * np.sqrt(np.clip(self.k_pairs, 0.0, None) / kmean)
+        self.iramp = P[mdl.I_IRAMP]
+        # separation slope at the nodes (per node interval): central where the pair touches on both sides,
+        # one-sided at its ends, interpolated linearly so the damper's rate is continuous (docs/model.md)
+        slopes = []
+        for ks, es in zip(self.k_pairs, self.e_pairs):
+            sl = np.zeros_like(es)
+            for j in range(es.size):
+                jm, jp = (j - 1) % es.size, (j + 1) % es.size
+                if ks[j] <= 0.0:
+                    continue
+                if ks[jm] > 0.0 and ks[jp] > 0.0:
+                    sl[j] = 0.5 * (es[jp] - es[jm])
+                elif ks[jp] > 0.0:
+                    sl[j] = es[jp] - es[j]
+                elif ks[jm] > 0.0:
+                    sl[j] = es[j] - es[jm]
+            slopes.append(sl)
+        self.de_pairs = np.array(slopes)
         N, D = self.N, self.D
         psi = TWO_PI * np.arange(N) / N
         self.cps, self.sps = np.cos(psi), np.sin(psi)
@@ -98,24 +121,29 @@ class ReferenceRHS:
         j0 = np.minimum(x.astype(np.int64), nt - 1)
         fr = x - j0
         j1 = (j0 + 1) % nt
-        km = self.k_table[j0] + fr * (self.k_table[j1] - self.k_table[j0])
         rb1, rb2 = P[mdl.I_RB1], P[mdl.I_RB2]
         d = (q[0] * self.sap + q[1] * self.cap + rb1 * q[2]
              - q[ip] * self.sa - q[ip + 1] * self.ca + rb2 * q[ip + 2])
         dd = (v[0] * self.sap + v[1] * self.cap + rb1 * v[2]
               - v[ip] * self.sa - v[ip + 1] * self.ca + rb2 * v[ip + 2])
-        if self.e_table is not None:
-            e0 = self.e_table[j0]
-            de = self.e_table[j1] - e0
-            d = d - (e0 + fr * de)
-            if not frozen:
-                dd = dd - P[mdl.I_WREL] * nt / TWO_PI * de
-        hb, cm = P[mdl.I_HALF_BACKLASH], P[mdl.I_CMESH]
-        if bil != 0.0:
-            F = km * (d - bil * hb) + cm * dd
+        hb = P[mdl.I_HALF_BACKLASH]
+        if bil != 0.0:  # linearised: nominal TVMS and load-shared separation, no damping in the mesh
+            km = self.k_table[j0] + fr * (self.k_table[j1] - self.k_table[j0])
+            e_ = self.e_table[j0] + fr * (self.e_table[j1] - self.e_table[j0])
+            F = km * (d - e_ - bil * hb)
         else:
-            g = d - np.sign(d) * hb  # dead zone: teeth apart while |delta| <= b/2
-            F = np.where(np.abs(d) > hb, km * g + cm * dd, 0.0)
+            F = np.zeros(N)
+            for ks, es, cs, ds in zip(self.k_pairs, self.e_pairs, self.c_pairs, self.de_pairs):
+                k_ = ks[j0] + fr * (ks[j1] - ks[j0])
+                c_ = cs[j0] + fr * (cs[j1] - cs[j0])
+                g = d - (es[j0] + fr * (es[j1] - es[j0]))
+                gd = dd - (0.0 if frozen else P[mdl.I_WREL] * nt / TWO_PI * (ds[j0] + fr * (ds[j1] - ds[j0])))
+                # the damper grows linearly over the first 1/iramp of approach (Hunt & Crossley), never pulls
+                ramp_in = np.minimum((g - hb) * self.iramp, 1.0)
+                ramp_back = np.maximum((g + hb) * self.iramp, -1.0)
+                push = np.maximum(k_ * (g - hb) + c_ * ramp_in * gd, 0.0)  # drive flank: pushes, never pulls
+                pull = np.minimum(k_ * (g + hb) - c_ * ramp_back * gd, 0.0)  # back flank
+                F += np.where(g > hb, push, np.where(g < -hb, pull, 0.0))
         Q[0] -= np.sum(F * self.sap)
         Q[1] -= np.sum(F * self.cap)
         Q[2] -= np.sum(F) * rb1
@@ -177,7 +205,7 @@ class ReferenceRHS:
         Fp = P[mdl.I_KPIN] * delta + P[mdl.I_CPIN] * rate
         rr = P[mdl.I_ZP] / P[mdl.I_ZC]
         if bil == 0.0:
-            Fp = np.where(delta > 0.0, Fp, 0.0)
+            Fp = np.where(delta > 0.0, np.maximum(Fp, 0.0), 0.0)  # compression only; the damper never pulls
         sx, sy, sm = np.sum(Fp * nx, axis=1), np.sum(Fp * ny, axis=1), np.sum(Fp * lk, axis=1)
         Q[idd] -= cb * sx - sb * sy
         Q[idd + 1] -= sb * sx + cb * sy

@@ -33,14 +33,20 @@ DEFAULT_PARAMS_NAME = "rv20e.toml"
 
 
 def _positive(**kw: Any) -> Any:
+    if "default" in kw:
+        return field(default=kw.pop("default"), metadata={"check": "positive", **kw})
     return field(metadata={"check": "positive", **kw})
 
 
 def _nonnegative(**kw: Any) -> Any:
+    if "default" in kw:
+        return field(default=kw.pop("default"), metadata={"check": "nonnegative", **kw})
     return field(metadata={"check": "nonnegative", **kw})
 
 
 def _any(**kw: Any) -> Any:
+    if "default" in kw:
+        return field(default=kw.pop("default"), metadata={"check": "any", **kw})
     return field(metadata={"check": "any", **kw})
 
 
@@ -173,6 +179,46 @@ class Operation:
     motor_pole_pairs: int = _positive()
 
 
+@dataclass(frozen=True)
+class Modification:
+    """Flank design and accuracy of the sun-planet stage (:mod:`rvdiag.gears.modification`).
+
+    Relief amounts and lengths in m along the line of action; ``relief_exponent`` 1 (linear) or 2
+    (parabolic); ``iso1328_grade`` the ISO 1328-1:2013 flank tolerance class of both gears (0: perfect
+    involutes, no pitch or profile error); ``error_seed`` seeds the drawn pitch deviations.
+    """
+
+    tip_relief_sun: float = _nonnegative(default=1.0e-6)
+    tip_relief_planet: float = _nonnegative(default=1.0e-6)
+    tip_relief_length: float = _nonnegative(default=1.6e-3)
+    root_relief_sun: float = _nonnegative(default=0.0)
+    root_relief_planet: float = _nonnegative(default=0.0)
+    root_relief_length: float = _nonnegative(default=0.0)
+    relief_exponent: int = _positive(default=2)
+    iso1328_grade: int = _nonnegative(default=5)
+    error_seed: int = _nonnegative(default=0)
+
+
+@dataclass(frozen=True)
+class Mounting:
+    """What the pin wheel (housing) carries and how the sensor sees it.
+
+    ``housing_added_mass`` (kg) is the mass moving with the pin wheel beyond the ring derived from
+    [bodies]: the reducer's housing shell, flanges and the share of the robot link bolted to it; its
+    inertia is taken at the pin-wheel outer radius (thin ring).  The sensor path is a linear filter
+    between housing and accelerometer (:mod:`rvdiag.dynamics.transfer`): one structural resonance at
+    ``path_resonance_hz`` with damping ratio ``path_damping_ratio`` (0 Hz: none) and the accelerometer's
+    low-pass ``sensor_cutoff_hz`` (0: none).  Defaults: 6 kg added (the RV-20E weighs 4.7 kg [Nabtesco
+    RV-E catalogue], of which the derived ring is 1.8 kg, plus an assumed 3 kg of robot-link flange), no
+    path resonance, and the 10 kHz upper band limit of an industrial ICP accelerometer (+-3 dB).
+    """
+
+    housing_added_mass: float = _nonnegative(default=6.0)
+    path_resonance_hz: float = _nonnegative(default=0.0)
+    path_damping_ratio: float = _positive(default=0.05)
+    sensor_cutoff_hz: float = _nonnegative(default=10000.0)
+
+
 _SECTIONS: dict[str, type] = {
     "stage1": Stage1,
     "stage2": Stage2,
@@ -181,7 +227,11 @@ _SECTIONS: dict[str, type] = {
     "bearings": Bearings,
     "damping": Damping,
     "operation": Operation,
+    "modification": Modification,
+    "mounting": Mounting,
 }
+#: sections added after the first parameter files: a file without them takes every default of the section
+OPTIONAL_SECTIONS = ("modification", "mounting")
 
 
 @dataclass(frozen=True)
@@ -199,6 +249,8 @@ class ReducerParams:
     bearings: Bearings
     damping: Damping
     operation: Operation
+    modification: Modification = field(default_factory=Modification)
+    mounting: Mounting = field(default_factory=Mounting)
     source: str = field(default="", compare=False)
 
     # ------------------------------------------------------------------ derived kinematics
@@ -232,6 +284,9 @@ class ReducerParams:
             raise ConfigError(f"{source}: unknown section or key {sorted(unknown)[0]!r}")
         sections = {}
         for name, section_cls in _SECTIONS.items():
+            if name not in data and name in OPTIONAL_SECTIONS:
+                sections[name] = section_cls()
+                continue
             if name not in data:
                 raise ConfigError(f"{source}: missing section [{name}]")
             sections[name] = _build_section(section_cls, data[name], f"{source} [{name}]")
@@ -279,6 +334,9 @@ def _build_section(section_cls: type, values: Any, where: str) -> Any:
         raise ConfigError(f"{where}: unknown key {sorted(unknown)[0]!r}")
     kwargs = {}
     for name, f in known.items():
+        if name not in values and f.default is not dataclasses.MISSING:
+            kwargs[name] = f.default
+            continue
         if name not in values:
             raise ConfigError(f"{where}: missing key {name!r}")
         kwargs[name] = _check_value(values[name], f, f"{where} {name}")
@@ -337,6 +395,16 @@ def _check_consistency(p: ReducerParams, source: str) -> None:
         if x < x_min - 1e-12:
             raise ConfigError(
                 f"{source}: [stage1] {key} = {x} undercuts the {z}-tooth gear; it must be >= {x_min:.3f}")
+    md = p.modification
+    if md.relief_exponent not in (1, 2):
+        raise ConfigError(f"{source}: [modification] relief_exponent must be 1 (linear) or 2 (parabolic), "
+                          f"got {md.relief_exponent}")
+    if md.iso1328_grade > 11:
+        raise ConfigError(f"{source}: [modification] iso1328_grade must be 0 (perfect) or 1..11, got {md.iso1328_grade}")
+    if (md.tip_relief_sun or md.tip_relief_planet) and md.tip_relief_length <= 0:
+        raise ConfigError(f"{source}: [modification] a tip relief needs tip_relief_length > 0")
+    if (md.root_relief_sun or md.root_relief_planet) and md.root_relief_length <= 0:
+        raise ConfigError(f"{source}: [modification] a root relief needs root_relief_length > 0")
     if not s2.pins >= 3:
         raise ConfigError(f"{source}: [stage2] pins must be >= 3, got {s2.pins}")
     if not 0.0 <= s2.disc_phase_deg < 360.0:

@@ -1,0 +1,78 @@
+"""The full state of a run at every output sample, and the contact forces it implies.
+
+:func:`rvdiag.dynamics.simulate` returns the sensor signal only.  The plausibility checks of docs/model.md
+(dynamic mesh-force factor, tensile contact force, contact loss) need the forces inside the reducer, so this
+module integrates with the same compiled kernels (:func:`rvdiag.dynamics.integrate.integrate`, one output
+sample per call, so the step grid and therefore the trajectory are those of a normal run) and evaluates the
+sun-planet mesh forces from the recorded states with the same contact law as the kernel.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rvdiag.dynamics import model as mdl
+from rvdiag.dynamics.integrate import integrate
+
+
+@dataclass(frozen=True)
+class Trace:
+    """States ``y`` (samples, 2 n), times ``t`` (s) and the sensor signal (channels, samples) of one run."""
+
+    t: np.ndarray
+    y: np.ndarray
+    signal: np.ndarray
+
+
+def trace(model: mdl.Model, y0: np.ndarray, fs: float, n_samples: int, n_transient: int = 0) -> Trace:
+    """Integrate like :func:`integrate` and keep the state at every recorded sample."""
+    y = np.array(y0, dtype=float, copy=True)
+    if n_transient:
+        _, y = integrate(model, y, fs, 1, n_transient - 1, first_sample=-1)
+    ys = np.empty((n_samples, y.size))
+    sig = np.empty((model.sensor.shape[0], n_samples))
+    for k in range(n_samples):
+        ys[k] = y
+        s, y = integrate(model, y, fs, 1, 0, first_sample=k)
+        sig[:, k] = s[:, 0]
+    return Trace(np.arange(n_samples) / fs, ys, sig)
+
+
+def mesh_forces(model: mdl.Model, t: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Force of every tooth-pair slot of every sun-planet mesh, shape (samples, planets, slots), N.
+
+    The contact law of :func:`rvdiag.dynamics.model.generalized_forces`, evaluated in NumPy from the states:
+    ``max(0, k_s (d - e_s - b) + c_s (d' - e_s'))`` on the drive flank, ``min(0, ...)`` on the back flank.
+    """
+    P = model.P
+    n = model.n_dof
+    N = model.n_planets
+    S = int(P[mdl.I_NSLOT])
+    hb = P[mdl.I_HALF_BACKLASH]
+    out = np.zeros((len(t), N, S))
+    mt = mdl.mesh_array(model)
+    sa, ca, rb1, rb2 = P[mdl.I_SINA], P[mdl.I_COSA], P[mdl.I_RB1], P[mdl.I_RB2]
+    for k, (tk, yk) in enumerate(zip(t, y)):
+        mdl.mesh_terms(float(tk), P, model.tables, mt)
+        for i in range(N):
+            ip = 3 + 3 * i
+            sap, cap = model.planet[i, 2], model.planet[i, 3]
+            d = yk[0] * sap + yk[1] * cap + rb1 * yk[2] - yk[ip] * sa - yk[ip + 1] * ca + rb2 * yk[ip + 2]
+            dd = (yk[n] * sap + yk[n + 1] * cap + rb1 * yk[n + 2] - yk[n + ip] * sa - yk[n + ip + 1] * ca
+                  + rb2 * yk[n + ip + 2])
+            for s in range(S):
+                km, e, ed, c = mt[i, 4 * s:4 * s + 4]
+                g, gd = d - e, dd - ed
+                if g > hb:
+                    out[k, i, s] = max(0.0, km * (g - hb) + c * gd)
+                elif g < -hb:
+                    out[k, i, s] = min(0.0, km * (g + hb) + c * gd)
+    return out
+
+
+def static_mesh_force(model: mdl.Model) -> float:
+    """Static force of one sun-planet mesh (N): the sun torque ``T_L / i`` shared by the planets on the
+    base radius."""
+    return abs(model.P[mdl.I_TLOAD]) / model.extra["ratio"] / (model.n_planets * model.P[mdl.I_RB1])
