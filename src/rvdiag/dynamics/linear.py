@@ -159,11 +159,13 @@ def potential_energy(model: mdl.Model, t: float, q: np.ndarray) -> float:
              - q[p] * np.sin(alpha) - q[p + 1] * np.cos(alpha) + rb2 * q[p + 2])
         if bil != 0:  # linearised: nominal TVMS, load-shared separation
             V += 0.5 * np.interp(phase, grid, ktab) * (d - np.interp(phase, grid, etab) - bil * hb) ** 2
-        else:  # each tooth pair a spring beyond its separation and the half backlash
+        else:  # each tooth pair a spring beyond its separation and the half backlash; back flanks nominal
             for ks, es in zip(pk, pe):
                 g = d - np.interp(phase, grid, es)
-                g = g - hb if g > hb else (g + hb if g < -hb else 0.0)
-                V += 0.5 * np.interp(phase, grid, ks) * g * g
+                if g > hb:
+                    V += 0.5 * np.interp(phase, grid, ks) * (g - hb) ** 2
+            if d < -hb:
+                V += 0.5 * np.interp(phase, grid, ktab) * (d + hb) ** 2
         V += 0.5 * P[mdl.I_KPR] * ((q[p] - q[c]) ** 2 + (q[p + 1] - q[c + 1]) ** 2)
         V += 0.5 * P[mdl.I_KPT] * (q[p + 2] - q[c + 2]) ** 2
         Rm = np.array([[np.cos(psi), -np.sin(psi)], [np.sin(psi), np.cos(psi)]])

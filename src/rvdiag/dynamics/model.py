@@ -760,6 +760,7 @@ def generalized_forces(y, P, planet, mt, geo, rot, Q):
     hb = P[I_HALF_BACKLASH]
     S = int(P[I_NSLOT]) & 255
     iramp = P[I_IRAMP]
+    cm = P[I_CMESH]
     bil = P[I_BILATERAL]
     for i in range(N):
         ip = 3 + 3 * i
@@ -782,7 +783,8 @@ def generalized_forces(y, P, planet, mt, geo, rot, Q):
         vc2 = y[n + ic + 2]
         # mesh approach along the line of action; each tooth pair s touches once it exceeds the pair's
         # separation e_s (relief, errors, wear) plus half the backlash, and then pushes, never pulls:
-        # F_s = max(0, k_s (d - e_s - b) + c_s (d' - e_s')) (Modelica ElastoBacklash; docs/model.md)
+        # F_s = max(0, k_s (d - e_s - b) + c_s (d' - e_s')) (Modelica ElastoBacklash; docs/model.md); the back
+        # flanks meet at d < -b with the nominal TVMS and the mean mesh damper
         d = y[0] * sap + y[1] * cap + rb1 * y[2] - qp0 * sa - qp1 * ca + rb2 * qp2
         dd = y[n] * sap + y[n + 1] * cap + rb1 * y[n + 2] - vp0 * sa - vp1 * ca + rb2 * vp2
         F = 0.0
@@ -800,11 +802,11 @@ def generalized_forces(y, P, planet, mt, geo, rot, Q):
                 f = km * x + cs * min(x * iramp, 1.0) * gd
                 if f > 0.0:
                     F += f
-            elif g < -hb:  # back flank: pulls the other way, never pushes
-                x = g + hb
-                f = km * x - cs * max(x * iramp, -1.0) * gd
-                if f < 0.0:
-                    F += f
+        if bil == 0.0 and d < -hb:  # back flank: the nominal TVMS, no relief (that is on the drive flank)
+            x = d + hb
+            f = mt[i, 4 * S] * x - cm * max(x * iramp, -1.0) * dd
+            if f < 0.0:
+                F += f
         S0 -= F * sap
         S1 -= F * cap
         S2 -= F * rb1

@@ -140,10 +140,13 @@ class ReferenceRHS:
                 gd = dd - (0.0 if frozen else P[mdl.I_WREL] * nt / TWO_PI * (ds[j0] + fr * (ds[j1] - ds[j0])))
                 # the damper grows linearly over the first 1/iramp of approach (Hunt & Crossley), never pulls
                 ramp_in = np.minimum((g - hb) * self.iramp, 1.0)
-                ramp_back = np.maximum((g + hb) * self.iramp, -1.0)
                 push = np.maximum(k_ * (g - hb) + c_ * ramp_in * gd, 0.0)  # drive flank: pushes, never pulls
-                pull = np.minimum(k_ * (g + hb) - c_ * ramp_back * gd, 0.0)  # back flank
-                F += np.where(g > hb, push, np.where(g < -hb, pull, 0.0))
+                F += np.where(g > hb, push, 0.0)
+            # back flanks: nominal TVMS without relief, the mean mesh damper, never push
+            km = self.k_table[j0] + fr * (self.k_table[j1] - self.k_table[j0])
+            ramp_back = np.maximum((d + hb) * self.iramp, -1.0)
+            pull = np.minimum(km * (d + hb) - P[mdl.I_CMESH] * ramp_back * dd, 0.0)
+            F += np.where(d < -hb, pull, 0.0)
         Q[0] -= np.sum(F * self.sap)
         Q[1] -= np.sum(F * self.cap)
         Q[2] -= np.sum(F) * rb1

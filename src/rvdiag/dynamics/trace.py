@@ -44,7 +44,8 @@ def mesh_forces(model: mdl.Model, t: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Force of every tooth-pair slot of every sun-planet mesh, shape (samples, planets, slots), N.
 
     The contact law of :func:`rvdiag.dynamics.model.generalized_forces`, evaluated in NumPy from the states:
-    ``max(0, k_s (d - e_s - b) + c_s (d' - e_s'))`` on the drive flank, ``min(0, ...)`` on the back flank.
+    ``max(0, k_s (d - e_s - b) + c_s (d' - e_s'))`` on the drive flank (damper ramped in over the first
+    ``MESH_DAMPING_RAMP_M``), and the back flank's nominal-TVMS force (negative) added to slot 0.
     """
     P = model.P
     n = model.n_dof
@@ -62,13 +63,14 @@ def mesh_forces(model: mdl.Model, t: np.ndarray, y: np.ndarray) -> np.ndarray:
             d = yk[0] * sap + yk[1] * cap + rb1 * yk[2] - yk[ip] * sa - yk[ip + 1] * ca + rb2 * yk[ip + 2]
             dd = (yk[n] * sap + yk[n + 1] * cap + rb1 * yk[n + 2] - yk[n + ip] * sa - yk[n + ip + 1] * ca
                   + rb2 * yk[n + ip + 2])
+            iramp, cm = P[mdl.I_IRAMP], P[mdl.I_CMESH]
             for s in range(S):
                 km, e, ed, c = mt[i, 4 * s:4 * s + 4]
                 g, gd = d - e, dd - ed
                 if g > hb:
-                    out[k, i, s] = max(0.0, km * (g - hb) + c * gd)
-                elif g < -hb:
-                    out[k, i, s] = min(0.0, km * (g + hb) + c * gd)
+                    out[k, i, s] = max(0.0, km * (g - hb) + c * min((g - hb) * iramp, 1.0) * gd)
+            if d < -hb:  # back flank, reported in slot 0
+                out[k, i, 0] += min(0.0, mt[i, 4 * S] * (d + hb) - cm * max((d + hb) * iramp, -1.0) * dd)
     return out
 
 
