@@ -3,7 +3,8 @@
 For each output speed and load, noise-free, on the signal ``rvdiag simulate`` writes (channel x): RMS, crest
 factor and kurtosis of T1 (healthy), a broken tooth (fraction 1.0 and 0.5), 20 um of wear and a 2 mm root crack,
 their ratios to healthy, the share of the acceleration energy above 10 kHz, and the dynamic mesh-force factor
-(largest mesh force over the static one) with the smallest mesh force (negative: a tensile force).
+(largest ratio of a mesh force to its quasi-static value at the same angle, :func:`dynamic_mesh_factor`) with the
+smallest mesh force over the static mean (0: contact lost; negative: back-flank contact).
 
 The bounds (docs/model.md): healthy kurtosis 3-25 and crest <= 10 (real RV reducers on a robot: kurtosis median
 8-21, crest 5.7-9.1); broken tooth RMS 0.6-2.0x healthy, kurtosis <= 3x healthy, crest <= 12 (a real gearbox
@@ -22,7 +23,7 @@ import numpy as np
 from scipy.stats import kurtosis
 
 from rvdiag.dynamics import ModelSettings, initial_deflection, prepare, simulate
-from rvdiag.dynamics.trace import mesh_forces, static_mesh_force, trace
+from rvdiag.dynamics.trace import dynamic_mesh_factor, trace
 from rvdiag.gears import BrokenTooth, RootCrack, ToothFaults, Wear
 from rvdiag.params import ReducerParams
 
@@ -48,9 +49,7 @@ def mesh_factor(params, fault, speed, load, fs=48000.0, seconds=0.1):
     m = prepare(params, fault, output_speed_deg_s=speed, load_Nm=load)
     q0, _ = initial_deflection(m, -0.1)
     tr = trace(m, np.concatenate([q0, 0 * q0]), fs, int(seconds * fs), int(0.1 * fs))
-    F = mesh_forces(m, tr.t, tr.y).sum(axis=2)
-    f0 = static_mesh_force(m)
-    return float(F.max() / f0), float(F.min() / f0)
+    return dynamic_mesh_factor(m, tr)
 
 
 def main() -> None:

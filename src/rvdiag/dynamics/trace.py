@@ -78,3 +78,30 @@ def static_mesh_force(model: mdl.Model) -> float:
     """Static force of one sun-planet mesh (N): the sun torque ``T_L / i`` shared by the planets on the
     base radius."""
     return abs(model.P[mdl.I_TLOAD]) / model.extra["ratio"] / (model.n_planets * model.P[mdl.I_RB1])
+
+
+def quasi_static_mesh_forces(model: mdl.Model, t: np.ndarray) -> np.ndarray:
+    """Mesh forces of the static solution at each time (samples, planets, slots), N: the load each mesh would
+    carry at that angle at vanishing speed, with the same tooth-pair separations.  The dynamic mesh-force
+    factor compares the dynamic forces with these, so that uneven load sharing between planets (pitch errors
+    make one planet carry more at low load) is not counted as dynamics."""
+    from rvdiag.dynamics.linear import static_equilibrium
+
+    out = np.zeros((len(t), model.n_planets, int(model.P[mdl.I_NSLOT])))
+    for k, tk in enumerate(t):
+        q = static_equilibrium(model, float(tk))
+        out[k] = mesh_forces(model, np.array([tk]), np.concatenate([q, np.zeros_like(q)])[None, :])[0]
+    return out
+
+
+def dynamic_mesh_factor(model: mdl.Model, tr: Trace, every: int = 8) -> tuple[float, float]:
+    """``(factor, smallest)``: the largest ratio of a mesh's dynamic force to its quasi-static force at the same
+    time (over samples ``every`` apart, where the quasi-static force exceeds 20 % of the static mean), and the
+    smallest dynamic mesh force over the static mean (0: that mesh lost contact; negative: back-flank contact)."""
+    F = mesh_forces(model, tr.t, tr.y).sum(axis=2)
+    f0 = static_mesh_force(model)
+    idx = np.arange(0, len(tr.t), max(1, int(every)))
+    Fq = quasi_static_mesh_forces(model, tr.t[idx]).sum(axis=2)
+    ok = Fq > 0.2 * f0
+    factor = float(np.max(F[idx][ok] / Fq[ok])) if ok.any() else float("nan")
+    return factor, float(F.min() / f0)
