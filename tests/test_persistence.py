@@ -132,3 +132,54 @@ def test_model_trained_for_cuda_predicts_on_cpu(cnn_dir, tmp_path):
     loaded = load_model(d)
     np.testing.assert_allclose(loaded.estimator.predict_proba(cnn_dir[2][:3]),
                                cnn_dir[1].predict_proba(cnn_dir[2][:3]), rtol=1e-4, atol=1e-6)
+
+
+_SAVE = """
+import sys
+import numpy as np
+from rvdiag.models.persistence import save_model
+from rvdiag.models.pipelines import make_classical_model
+from rvdiag.models.torch_estimator import CNNClassifier
+model, features, out = sys.argv[1:4]
+rng = np.random.default_rng(0)
+X = rng.standard_normal((32, 256)); X[16:, ::8] += 3.0
+y = np.array(["A"] * 16 + ["B"] * 16)
+if features == "-":
+    est = CNNClassifier(max_epochs=1, device="cpu", random_state=0).fit(X, y)
+    save_model(est, out, model=model, seed=0)
+else:
+    kw = {"max_epochs": 1, "device": "cpu"} if features == "cnn" else {}
+    est = make_classical_model(model, features, features_kw=kw).fit(X, y)
+    save_model(est, out, model=model, features=features, seed=0)
+np.save(out + "/expected.npy", est.predict_proba(X))
+np.save(out + "/X.npy", X)
+"""
+
+_LOAD = """
+import os, sys
+import numpy as np
+out = sys.argv[1]
+if os.path.exists(out + "/model.skops"):  # a classical model: the low-level loader first, nothing else imported
+    from rvdiag.models.pipelines import load_classical
+    load_classical(out)
+from rvdiag.models.persistence import load_model
+m = load_model(out)
+np.testing.assert_allclose(m.estimator.predict_proba(np.load(out + "/X.npy")), np.load(out + "/expected.npy"),
+                           rtol=1e-5, atol=1e-7)
+print(m.card["kind"], m.card["model"], m.card["features"])
+"""
+
+
+@pytest.mark.parametrize("model,features", [("svm", "cnn"), ("kelm", "time"), ("cnn1d-lean", "-")])
+def test_a_fresh_interpreter_loads_what_another_saved(tmp_path, model, features):
+    """Save in one process, load in another: nothing the loader needs may depend on what was imported before
+    (an svm + cnn model was refused as 'untrusted' by a fresh interpreter)."""
+    import subprocess
+    import sys
+
+    out = str(tmp_path / "m")
+    for code, args in ((_SAVE, [model, features, out]), (_LOAD, [out])):
+        r = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=600)
+        assert r.returncode == 0, r.stderr[-3000:]
+    assert r.stdout.split() == [("cnn" if features == "-" else "classical"), model,
+                                ("None" if features == "-" else features)]

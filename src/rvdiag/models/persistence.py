@@ -222,7 +222,6 @@ def load_model(directory: str | Path) -> LoadedModel:
     d = Path(directory)
     card = read_card(d)
     if card["kind"] == "classical":
-        import rvdiag.features.cnn  # noqa: F401  registers CNNFeatures as a trusted type
         from rvdiag.models.pipelines import load_classical
 
         est = load_classical(d)

@@ -18,11 +18,13 @@ kelm-ga    ... with a genetic algorithm
 kelm-pso   ... with particle swarm optimisation   (EEMD-MPA-KELM seed paper and its comparisons)
 =========  =====================================================================================
 
-and feature names of :func:`rvdiag.features.make_features` (``time|spectrum|wpd|eemd|none``, ``cnn``).
+and the feature-set names of :func:`feature_names`: those of :func:`rvdiag.features.make_features`
+(``time|spectrum|logspec|wpd|eemd|none``) plus ``cnn`` (:class:`rvdiag.models.cnn_features.CNNFeatures`).
 
 Persistence: :func:`save_classical` writes ``model.skops`` (``skops.io``) and ``card.json``;
 :func:`load_classical` refuses any type that is not on an explicit trusted list (:data:`TRUSTED_TYPES`) and
-never unpickles: skops reconstructs objects from a JSON schema without running ``pickle``.
+never unpickles: skops reconstructs objects from a JSON schema without running ``pickle``.  The trusted
+list lives in :mod:`rvdiag.registry`, below every layer, so it does not depend on what was imported before.
 """
 
 from __future__ import annotations
@@ -38,63 +40,36 @@ from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
 
+from rvdiag import features as _features
 from rvdiag.errors import ModelFileError, ParameterError
-from rvdiag.features import make_features
+from rvdiag.models.cnn_features import CNNFeatures
 from rvdiag.models.kelm import KELMClassifier
 from rvdiag.models.tuning import OPTIMIZERS, TunedKELM
+from rvdiag.registry import TRUSTED_TYPES, register_trusted_type  # noqa: F401  (public names, re-exported)
 
 MODEL_NAMES = ("svm", "kelm", "kelm-mpa", "kelm-ga", "kelm-pso")
 CARD_FORMAT = "rvdiag-classical-model"
 CARD_VERSION = 1
 
-#: Types a saved classical model may contain (skops type names); nothing else is loaded.
-TRUSTED_TYPES: set[str] = {
-    "rvdiag.features.RawSignal",
-    "rvdiag.features.timedomain.TimeDomainFeatures",
-    "rvdiag.features.spectrum.SpectrumFeatures",
-    "rvdiag.features.spectrum.CharacteristicBandEnergy",
-    "rvdiag.features.spectrum.EnvelopeSpectrumFeatures",
-    "rvdiag.features.wavelet.WaveletPacketEnergy",
-    "rvdiag.features.bearing.BearingEnvelopeFeatures",
-    "rvdiag.features.eemd.EEMDFeatures",
-    "rvdiag.models.kelm.KELMClassifier",
-    "rvdiag.models.tuning.TunedKELM",
-    "sklearn.pipeline.Pipeline",
-    "sklearn.preprocessing._data.StandardScaler",
-    "sklearn.svm._classes.SVC",
-    "sklearn.model_selection._search.GridSearchCV",
-    "sklearn.model_selection._split.StratifiedKFold",
-    "sklearn.metrics._scorer._PassthroughScorer",
-    "sklearn.calibration.CalibratedClassifierCV",
-    "sklearn.calibration._CalibratedClassifier",
-    "sklearn.calibration._SigmoidCalibration",
-    "sklearn.preprocessing._label.LabelEncoder",
-    "sklearn.preprocessing._label.LabelBinarizer",
-    "sklearn.utils._bunch.Bunch",
-    "numpy.ma.core.MaskedArray",
-    "numpy.ma.core.MaskedConstant",
-    "numpy.float64",
-    "numpy.int64",
-    "numpy.int32",
-    "numpy.bool_",
-    "numpy.str_",
-    "numpy.ndarray",
-    "numpy.dtype",
-    "builtins.slice",
-    "builtins.tuple",
-    "builtins.dict",
-    "builtins.list",
-    "builtins.int",
-    "builtins.float",
-    "builtins.str",
-    "builtins.bool",
-    "builtins.NoneType",
-}
+#: Feature sets of the models layer, on top of :func:`rvdiag.features.feature_names`.
+MODEL_FEATURE_SETS = {"cnn": CNNFeatures}
 
 
-def register_trusted_type(name: str) -> None:
-    """Allow another type (its skops name, e.g. ``'rvdiag.models.cnn.CNNFeatures'``) in saved models."""
-    TRUSTED_TYPES.add(name)
+def feature_names() -> list[str]:
+    """Every ``features`` name :func:`make_classical_model` takes (signal feature sets and ``cnn``)."""
+    return sorted(set(_features.feature_names()) | set(MODEL_FEATURE_SETS))
+
+
+def make_feature_set(name: str, **kw):
+    """A new, unfitted feature transformer by name (:func:`feature_names`); ``kw`` go to its constructor."""
+    if name not in MODEL_FEATURE_SETS:
+        if name not in _features.feature_names():
+            raise ParameterError(f"unknown feature set {name!r}; use one of {'|'.join(feature_names())}")
+        return _features.make_features(name, **kw)
+    try:
+        return MODEL_FEATURE_SETS[name](**kw)
+    except TypeError as exc:
+        raise ParameterError(f"bad options for feature set {name!r}: {exc}") from None
 
 
 def _classifier(model: str, seed: int, grid: bool, model_kw: dict):
@@ -139,7 +114,7 @@ def make_classical_model(model: str, features: str, *, features_kw: dict | None 
     except TypeError as exc:
         raise ParameterError(f"bad options for model {model!r}: {exc}") from None
     return Pipeline([
-        ("features", make_features(features, **dict(features_kw or {}))),
+        ("features", make_feature_set(features, **dict(features_kw or {}))),
         ("scale", StandardScaler()),
         ("clf", clf),
     ])
