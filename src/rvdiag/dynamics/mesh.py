@@ -13,8 +13,9 @@ Two sources of tables:
 - :func:`rectangular_mesh_table`: a stand-in square wave from the contact ratio, single-pair stiffness
   ``k_pair`` in single contact and ``2 k_pair`` in double contact (the classical approximation of the TVMS,
   e.g. Lin & Parker 1999 and Kahraman 1994), with tooth faults as a stiffness factor per sun tooth
-  (a broken tooth carries nothing: factor 0, REFERENCE.md section 3).  Used in tests and when the gears
-  package is not installed.
+  (a broken tooth carries nothing: factor 0, REFERENCE.md section 3).  Used in tests and only when asked
+  for: the gears package is part of rvdiag and imported unconditionally, so the physics never falls back
+  to this stand-in silently.
 
 A table may also carry the mesh profile deviation ``error_m`` (wear), which the model subtracts from the
 mesh deflection as a transmission-error excitation (docs/model.md, "Fault sensitivity").
@@ -29,6 +30,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from rvdiag.errors import ParameterError
+from rvdiag.gears import GearPair, mesh_stiffness
 from rvdiag.params import ReducerParams
 
 TWO_PI = 2.0 * math.pi
@@ -164,15 +166,6 @@ def rectangular_mesh_table(
     return MeshTable(phi, k, TWO_PI, source=f"rectangular(eps={eps:.4f}, k_pair={kp:.4g})")
 
 
-def gears_available() -> bool:
-    """True when :func:`rvdiag.gears.mesh_stiffness` can be imported."""
-    try:
-        from rvdiag.gears import mesh_stiffness  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
 def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_cycle: int = 360) -> MeshTable:
     """Potential-energy TVMS of :mod:`rvdiag.gears` over one relative sun revolution (Z1 mesh cycles).
 
@@ -181,8 +174,6 @@ def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_c
     along the line of action, ``sum k_i e_i / sum k_i`` over the pairs in contact; zero when healthy
     and at the pitch point, docs/tvms.md section 3).
     """
-    from rvdiag.gears import GearPair, mesh_stiffness
-
     pair = GearPair.sun_planet(params)
     z1 = params.stage1.sun_teeth
     if fault is not None and getattr(fault, "is_healthy", False):
