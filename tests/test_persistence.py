@@ -183,3 +183,40 @@ def test_a_fresh_interpreter_loads_what_another_saved(tmp_path, model, features)
         assert r.returncode == 0, r.stderr[-3000:]
     assert r.stdout.split() == [("cnn" if features == "-" else "classical"), model,
                                 ("None" if features == "-" else features)]
+
+
+def test_one_card_format_and_one_reader(cnn_dir, tmp_path):
+    """CNN and classical cards share the format, the version and the top-level fields; one function reads both."""
+    import rvdiag.models.card as card_mod
+    import rvdiag.models.persistence as persistence
+    import rvdiag.models.pipelines as pipelines
+    from rvdiag.models.pipelines import make_classical_model
+
+    assert persistence.read_card is card_mod.read_card and pipelines.read_card is card_mod.read_card
+    X, y = _data(L=64)
+    d = save_model(make_classical_model("kelm", "time").fit(X, y), tmp_path / "k", model="kelm", features="time",
+                   seed=3)
+    cards = [json.loads((p / "card.json").read_text()) for p in (cnn_dir[0], d)]
+    common = {"format", "version", "kind", "model", "features", "classes", "input_length", "fs", "preprocessing",
+              "training_store", "metrics", "seed", "rvdiag_version", "created"}
+    for c, kind in zip(cards, ("cnn", "classical")):
+        assert (c["format"], c["version"], c["kind"]) == ("rvdiag-model", 1, kind)
+        assert common <= set(c) and "metadata" not in c
+    assert cards[1]["classes"] == ["A", "B"] and cards[1]["input_length"] == 64 and cards[1]["seed"] == 3
+    assert cards[1]["estimator"] == "sklearn.pipeline.Pipeline" and "skops_version" in cards[1]
+
+
+def test_former_classical_card_format_is_refused_with_a_remedy(tmp_path):
+    d = tmp_path / "old"
+    d.mkdir()
+    (d / "card.json").write_text(json.dumps({"format": "rvdiag-classical-model", "version": 1,
+                                             "metadata": {"kind": "classical", "classes": ["A", "B"]}}))
+    with pytest.raises(ModelFileError, match="retrain"):
+        load_model(d)
+
+
+def test_each_loader_refuses_the_other_kind(cnn_dir):
+    from rvdiag.models.pipelines import load_classical
+
+    with pytest.raises(ModelFileError, match="not a classical model"):
+        load_classical(cnn_dir[0])
