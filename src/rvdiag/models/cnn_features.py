@@ -107,9 +107,10 @@ class CNNFeatures(TransformerMixin, BaseEstimator):
     def transform(self, X):
         """FC-layer activations averaged over each sample's windows, shape (n, 32)."""
         check_is_fitted(self, "weights_")
-        A = as_signal_matrix(X)
+        A = as_signal_matrix(X, 1)
         if A.shape[1] != self.n_features_in_:
-            raise ParameterError(f"windows of {A.shape[1]} points, the cnn features were fitted on {self.n_features_in_}")
+            raise ParameterError(f"X has {A.shape[1]} features, but CNNFeatures is expecting {self.n_features_in_} "
+                                 f"features as input (windows of {A.shape[1]} points, fitted on {self.n_features_in_})")
         return self._restore().embed(A.astype(np.float32)).astype(np.float64)
 
     def get_feature_names_out(self, input_features=None):

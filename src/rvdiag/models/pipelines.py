@@ -81,7 +81,7 @@ def _classifier(model: str, seed: int, grid: bool, model_kw: dict):
     if model == "kelm":
         return KELMClassifier(**model_kw)
     name = model.split("-", 1)[1]
-    kw = {"optimizer": name, "seed": seed}
+    kw = {"optimizer": name, "random_state": seed}
     kw.update(model_kw)
     return TunedKELM(**kw)
 
@@ -99,7 +99,7 @@ def make_classical_model(model: str, features: str, *, features_kw: dict | None 
     model_kw : dict
         Arguments of the classifier (SVC, KELMClassifier or TunedKELM, e.g. ``{"epoch": 30}``).
     seed : int
-        Seed of the SVM's probability calibration, the CV folds and the optimisers.
+        The ``random_state`` of the SVM, its CV folds and the tuners (``rvdiag train --seed``).
     grid : bool
         SVM only: choose C by a small cross-validated grid.
     """
