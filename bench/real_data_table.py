@@ -208,7 +208,7 @@ def fit_predict(model: str, Ftr, ytr, Fte, seed: int, opts) -> tuple[np.ndarray,
         else:
             sub = np.arange(len(ytr))
         tuner = TunedKELM(optimizer=model.split("-", 1)[1], epoch=opts.tune_epoch, pop_size=opts.tune_pop,
-                          cv=3, seed=seed).fit(Ztr[sub], ytr[sub])
+                          cv=3, random_state=seed).fit(Ztr[sub], ytr[sub])
         info = {"C": tuner.best_params_["C"], "sigma": tuner.best_params_["sigma"],
                 "cv_acc": float(tuner.best_score_), "evals": int(tuner.n_evaluations_)}
         clf = KELMClassifier(**tuner.best_params_).fit(Ztr, ytr)

@@ -105,7 +105,7 @@ def test_eemd_bad_parameters():
 def test_eemd_features_transformer():
     rng = np.random.default_rng(0)
     Xs = np.vstack([X, 2 * X, X + 0.5 * rng.standard_normal(N)])
-    tr = EEMDFeatures(ensemble_size=4, seed=0)
+    tr = EEMDFeatures(ensemble_size=4, random_state=0)
     F = tr.fit_transform(Xs)
     assert F.shape == (3, 6)
     assert list(tr.get_feature_names_out())[0] == "eemd_imf1_mean_abs"
@@ -115,7 +115,7 @@ def test_eemd_features_transformer():
     assert F[2, 0] > 3 * F[0, 0]
     # batch independence and threads give the same numbers
     assert_allclose(tr.transform(Xs[2:]), F[2:])
-    assert_allclose(EEMDFeatures(ensemble_size=4, seed=0, n_jobs=2).fit_transform(Xs), F)
+    assert_allclose(EEMDFeatures(ensemble_size=4, random_state=0, n_jobs=2).fit_transform(Xs), F)
     # relative features are level-free
     R = EEMDFeatures(ensemble_size=4, relative=True).fit_transform(Xs[:2])
     assert_allclose(R[0], R[1], rtol=1e-9)

@@ -319,7 +319,6 @@ def test_bad_build_arguments(tmp_path):
 
 def test_real_simulator_library(tmp_path):
     """A small paper-mode library on the 26-DOF dynamic model: six states, faults change the signal."""
-    pytest.importorskip("rvdiag.dynamics")
     data = {
         "mode": "paper", "seed": 1, "model": {"substeps": 4},
         "signal": {"fs": 48000.0, "duration_s": 0.09, "transient_s": 0.02, "segment_length": 1080, "hop": 1080},

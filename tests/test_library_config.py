@@ -58,7 +58,6 @@ def test_six_states_and_their_severities():
 
 def test_states_map_to_gear_faults_by_kind():
     """T2 broken, T3 wear, T4 crack (the issue's numbering), whatever the gear module's own labels."""
-    pytest.importorskip("rvdiag.gears")
     from rvdiag.gears import BrokenTooth, RootCrack
 
     assert tooth_faults("T1") is None

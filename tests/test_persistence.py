@@ -132,3 +132,91 @@ def test_model_trained_for_cuda_predicts_on_cpu(cnn_dir, tmp_path):
     loaded = load_model(d)
     np.testing.assert_allclose(loaded.estimator.predict_proba(cnn_dir[2][:3]),
                                cnn_dir[1].predict_proba(cnn_dir[2][:3]), rtol=1e-4, atol=1e-6)
+
+
+_SAVE = """
+import sys
+import numpy as np
+from rvdiag.models.persistence import save_model
+from rvdiag.models.pipelines import make_classical_model
+from rvdiag.models.torch_estimator import CNNClassifier
+model, features, out = sys.argv[1:4]
+rng = np.random.default_rng(0)
+X = rng.standard_normal((32, 256)); X[16:, ::8] += 3.0
+y = np.array(["A"] * 16 + ["B"] * 16)
+if features == "-":
+    est = CNNClassifier(max_epochs=1, device="cpu", random_state=0).fit(X, y)
+    save_model(est, out, model=model, seed=0)
+else:
+    kw = {"max_epochs": 1, "device": "cpu"} if features == "cnn" else {}
+    est = make_classical_model(model, features, features_kw=kw).fit(X, y)
+    save_model(est, out, model=model, features=features, seed=0)
+np.save(out + "/expected.npy", est.predict_proba(X))
+np.save(out + "/X.npy", X)
+"""
+
+_LOAD = """
+import os, sys
+import numpy as np
+out = sys.argv[1]
+if os.path.exists(out + "/model.skops"):  # a classical model: the low-level loader first, nothing else imported
+    from rvdiag.models.pipelines import load_classical
+    load_classical(out)
+from rvdiag.models.persistence import load_model
+m = load_model(out)
+np.testing.assert_allclose(m.estimator.predict_proba(np.load(out + "/X.npy")), np.load(out + "/expected.npy"),
+                           rtol=1e-5, atol=1e-7)
+print(m.card["kind"], m.card["model"], m.card["features"])
+"""
+
+
+@pytest.mark.parametrize("model,features", [("svm", "cnn"), ("kelm", "time"), ("cnn1d-lean", "-")])
+def test_a_fresh_interpreter_loads_what_another_saved(tmp_path, model, features):
+    """Save in one process, load in another: nothing the loader needs may depend on what was imported before
+    (an svm + cnn model was refused as 'untrusted' by a fresh interpreter)."""
+    import subprocess
+    import sys
+
+    out = str(tmp_path / "m")
+    for code, args in ((_SAVE, [model, features, out]), (_LOAD, [out])):
+        r = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=600)
+        assert r.returncode == 0, r.stderr[-3000:]
+    assert r.stdout.split() == [("cnn" if features == "-" else "classical"), model,
+                                ("None" if features == "-" else features)]
+
+
+def test_one_card_format_and_one_reader(cnn_dir, tmp_path):
+    """CNN and classical cards share the format, the version and the top-level fields; one function reads both."""
+    import rvdiag.models.card as card_mod
+    import rvdiag.models.persistence as persistence
+    import rvdiag.models.pipelines as pipelines
+    from rvdiag.models.pipelines import make_classical_model
+
+    assert persistence.read_card is card_mod.read_card and pipelines.read_card is card_mod.read_card
+    X, y = _data(L=64)
+    d = save_model(make_classical_model("kelm", "time").fit(X, y), tmp_path / "k", model="kelm", features="time",
+                   seed=3)
+    cards = [json.loads((p / "card.json").read_text()) for p in (cnn_dir[0], d)]
+    common = {"format", "version", "kind", "model", "features", "classes", "input_length", "fs", "preprocessing",
+              "training_store", "metrics", "seed", "rvdiag_version", "created"}
+    for c, kind in zip(cards, ("cnn", "classical")):
+        assert (c["format"], c["version"], c["kind"]) == ("rvdiag-model", 1, kind)
+        assert common <= set(c) and "metadata" not in c
+    assert cards[1]["classes"] == ["A", "B"] and cards[1]["input_length"] == 64 and cards[1]["seed"] == 3
+    assert cards[1]["estimator"] == "sklearn.pipeline.Pipeline" and "skops_version" in cards[1]
+
+
+def test_former_classical_card_format_is_refused_with_a_remedy(tmp_path):
+    d = tmp_path / "old"
+    d.mkdir()
+    (d / "card.json").write_text(json.dumps({"format": "rvdiag-classical-model", "version": 1,
+                                             "metadata": {"kind": "classical", "classes": ["A", "B"]}}))
+    with pytest.raises(ModelFileError, match="retrain"):
+        load_model(d)
+
+
+def test_each_loader_refuses_the_other_kind(cnn_dir):
+    from rvdiag.models.pipelines import load_classical
+
+    with pytest.raises(ModelFileError, match="not a classical model"):
+        load_classical(cnn_dir[0])

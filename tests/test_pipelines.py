@@ -82,13 +82,15 @@ def test_save_load_round_trip(tmp_path, split, model):
     q = load_classical(tmp_path / "m")
     assert_allclose(q.predict_proba(Xt), p.predict_proba(Xt))
     card = json.loads((tmp_path / "m" / "card.json").read_text())
-    assert card["metadata"]["window"] == 256 and card["estimator"] == "sklearn.pipeline.Pipeline"
+    assert card["window"] == 256 and card["estimator"] == "sklearn.pipeline.Pipeline"
+    assert (card["format"], card["version"], card["kind"]) == ("rvdiag-model", 1, "classical")
+    assert card["classes"] == sorted(set(y)) and card["input_length"] == 256
     assert not [f for f in (tmp_path / "m").iterdir() if f.name.startswith(".")]  # no temp files left
 
 
 def test_load_refuses_bad_files(tmp_path, split):
     X, y, _, _ = split
-    with pytest.raises(ModelFileError, match="card.json"):
+    with pytest.raises(ModelFileError, match="no model at"):
         load_classical(tmp_path / "nothing")
     d = tmp_path / "m"
     save_classical(make_classical_model("kelm", "time").fit(X, y), d)

@@ -93,14 +93,14 @@ def test_cv_objective_equals_kelm_accuracy(data):
 @pytest.mark.parametrize("opt", OPT)
 def test_tuned_kelm_beats_a_bad_starting_point(data, opt):
     X, y, Xt, yt = data
-    m = TunedKELM(optimizer=opt, epoch=6, pop_size=10, cv=4, seed=0).fit(X, y)
+    m = TunedKELM(optimizer=opt, epoch=6, pop_size=10, cv=4, random_state=0).fit(X, y)
     assert set(m.best_params_) == {"C", "sigma"}
     obj = KELMCVObjective(X, y, 3, cv=4, seed=0)
     assert m.best_score_ >= obj([-2.0, -1.5]) + 0.1  # far better than tiny C, tiny sigma
     assert_allclose(m.best_score_, max(m.history_))
     assert m.score(Xt, yt) > 0.6
     assert m.predict_proba(Xt).shape == (80, 3)
-    again = TunedKELM(optimizer=opt, epoch=6, pop_size=10, cv=4, seed=0).fit(X, y)
+    again = TunedKELM(optimizer=opt, epoch=6, pop_size=10, cv=4, random_state=0).fit(X, y)
     assert again.best_params_ == m.best_params_
 
 

@@ -40,3 +40,15 @@ class DataFileError(RvdiagError, ValueError):
 
 class ModelFileError(RvdiagError, ValueError):
     """A saved model directory is missing, corrupt, or does not match the data."""
+
+
+class RvdiagWarning(UserWarning):
+    """Base class of rvdiag's warnings: the result is computed, but the user should know a caveat."""
+
+
+class ModelRangeWarning(RvdiagWarning):
+    """A formula is used outside the range its source fitted or validated (the result is an extrapolation)."""
+
+
+class FallbackWarning(RvdiagWarning):
+    """A value could not be read and a documented default was used instead (the report says so too)."""

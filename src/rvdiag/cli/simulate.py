@@ -36,12 +36,9 @@ def _check_severities(state: str, severities: dict) -> None:
 def register(app: typer.Typer) -> None:
     """Add the ``simulate`` command to ``app``."""
 
-    try:
-        from rvdiag.gears.faults import STATES
+    from rvdiag.gears.faults import STATES
 
-        states_help = ", ".join(f"{k} {v}" for k, v in STATES.items())
-    except ImportError:  # pragma: no cover - gears is part of rvdiag
-        states_help = "T1..T6"
+    states_help = ", ".join(f"{k} {v}" for k, v in STATES.items())
 
     @app.command("simulate")
     def simulate_cmd(

@@ -171,7 +171,7 @@ def register(app: typer.Typer) -> None:
                                           normalize=normalize, representation=representation)
         probe = new_estimator(seed=seed)  # checks --model/--features before any work
         if features is not None and model in CLASSICAL_MODELS:
-            from rvdiag.features import feature_names
+            from rvdiag.models.pipelines import feature_names
 
             if features not in feature_names():
                 raise ParameterError(f"unknown feature set {features!r}; use one of {'|'.join(feature_names())}")

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from rvdiag.dynamics.mesh import MeshTable, gears_available, mesh_table_from_gears, rectangular_mesh_table
+from rvdiag.dynamics.mesh import MeshTable, mesh_table_from_gears, rectangular_mesh_table
 from rvdiag.dynamics.model import Model, ModelSettings, build_model
 from rvdiag.dynamics.noise import add_awgn
 from rvdiag.dynamics.transfer import apply_path
@@ -37,7 +37,7 @@ def mesh_table(params: ReducerParams, fault: Any = None, source: str = "auto") -
     ``fault`` is ``None`` (healthy), a :class:`MeshTable` (used as is) or a fault object of
     :mod:`rvdiag.gears` (``ToothFaults``).  ``source`` is ``"gears"`` (potential-energy TVMS of
     :mod:`rvdiag.gears`), ``"rectangular"`` (square-wave stand-in; healthy only, or a MeshTable) or
-    ``"auto"`` (gears when installed).
+    ``"auto"`` (the same as ``"gears"``: the stand-in is used only when asked for).
     """
     if isinstance(fault, MeshTable):
         return fault
@@ -45,11 +45,10 @@ def mesh_table(params: ReducerParams, fault: Any = None, source: str = "auto") -
         fault = None
     if source not in ("auto", "gears", "rectangular"):
         raise ParameterError(f"mesh source must be auto, gears or rectangular, got {source!r}")
-    use_gears = source == "gears" or (source == "auto" and gears_available())
-    if use_gears:
+    if source in ("auto", "gears"):
         return mesh_table_from_gears(params, fault)
     if fault is not None:
-        raise ParameterError("tooth faults need the rvdiag.gears TVMS (not installed) or a MeshTable")
+        raise ParameterError("tooth faults need the rvdiag.gears TVMS (mesh source 'gears') or a MeshTable")
     return rectangular_mesh_table(params)
 
 

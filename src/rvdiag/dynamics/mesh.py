@@ -13,8 +13,9 @@ Two sources of tables:
 - :func:`rectangular_mesh_table`: a stand-in square wave from the contact ratio, single-pair stiffness
   ``k_pair`` in single contact and ``2 k_pair`` in double contact (the classical approximation of the TVMS,
   e.g. Lin & Parker 1999 and Kahraman 1994), with tooth faults as a stiffness factor per sun tooth
-  (a broken tooth carries nothing: factor 0, REFERENCE.md section 3).  Used in tests and when the gears
-  package is not installed.
+  (a broken tooth carries nothing: factor 0, REFERENCE.md section 3).  Used in tests and only when asked
+  for: the gears package is part of rvdiag and imported unconditionally, so the physics never falls back
+  to this stand-in silently.
 
 A table may also carry the mesh profile deviation ``error_m`` (wear), which the model subtracts from the
 mesh deflection as a transmission-error excitation (docs/model.md, "Fault sensitivity").
@@ -29,6 +30,9 @@ from typing import Any, Sequence
 import numpy as np
 
 from rvdiag.errors import ParameterError
+from rvdiag.gears import GearPair, mesh_stiffness
+from rvdiag.gears.modification import (ProfileModification, iso1328_tolerances, profile_slope_separation,
+                                       relief_separation, tooth_position_errors)
 from rvdiag.params import ReducerParams
 
 TWO_PI = 2.0 * math.pi
@@ -194,15 +198,6 @@ def rectangular_mesh_table(
     return MeshTable(phi, k, TWO_PI, source=f"rectangular(eps={eps:.4f}, k_pair={kp:.4g})")
 
 
-def gears_available() -> bool:
-    """True when :func:`rvdiag.gears.mesh_stiffness` can be imported."""
-    try:
-        from rvdiag.gears import mesh_stiffness  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
 def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_cycle: int = 360) -> MeshTable:
     """Potential-energy TVMS of :mod:`rvdiag.gears` over one relative sun revolution (Z1 mesh cycles), with
     the separation of every tooth pair.
@@ -219,10 +214,6 @@ def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_c
     The table's ``error_m`` is the load-shared separation ``sum k_j e_j / sum k_j`` (the profile deviation a
     single-spring model would use).
     """
-    from rvdiag.gears import GearPair, mesh_stiffness
-    from rvdiag.gears.modification import (ProfileModification, iso1328_tolerances, profile_slope_separation,
-                                           relief_separation, tooth_position_errors)
-
     pair = GearPair.sun_planet(params)
     z1 = params.stage1.sun_teeth
     if fault is not None and getattr(fault, "is_healthy", False):

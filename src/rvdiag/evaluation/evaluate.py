@@ -116,7 +116,7 @@ def learned_features(estimator, X: np.ndarray) -> np.ndarray:
 def report_html(loaded, store, ev: Evaluation, max_tsne: int = 600, seed: int = 0) -> str:
     """The HTML report of an evaluation (see :mod:`rvdiag.evaluation.report`)."""
     from rvdiag.evaluation.plots import tsne_embedding
-    from rvdiag.evaluation.report import characteristic_frequencies_for, render_report
+    from rvdiag.evaluation.report import characteristic_frequencies_for, render_report, store_reducer_params
 
     rng = np.random.default_rng(seed)
     n = len(ev.y_true)
@@ -131,7 +131,9 @@ def report_html(loaded, store, ev: Evaluation, max_tsne: int = 600, seed: int = 
         if hits.size:
             examples[str(c)] = ev.X[hits[0]]
             first_idx.append(hits[0])
-    freqs = characteristic_frequencies_for(store.attrs, ev.meta, np.array(first_idx, dtype=int))
+    params, notes = store_reducer_params(store.attrs)
+    freqs = characteristic_frequencies_for(store.attrs, ev.meta, np.array(first_idx, dtype=int), params=params,
+                                           notes=notes)
     store_info = {
         "path": str(Path(store.path)), "split": ev.split, "kind": store.attrs.get("kind"),
         "config": store.attrs.get("config"), "config_hash": store.attrs.get("config_hash"),
@@ -139,7 +141,7 @@ def report_html(loaded, store, ev: Evaluation, max_tsne: int = 600, seed: int = 
     title = f"rvdiag evaluation: {loaded.card.get('model')} on {Path(store.path).name} ({ev.split})"
     return render_report(title=title, metrics=ev.metrics, card=loaded.card, store_info=store_info,
                          examples=examples, fs=store.fs, frequencies=freqs, embedding=emb,
-                         embedding_labels=ev.y_true[pick])
+                         embedding_labels=ev.y_true[pick], notes=notes)
 
 
 def accuracy_by(ev: Evaluation, column: str, n_bins: int = 6) -> list[dict]:

@@ -4,7 +4,8 @@ no script, no external resource), readable from disk without a server.
 Sections: summary metrics; per-class precision / recall / F1 and the confusion matrix; a t-SNE map of
 the model's learned features (CNN: last hidden layer; classical: the standardised features); the
 training curve (CNN); one example waveform and spectrum per state with the characteristic frequencies
-of ``rvdiag freqs`` marked; the library config and the model card.
+of ``rvdiag freqs`` marked; caveats (a default used in place of unreadable store data, a formula used
+outside its fitted range); the library config and the model card.
 """
 
 from __future__ import annotations
@@ -13,12 +14,14 @@ import html
 import json
 import os
 import tempfile
+import warnings
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from rvdiag import __version__
+from rvdiag.errors import FallbackWarning, RvdiagError
 from rvdiag.evaluation import plots
 
 _CSS = """
@@ -43,20 +46,59 @@ def _pct(x: float) -> str:
     return f"{100.0 * x:.2f} %"
 
 
+def store_reducer_params(store_attrs: Mapping[str, Any]):
+    """The reducer parameters a store records, and the caveats of reading them.
+
+    Returns ``(params, notes)``.  ``params`` is the store's :class:`~rvdiag.params.ReducerParams`, or None when
+    the store records none (measured data) or its record cannot be read; the latter is never silent: it adds
+    a note and issues a :class:`rvdiag.errors.FallbackWarning`.  The notes also hold the caveats of the
+    sun-planet mesh stiffness of those parameters (:func:`rvdiag.gears.tvms.foundation_range_notes`).
+    """
+    from rvdiag.gears import GearPair
+    from rvdiag.gears.tvms import foundation_range_notes
+    from rvdiag.params import ReducerParams
+
+    raw = store_attrs.get("params")
+    if not raw:
+        return None, []
+    try:
+        params = ReducerParams.from_dict(raw)
+    except (RvdiagError, TypeError, ValueError, KeyError, AttributeError) as exc:
+        msg = f"the store's reducer parameters cannot be read ({type(exc).__name__}: {exc})"
+        warnings.warn(msg, FallbackWarning, stacklevel=2)
+        return None, [msg]
+    try:
+        pair = GearPair.sun_planet(params)
+    except RvdiagError as exc:  # parameters that load but give no valid gear pair: say so
+        return params, [f"sun-planet mesh stiffness not checked: {exc}"]
+    return params, [f"sun-planet mesh stiffness (TVMS): {note}" for note in foundation_range_notes(pair)]
+
+
+_FROM_STORE = object()
+
+
 def characteristic_frequencies_for(store_attrs: Mapping[str, Any], meta: Mapping[str, np.ndarray],
-                                   index: np.ndarray | None = None) -> dict[str, float] | None:
+                                   index: np.ndarray | None = None, *, params: Any = _FROM_STORE,
+                                   notes: list[str] | None = None) -> dict[str, float] | None:
     """Characteristic frequencies (Hz) of the store's reducer at the median speed of the given samples.
 
-    Uses ``attrs["params"]`` (else the default RV-20E) and the ``input_speed_rpm`` or
-    ``output_speed_deg_s`` metadata column; None when the store records no speed.
+    Parameters
+    ----------
+    store_attrs, meta : the store's attributes and metadata columns (``input_speed_rpm`` or
+        ``output_speed_deg_s`` give the speed)
+    index : rows of ``meta`` to take the median speed over (default: all)
+    params : ReducerParams or None
+        Default: read from ``store_attrs`` with :func:`store_reducer_params` (its notes go to ``notes``).
+        None, or parameters the store lacks or cannot give, means the default RV-20E, and ``notes`` says so.
+    notes : list, appended to with the caveats
+
+    Returns None when the store records no speed, or when the frequencies cannot be computed (the reason is
+    appended to ``notes``).
     """
     from rvdiag.kinematics import characteristic_frequencies
     from rvdiag.params import ReducerParams
 
-    try:
-        params = ReducerParams.from_dict(store_attrs["params"]) if store_attrs.get("params") else ReducerParams.default()
-    except Exception:
-        params = ReducerParams.default()
+    notes = [] if notes is None else notes
     for key in ("input_speed_rpm", "output_speed_deg_s"):
         if key in meta:
             v = np.asarray(meta[key], dtype=float)
@@ -64,9 +106,17 @@ def characteristic_frequencies_for(store_attrs: Mapping[str, Any], meta: Mapping
                 v = v[index]
             v = v[np.isfinite(v)]
             if v.size:
+                if params is _FROM_STORE:
+                    params, param_notes = store_reducer_params(store_attrs)
+                    notes.extend(param_notes)
+                if params is None:
+                    notes.append("characteristic frequencies: the store gives no reducer parameters, those of the "
+                                 "default RV-20E are marked")
+                    params = ReducerParams.default()
                 try:
                     return characteristic_frequencies(params, **{key: float(np.median(v))}).as_dict()
-                except Exception:
+                except RvdiagError as exc:
+                    notes.append(f"characteristic frequencies not marked: {exc}")
                     return None
     return None
 
@@ -74,7 +124,7 @@ def characteristic_frequencies_for(store_attrs: Mapping[str, Any], meta: Mapping
 def render_report(*, title: str, metrics: Mapping[str, Any], card: Mapping[str, Any],
                   store_info: Mapping[str, Any], examples: Mapping[str, np.ndarray] | None = None,
                   fs: float | None = None, frequencies: Mapping[str, float] | None = None,
-                  embedding: np.ndarray | None = None, embedding_labels=None) -> str:
+                  embedding: np.ndarray | None = None, embedding_labels=None, notes: Sequence[str] = ()) -> str:
     """The report as an HTML string.
 
     Parameters
@@ -87,6 +137,8 @@ def render_report(*, title: str, metrics: Mapping[str, Any], card: Mapping[str, 
     fs : sampling rate of the examples (Hz) or None
     frequencies : characteristic frequencies to mark (Hz)
     embedding : (n, 2) t-SNE coordinates, with ``embedding_labels`` (true classes)
+    notes : caveats to show (a default used in place of unreadable data, a formula outside its fitted range),
+        listed in the "Caveats" section before the library config and announced under the title
     """
     labels = metrics["labels"]
     parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
@@ -95,7 +147,8 @@ def render_report(*, title: str, metrics: Mapping[str, Any], card: Mapping[str, 
         f"<p class='muted'>model <b>{html.escape(str(card.get('model')))}</b> ({html.escape(str(card.get('kind')))}"
         f"{', features ' + html.escape(str(card['features'])) if card.get('features') else ''}), "
         f"evaluated on <b>{html.escape(str(store_info.get('path')))}</b>, split <b>{html.escape(str(store_info.get('split')))}</b> "
-        f"({metrics['n_samples']} samples, store kind {html.escape(str(store_info.get('kind')))}); rvdiag {__version__}</p>")
+        f"({metrics['n_samples']} samples, store kind {html.escape(str(store_info.get('kind')))}); rvdiag {__version__}"
+        + (f"; <b>{len(notes)} caveat(s)</b>, see Caveats" if notes else "") + "</p>")
     # summary
     parts.append("<h2>Summary</h2><table class='big'><tr><th>accuracy</th><th>precision (macro)</th>"
                  "<th>recall (macro)</th><th>F1 (macro)</th><th>Cohen's kappa</th></tr><tr>"
@@ -138,6 +191,9 @@ def render_report(*, title: str, metrics: Mapping[str, Any], card: Mapping[str, 
         parts.append("<h2>Example signals per state</h2>" + _img(png, "waveforms and spectra") +
                      "<p class='muted'>One sample per state from the evaluated split. Dashed lines: "
                      "characteristic frequencies (as <code>rvdiag freqs</code>) at the samples' speed.</p>" + ftab)
+    if notes:
+        items = "".join(f"<li>{html.escape(str(n))}</li>" for n in notes)
+        parts.append(f"<h2>Caveats</h2><ul class='caveats'>{items}</ul>")
     cfg = store_info.get("config")
     parts.append("<h2>Library config</h2><p class='muted'>config hash "
                  f"{html.escape(str(store_info.get('config_hash')))}</p>"

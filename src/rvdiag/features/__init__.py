@@ -13,8 +13,10 @@ none       :class:`RawSignal` (the samples themselves)
 =========  ==========================================  ===================================
 
 Also :class:`CharacteristicBandEnergy` (bands at the reducer's characteristic frequencies) and
-:class:`EnvelopeSpectrumFeatures` (squared-envelope spectrum, the bearing tool).  Other modules add names
-with :func:`register_features` (the CNN extractor registers ``cnn``).
+:class:`EnvelopeSpectrumFeatures` (squared-envelope spectrum, the bearing tool).  Extensions add names with
+:func:`register_features`.  The learned ``cnn`` feature set trains a network, so it lives in the models layer
+(:class:`rvdiag.models.cnn_features.CNNFeatures`, named by :func:`rvdiag.models.pipelines.feature_names`);
+this package never imports torch.
 """
 
 from __future__ import annotations
@@ -66,17 +68,12 @@ def register_features(name: str, factory: Callable[..., object]) -> None:
 
 
 def feature_names() -> list[str]:
-    """Names :func:`make_features` knows."""
-    if "cnn" not in _REGISTRY:  # rvdiag.features.cnn registers "cnn" on import, when it exists
-        try:
-            import rvdiag.features.cnn  # noqa: F401
-        except ImportError:
-            pass
+    """Names :func:`make_features` knows (the signal feature sets; the models layer adds ``cnn``)."""
     return sorted(_REGISTRY)
 
 
 def make_features(name: str, **kw):
-    """A new, unfitted feature transformer by name (``time|spectrum|wpd|eemd|none``, ``cnn`` when present).
+    """A new, unfitted feature transformer by name (``time|spectrum|logspec|wpd|eemd|none``).
 
     Keyword arguments go to the transformer's constructor.
     """

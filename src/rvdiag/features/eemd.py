@@ -34,6 +34,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numba as nb
 import numpy as np
+from joblib import effective_n_jobs
 
 from rvdiag.errors import ParameterError
 from rvdiag.features._base import SignalTransformer
@@ -392,45 +393,49 @@ class EEMDFeatures(SignalTransformer):
         Added noise std relative to the window std.
     n_sifts : int
         Sifting iterations per IMF.
-    seed : int
+    random_state : int
         Seed of the noise ensemble (shared by all windows).
     relative : bool
         Divide by the window's mean |x| (features then describe how the amplitude is shared between the
         scales, independent of the signal level).
-    n_jobs : int
-        Threads over windows (the compiled kernel releases the GIL).
+    n_jobs : int or None
+        Threads over windows (the compiled kernel releases the GIL); scikit-learn's convention: None or 1 is
+        one thread, -1 all CPUs, -2 all but one...  The features do not depend on it.
     """
 
     _min_points = 8
 
     def __init__(self, n_imfs: int = 6, ensemble_size: int = 100, noise_width: float = 0.2,
-                 n_sifts: int = 10, seed: int = 0, relative: bool = False, n_jobs: int = 1):
+                 n_sifts: int = 10, random_state: int = 0, relative: bool = False, n_jobs: int | None = 1):
         self.n_imfs = n_imfs
         self.ensemble_size = ensemble_size
         self.noise_width = noise_width
         self.n_sifts = n_sifts
-        self.seed = seed
+        self.random_state = random_state
         self.relative = relative
         self.n_jobs = n_jobs
 
     def _check_params(self, n_points):
         _check(self.ensemble_size, self.noise_width, self.n_imfs, self.n_sifts)
-        if not (isinstance(self.n_jobs, (int, np.integer)) and self.n_jobs >= 1):
-            raise ParameterError(f"n_jobs must be a positive integer, got {self.n_jobs!r}")
+        ok = self.n_jobs is None or (isinstance(self.n_jobs, (int, np.integer)) and not isinstance(self.n_jobs, bool)
+                                     and self.n_jobs != 0)
+        if not ok:
+            raise ParameterError(f"n_jobs must be None or a non-zero integer (-1: all CPUs), got {self.n_jobs!r}")
 
     def _features(self, X):
         self._check_params(X.shape[1])
-        unit = unit_noise(X.shape[1], self.ensemble_size, self.seed)
+        unit = unit_noise(X.shape[1], self.ensemble_size, self.random_state)
         n_imfs, n_sifts, width = int(self.n_imfs), int(self.n_sifts), float(self.noise_width)
 
         def one(x):
             imfs = _eemd_core(x, np.ascontiguousarray(unit * (width * x.std())), n_imfs, n_sifts)
             return np.mean(np.abs(imfs), axis=1)
 
-        if self.n_jobs == 1:
+        n_jobs = min(effective_n_jobs(self.n_jobs), len(X))
+        if n_jobs <= 1:
             F = np.array([one(x) for x in X])
         else:
-            with ThreadPoolExecutor(self.n_jobs) as ex:
+            with ThreadPoolExecutor(n_jobs) as ex:
                 F = np.array(list(ex.map(one, X)))
         if self.relative:
             m = np.mean(np.abs(X), axis=1, keepdims=True)

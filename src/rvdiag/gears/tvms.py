@@ -36,11 +36,12 @@ from __future__ import annotations
 
 import functools
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from rvdiag.errors import ParameterError
+from rvdiag.errors import ModelRangeWarning, ParameterError
 from rvdiag.gears.faults import DamagedProfile, ToothFaults, Wear, archard_wear_profile, damaged_profile
 from rvdiag.gears.geometry import Gear, GearPair
 
@@ -68,6 +69,37 @@ def foundation_in_range(gear: Gear) -> bool:
     h = gear.root_radius / gear.bore_radius
     return (SAINSOT_THETA_RANGE[0] <= gear.root_half_angle <= SAINSOT_THETA_RANGE[1]
             and SAINSOT_H_RANGE[0] <= h <= SAINSOT_H_RANGE[1])
+
+
+def foundation_range_notes(pair: GearPair) -> tuple[str, ...]:
+    """One sentence per gear of ``pair`` whose fillet foundation lies outside the fitted range of Sainsot,
+    Velex & Duverger (2004), Table 1 (theta_f in [0.01, 0.12] rad, h_fi = r_f / r_int in [1.4, 7]).
+
+    Outside it, their polynomials for L*, M*, P*, Q* are extrapolated and k_f is less certain; the RV-20E
+    sun (11 teeth, theta_f = 0.274 rad, h_fi = 1.16) is such a case.  Empty when both gears are in range.
+    """
+    notes = []
+    for role, gear in (("driver", pair.driver), ("driven", pair.driven)):
+        theta, h = gear.root_half_angle, gear.root_radius / gear.bore_radius
+        out = [f"{name} = {value:.3f}{unit} (fitted {lo}-{hi}{unit})"
+               for name, value, (lo, hi), unit in (("theta_f", theta, SAINSOT_THETA_RANGE, " rad"),
+                                                   ("h_fi", h, SAINSOT_H_RANGE, ""))
+               if not lo <= value <= hi]
+        if out:
+            notes.append(f"fillet-foundation stiffness of the {role} gear ({gear.teeth} teeth) is extrapolated "
+                         f"beyond the fit of Sainsot et al. (2004): {', '.join(out)}")
+    return tuple(notes)
+
+
+_WARNED: set[str] = set()
+
+
+def _warn_once(message: str) -> None:
+    """Warn with :class:`rvdiag.errors.ModelRangeWarning` the first time a message occurs in this process (a
+    library build computes the same pair's stiffness for every simulation)."""
+    if message not in _WARNED:
+        _WARNED.add(message)
+        warnings.warn(message, ModelRangeWarning, stacklevel=3)
 
 
 @dataclass(frozen=True)
@@ -208,6 +240,11 @@ class MeshStiffnessResult:
     pairs_in_contact : ndarray
         Number of tooth pairs in contact at each angle.
     contact_ratio : float
+    foundation_in_range : bool
+        False when a gear lies outside the fitted range of the fillet-foundation formula
+        (:func:`foundation_range_notes`; a :class:`rvdiag.errors.ModelRangeWarning` was issued).
+    notes : tuple of str
+        Caveats of the computation, one sentence each (the foundation range above).
     """
 
     angle_rad: np.ndarray
@@ -220,6 +257,8 @@ class MeshStiffnessResult:
     pair: GearPair = field(repr=False)
     fault: ToothFaults | None = None
     pair_profile_error_m: np.ndarray | None = field(default=None, repr=False)
+    foundation_in_range: bool = True
+    notes: tuple[str, ...] = ()
 
     @property
     def profile_error_m(self) -> np.ndarray:
@@ -275,6 +314,8 @@ class MeshStiffnessResult:
             "points_per_cycle": self.points_per_cycle,
             "fault": None if self.fault is None else self.fault.describe(),
             "profile_error_m": self.profile_error_m.tolist(),
+            "foundation_in_range": self.foundation_in_range,
+            "notes": list(self.notes),
         }
 
     def plot(self, ax=None, label: str | None = None, **kwargs):
@@ -307,6 +348,12 @@ def mesh_stiffness(pair: GearPair, fault: ToothFaults | None = None, cycles: int
         0 recurs every Z1 cycles, on the driven gear every Z2 cycles.
     points_per_cycle : int
 
+    Warns
+    -----
+    ModelRangeWarning
+        Once per process and gear, when a gear lies outside the fitted range of the fillet-foundation formula
+        (:func:`foundation_range_notes`); the result records it in ``foundation_in_range`` and ``notes``.
+
     Examples
     --------
     >>> pair = GearPair.from_dimensions(20, 40, 2e-3, 0.02)
@@ -327,6 +374,9 @@ def mesh_stiffness(pair: GearPair, fault: ToothFaults | None = None, cycles: int
     errors = None
     if fault is not None and not fault.is_healthy:
         errors = _wear_errors(pair, angle, fault, in_contact)
+    notes = foundation_range_notes(pair)
+    for note in notes:
+        _warn_once(note)
 
     return MeshStiffnessResult(
         angle_rad=angle,
@@ -339,6 +389,8 @@ def mesh_stiffness(pair: GearPair, fault: ToothFaults | None = None, cycles: int
         pair=pair,
         fault=fault,
         pair_profile_error_m=errors,
+        foundation_in_range=not notes,
+        notes=notes,
     )
 
 

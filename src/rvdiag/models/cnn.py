@@ -26,7 +26,7 @@ Three architectures, all taking a batch of shape ``(n, 1, input_length)`` and re
     Table 5): input 4096 points; conv kernel 7 / 8 channels; max-pool 3 stride 2; conv 5 / 8; pool;
     conv 3 / 16; pool; FC 32; output.  The table gives no padding: we use "same" padding (k // 2),
     stride 1 in the convs, and ReLU after each conv and the FC layer.  The 32-unit FC output is the
-    feature vector used by the CNN + SVM pipeline (:mod:`rvdiag.features.cnn`).
+    feature vector used by the CNN + SVM pipeline (:mod:`rvdiag.models.cnn_features`).
 
 Every network exposes ``features(x)``: the activations of the last hidden layer (input to the output
 layer), used for the t-SNE map of the report and as learned features.

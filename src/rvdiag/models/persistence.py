@@ -3,11 +3,16 @@
 CNN models (``kind = "cnn"``)::
 
     MODEL_DIR/model.safetensors   the network weights (safetensors: plain tensors, no code is executed)
-    MODEL_DIR/card.json           format "rvdiag-model", version 1, and the card fields below
+    MODEL_DIR/card.json           the model card
 
-Classical models (``kind = "classical"``, SVM / KELM pipelines) are written by
-:func:`rvdiag.models.pipelines.save_classical` (``model.skops`` loaded with a trusted-type list, never
-unpickled, plus its ``card.json``); the card fields below go into that card's ``metadata``.
+Classical models (``kind = "classical"``, SVM / KELM pipelines)::
+
+    MODEL_DIR/model.skops         the pipeline (skops, loaded with a trusted-type list, never unpickled;
+                                  written by :func:`rvdiag.models.pipelines.save_classical`)
+    MODEL_DIR/card.json           the model card
+
+Both kinds share ONE card format (:mod:`rvdiag.models.card`: format "rvdiag-model", version 1, the fields
+below at the top level) and ONE reader, :func:`rvdiag.models.card.read_card`.
 
 Card fields (both kinds, returned by :func:`load_model` as ``card``):
 
@@ -16,7 +21,8 @@ Card fields (both kinds, returned by :func:`load_model` as ``card``):
 ``fs`` (Hz or None), ``preprocessing`` (normalisation, network input length, window starts, policy for
 long samples), ``training_store`` (``path``, ``config_hash``, ``kind``, ``n_train``), ``metrics`` (on the
 held-out test split), ``seed``, ``rvdiag_version``, ``created`` (UTC ISO time); CNN cards also hold
-``params`` (the estimator's ``get_params``), the learned scalars and ``history``.
+``params`` (the estimator's ``get_params``), the learned scalars and ``history``; classical cards hold
+``estimator``, ``sklearn_version`` and ``skops_version``.
 
 Loading a directory that is no model, a card of another format/version, or weights that do not fit the
 card (missing or extra tensors, wrong shapes) raises :class:`rvdiag.errors.ModelFileError`.
@@ -24,10 +30,6 @@ card (missing or extra tensors, wrong shapes) raises :class:`rvdiag.errors.Model
 
 from __future__ import annotations
 
-import datetime as _dt
-import json
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -37,13 +39,13 @@ import torch
 
 from rvdiag import __version__
 from rvdiag.errors import ModelFileError, ParameterError
+from rvdiag.models.card import CARD, CARD_FORMAT, CARD_VERSION, atomic_write, jsonable, now, read_card, write_card
 from rvdiag.models.cnn import build_network
 from rvdiag.models.torch_estimator import CNNClassifier, network_length
 
-CARD_FORMAT = "rvdiag-model"
-CARD_VERSION = 1
 WEIGHTS = "model.safetensors"
-CARD = "card.json"
+__all__ = ["CARD", "CARD_FORMAT", "CARD_VERSION", "LoadedModel", "WEIGHTS", "base_card", "load_model", "read_card",
+           "save_model"]
 
 _CNN_PARAM_KEYS = ("architecture", "input_length", "long_input", "normalize", "max_epochs", "batch_size",
                    "learning_rate", "weight_decay", "validation_fraction", "n_iter_no_change", "device",
@@ -79,36 +81,6 @@ class LoadedModel:
         return None if fs is None else float(fs)
 
 
-def _now() -> str:
-    return _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat()
-
-
-def _jsonable(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, Path):
-        return str(obj)
-    return obj
-
-
-def _atomic_write(path: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def base_card(estimator, *, model: str, features: str | None = None, fs: float | None = None,
               training_store: dict | None = None, metrics: dict | None = None, seed: int | None = None,
               extra: dict | None = None) -> dict:
@@ -124,7 +96,7 @@ def base_card(estimator, *, model: str, features: str | None = None, fs: float |
         "metrics": metrics or {},
         "seed": seed,
         "rvdiag_version": __version__,
-        "created": _now(),
+        "created": now(),
     }
     if isinstance(estimator, CNNClassifier):
         card["kind"] = "cnn"
@@ -141,7 +113,7 @@ def base_card(estimator, *, model: str, features: str | None = None, fs: float |
         card["kind"] = "classical"
         card["preprocessing"] = {"features": features, "scaling": "StandardScaler on the features"}
     card.update(extra or {})
-    return _jsonable(card)
+    return jsonable(card)
 
 
 def save_model(estimator, directory: str | Path, **card_fields) -> Path:
@@ -167,54 +139,15 @@ def save_model(estimator, directory: str | Path, **card_fields) -> Path:
     d.mkdir(parents=True, exist_ok=True)
     state = {k: v.detach().cpu().contiguous() for k, v in estimator.net_.state_dict().items()}
     card.update({
-        "format": CARD_FORMAT,
-        "version": CARD_VERSION,
-        "params": _jsonable({k: estimator.get_params()[k] for k in _CNN_PARAM_KEYS}),
+        "params": jsonable({k: estimator.get_params()[k] for k in _CNN_PARAM_KEYS}),
         "n_epochs": int(estimator.n_epochs_),
         "best_epoch": int(estimator.best_epoch_),
-        "history": _jsonable(estimator.history_),
+        "history": jsonable(estimator.history_),
         "torch_version": torch.__version__,
     })
-    _atomic_write(d / WEIGHTS, st_save(state, metadata={"format": CARD_FORMAT}))
-    _atomic_write(d / CARD, json.dumps(card, indent=2).encode())
+    atomic_write(d / WEIGHTS, st_save(state, metadata={"format": CARD_FORMAT}))
+    write_card(d, card)
     return d
-
-
-def read_card(directory: str | Path) -> dict:
-    """The card of a model directory (either kind), normalised to the common fields."""
-    d = Path(directory)
-    if not d.exists():
-        raise ModelFileError(f"no model at {d}")
-    if not d.is_dir():
-        raise ModelFileError(f"{d} is not a model directory (a model is a folder with card.json)")
-    p = d / CARD
-    if not p.is_file():
-        raise ModelFileError(f"{d} is not an rvdiag model directory (no card.json)")
-    try:
-        raw = json.loads(p.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ModelFileError(f"{p}: unreadable model card ({exc})") from None
-    if not isinstance(raw, dict):
-        raise ModelFileError(f"{p}: not an rvdiag model card")
-    if raw.get("format") == CARD_FORMAT:
-        if raw.get("version") != CARD_VERSION:
-            raise ModelFileError(f"{p}: model card version {raw.get('version')!r} is not supported")
-        card = raw
-    elif raw.get("format") == "rvdiag-classical-model":
-        card = dict(raw.get("metadata") or {})
-        card.setdefault("kind", "classical")
-    else:
-        raise ModelFileError(f"{p}: not an rvdiag model card (format {raw.get('format')!r})")
-    for key in ("kind", "classes", "input_length"):
-        if key not in card:
-            raise ModelFileError(f"{p}: model card lacks {key!r}")
-    if not isinstance(card["classes"], list) or len(card["classes"]) < 2:
-        raise ModelFileError(f"{p}: model card has no valid class list")
-    try:
-        card["input_length"] = int(card["input_length"])
-    except (TypeError, ValueError):
-        raise ModelFileError(f"{p}: bad input_length {card['input_length']!r}") from None
-    return card
 
 
 def load_model(directory: str | Path) -> LoadedModel:
@@ -222,7 +155,6 @@ def load_model(directory: str | Path) -> LoadedModel:
     d = Path(directory)
     card = read_card(d)
     if card["kind"] == "classical":
-        import rvdiag.features.cnn  # noqa: F401  registers CNNFeatures as a trusted type
         from rvdiag.models.pipelines import load_classical
 
         est = load_classical(d)
@@ -230,8 +162,6 @@ def load_model(directory: str | Path) -> LoadedModel:
         if got != [str(c) for c in card["classes"]]:
             raise ModelFileError(f"{d}: classes in model.skops {got} do not match the card {card['classes']}")
         return LoadedModel(est, card, d)
-    if card["kind"] != "cnn":
-        raise ModelFileError(f"{d}/card.json: unknown model kind {card['kind']!r}")
     return LoadedModel(_load_cnn(d, card), card, d)
 
 
@@ -284,9 +214,3 @@ def _load_cnn(d: Path, card: dict) -> CNNClassifier:
     est.best_epoch_ = int(card.get("best_epoch", 0))
     est.device_ = "cpu"
     return est
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask

@@ -18,18 +18,18 @@ kelm-ga    ... with a genetic algorithm
 kelm-pso   ... with particle swarm optimisation   (EEMD-MPA-KELM seed paper and its comparisons)
 =========  =====================================================================================
 
-and feature names of :func:`rvdiag.features.make_features` (``time|spectrum|wpd|eemd|none``, ``cnn``).
+and the feature-set names of :func:`feature_names`: those of :func:`rvdiag.features.make_features`
+(``time|spectrum|logspec|wpd|eemd|none``) plus ``cnn`` (:class:`rvdiag.models.cnn_features.CNNFeatures`).
 
-Persistence: :func:`save_classical` writes ``model.skops`` (``skops.io``) and ``card.json``;
+Persistence: :func:`save_classical` writes ``model.skops`` (``skops.io``) and ``card.json`` (the one model-card
+format of :mod:`rvdiag.models.card`, ``kind = "classical"``);
 :func:`load_classical` refuses any type that is not on an explicit trusted list (:data:`TRUSTED_TYPES`) and
-never unpickles: skops reconstructs objects from a JSON schema without running ``pickle``.
+never unpickles: skops reconstructs objects from a JSON schema without running ``pickle``.  The trusted
+list lives in :mod:`rvdiag.registry`, below every layer, so it does not depend on what was imported before.
 """
 
 from __future__ import annotations
 
-import json
-import os
-import tempfile
 from pathlib import Path
 
 from sklearn.calibration import CalibratedClassifierCV
@@ -38,63 +38,35 @@ from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
 
+from rvdiag import features as _features
 from rvdiag.errors import ModelFileError, ParameterError
-from rvdiag.features import make_features
+from rvdiag.models.card import atomic_write, card_text, read_card, write_card
+from rvdiag.models.cnn_features import CNNFeatures
 from rvdiag.models.kelm import KELMClassifier
 from rvdiag.models.tuning import OPTIMIZERS, TunedKELM
+from rvdiag.registry import TRUSTED_TYPES, register_trusted_type  # noqa: F401  (public names, re-exported)
 
 MODEL_NAMES = ("svm", "kelm", "kelm-mpa", "kelm-ga", "kelm-pso")
-CARD_FORMAT = "rvdiag-classical-model"
-CARD_VERSION = 1
 
-#: Types a saved classical model may contain (skops type names); nothing else is loaded.
-TRUSTED_TYPES: set[str] = {
-    "rvdiag.features.RawSignal",
-    "rvdiag.features.timedomain.TimeDomainFeatures",
-    "rvdiag.features.spectrum.SpectrumFeatures",
-    "rvdiag.features.spectrum.CharacteristicBandEnergy",
-    "rvdiag.features.spectrum.EnvelopeSpectrumFeatures",
-    "rvdiag.features.wavelet.WaveletPacketEnergy",
-    "rvdiag.features.bearing.BearingEnvelopeFeatures",
-    "rvdiag.features.eemd.EEMDFeatures",
-    "rvdiag.models.kelm.KELMClassifier",
-    "rvdiag.models.tuning.TunedKELM",
-    "sklearn.pipeline.Pipeline",
-    "sklearn.preprocessing._data.StandardScaler",
-    "sklearn.svm._classes.SVC",
-    "sklearn.model_selection._search.GridSearchCV",
-    "sklearn.model_selection._split.StratifiedKFold",
-    "sklearn.metrics._scorer._PassthroughScorer",
-    "sklearn.calibration.CalibratedClassifierCV",
-    "sklearn.calibration._CalibratedClassifier",
-    "sklearn.calibration._SigmoidCalibration",
-    "sklearn.preprocessing._label.LabelEncoder",
-    "sklearn.preprocessing._label.LabelBinarizer",
-    "sklearn.utils._bunch.Bunch",
-    "numpy.ma.core.MaskedArray",
-    "numpy.ma.core.MaskedConstant",
-    "numpy.float64",
-    "numpy.int64",
-    "numpy.int32",
-    "numpy.bool_",
-    "numpy.str_",
-    "numpy.ndarray",
-    "numpy.dtype",
-    "builtins.slice",
-    "builtins.tuple",
-    "builtins.dict",
-    "builtins.list",
-    "builtins.int",
-    "builtins.float",
-    "builtins.str",
-    "builtins.bool",
-    "builtins.NoneType",
-}
+#: Feature sets of the models layer, on top of :func:`rvdiag.features.feature_names`.
+MODEL_FEATURE_SETS = {"cnn": CNNFeatures}
 
 
-def register_trusted_type(name: str) -> None:
-    """Allow another type (its skops name, e.g. ``'rvdiag.models.cnn.CNNFeatures'``) in saved models."""
-    TRUSTED_TYPES.add(name)
+def feature_names() -> list[str]:
+    """Every ``features`` name :func:`make_classical_model` takes (signal feature sets and ``cnn``)."""
+    return sorted(set(_features.feature_names()) | set(MODEL_FEATURE_SETS))
+
+
+def make_feature_set(name: str, **kw):
+    """A new, unfitted feature transformer by name (:func:`feature_names`); ``kw`` go to its constructor."""
+    if name not in MODEL_FEATURE_SETS:
+        if name not in _features.feature_names():
+            raise ParameterError(f"unknown feature set {name!r}; use one of {'|'.join(feature_names())}")
+        return _features.make_features(name, **kw)
+    try:
+        return MODEL_FEATURE_SETS[name](**kw)
+    except TypeError as exc:
+        raise ParameterError(f"bad options for feature set {name!r}: {exc}") from None
 
 
 def _classifier(model: str, seed: int, grid: bool, model_kw: dict):
@@ -109,7 +81,7 @@ def _classifier(model: str, seed: int, grid: bool, model_kw: dict):
     if model == "kelm":
         return KELMClassifier(**model_kw)
     name = model.split("-", 1)[1]
-    kw = {"optimizer": name, "seed": seed}
+    kw = {"optimizer": name, "random_state": seed}
     kw.update(model_kw)
     return TunedKELM(**kw)
 
@@ -127,7 +99,7 @@ def make_classical_model(model: str, features: str, *, features_kw: dict | None 
     model_kw : dict
         Arguments of the classifier (SVC, KELMClassifier or TunedKELM, e.g. ``{"epoch": 30}``).
     seed : int
-        Seed of the SVM's probability calibration, the CV folds and the optimisers.
+        The ``random_state`` of the SVM, its CV folds and the tuners (``rvdiag train --seed``).
     grid : bool
         SVM only: choose C by a small cross-validated grid.
     """
@@ -139,17 +111,20 @@ def make_classical_model(model: str, features: str, *, features_kw: dict | None 
     except TypeError as exc:
         raise ParameterError(f"bad options for model {model!r}: {exc}") from None
     return Pipeline([
-        ("features", make_features(features, **dict(features_kw or {}))),
+        ("features", make_feature_set(features, **dict(features_kw or {}))),
         ("scale", StandardScaler()),
         ("clf", clf),
     ])
 
 
 def save_classical(model, directory, metadata: dict | None = None) -> Path:
-    """Write a fitted pipeline to ``directory`` as ``model.skops`` plus ``card.json``.
+    """Write a fitted pipeline to ``directory`` as ``model.skops`` plus its ``card.json``.
 
-    ``metadata`` (JSON-serialisable: labels, feature set, window length, fs...) is stored in the card.
-    Both files are written to temporary names and renamed, so a failure leaves no half-written model.
+    The card (:mod:`rvdiag.models.card`) holds ``kind = "classical"``, the model's ``classes`` and
+    ``input_length`` (its ``n_features_in_``), the versions that wrote it, and the JSON-serialisable
+    ``metadata`` fields (labels, feature set, fs...: :func:`rvdiag.models.persistence.save_model` passes the
+    full card).  Both files are written to temporary names and renamed, so a failure leaves no half-written
+    model.
     """
     import skops
     import skops.io as sio
@@ -160,45 +135,19 @@ def save_classical(model, directory, metadata: dict | None = None) -> Path:
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     card = {
-        "format": CARD_FORMAT,
-        "version": CARD_VERSION,
+        "classes": [str(c) for c in getattr(model, "classes_", [])],
+        "input_length": getattr(model, "n_features_in_", None),
+        **dict(metadata or {}),
+        "kind": "classical",
         "estimator": f"{type(model).__module__}.{type(model).__qualname__}",
-        "rvdiag_version": getattr(rvdiag, "__version__", "unknown"),
         "sklearn_version": sklearn.__version__,
         "skops_version": skops.__version__,
-        "metadata": metadata or {},
     }
-    try:
-        card_text = json.dumps(card, indent=2)
-    except TypeError as exc:
-        raise ParameterError(f"model metadata is not JSON-serialisable: {exc}") from None
-    blob = sio.dumps(model)
-    for name, data in (("model.skops", blob), ("card.json", card_text.encode())):
-        fd, tmp = tempfile.mkstemp(dir=d, prefix=f".{name}.")
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(data)
-            os.replace(tmp, d / name)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+    card.setdefault("rvdiag_version", rvdiag.__version__)
+    card_text(card)  # not serialisable: ParameterError before anything is written
+    atomic_write(d / "model.skops", sio.dumps(model))
+    write_card(d, card)
     return d
-
-
-def read_card(directory) -> dict:
-    """The ``card.json`` of a saved classical model, checked; ModelFileError if absent or not ours."""
-    p = Path(directory) / "card.json"
-    if not p.is_file():
-        raise ModelFileError(f"{directory}: not a saved classical model (no card.json)")
-    try:
-        card = json.loads(p.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ModelFileError(f"{p}: unreadable model card ({exc})") from None
-    if not isinstance(card, dict) or card.get("format") != CARD_FORMAT:
-        raise ModelFileError(f"{p}: not an rvdiag classical model card")
-    if card.get("version") != CARD_VERSION:
-        raise ModelFileError(f"{p}: model card version {card.get('version')!r} is not supported")
-    return card
 
 
 def load_classical(directory):
@@ -211,7 +160,8 @@ def load_classical(directory):
     """
     import skops.io as sio
 
-    read_card(directory)
+    if read_card(directory)["kind"] != "classical":
+        raise ModelFileError(f"{directory}: not a classical model (use rvdiag.models.persistence.load_model)")
     p = Path(directory) / "model.skops"
     if not p.is_file():
         raise ModelFileError(f"{directory}: no model.skops")

@@ -10,9 +10,10 @@ nature-inspired metaheuristic", Expert Syst. Appl. 152 (2020) 113377) and compar
 
 Search space: x = (log10 C, log10 (sigma / sqrt(d))), d the number of features.  The sqrt(d) scaling makes
 the sigma bounds independent of the feature count: for standardised features ||x - y||^2 is of order 2d.
-Objective: mean accuracy over ``cv`` stratified folds (shuffled with ``seed``), maximised.  The squared
+Objective: mean accuracy over ``cv`` stratified folds (shuffled with ``random_state``), maximised.  The squared
 distance matrices of every fold are computed once, so one evaluation costs one exp and one Cholesky solve
-per fold.  Runs are reproducible: the folds and the optimiser both take ``seed``.
+per fold.  Runs are reproducible: the folds and the optimiser both take ``random_state`` (``seed`` in the
+functions :func:`minimize` / :func:`maximize`).
 """
 
 from __future__ import annotations
@@ -130,7 +131,7 @@ class TunedKELM(ClassifierMixin, BaseEstimator):
         Iterations and population of the optimiser; epoch x pop_size evaluations of the objective.
     cv : int
         Stratified folds (reduced to the smallest class count when that is lower).
-    seed : int
+    random_state : int
         Seed of the folds and of the optimiser.
     log10_C_bounds : (float, float)
         Search range of log10 C.
@@ -152,13 +153,13 @@ class TunedKELM(ClassifierMixin, BaseEstimator):
     """
 
     def __init__(self, optimizer: str = "mpa", epoch: int = 20, pop_size: int = 20, cv: int = 5,
-                 seed: int = 0, log10_C_bounds: tuple[float, float] = (-2.0, 4.0),
+                 random_state: int = 0, log10_C_bounds: tuple[float, float] = (-2.0, 4.0),
                  log10_sigma_bounds: tuple[float, float] = (-1.5, 1.5)):
         self.optimizer = optimizer
         self.epoch = epoch
         self.pop_size = pop_size
         self.cv = cv
-        self.seed = seed
+        self.random_state = random_state
         self.log10_C_bounds = log10_C_bounds
         self.log10_sigma_bounds = log10_sigma_bounds
 
@@ -175,10 +176,10 @@ class TunedKELM(ClassifierMixin, BaseEstimator):
         n_splits = min(int(self.cv), min_count)
         if n_splits < 2:
             raise ParameterError("every class needs at least 2 samples for cross-validated tuning")
-        obj = KELMCVObjective(X, y_idx, self.classes_.size, n_splits, int(self.seed))
+        obj = KELMCVObjective(X, y_idx, self.classes_.size, n_splits, int(self.random_state))
         lb = (self.log10_C_bounds[0], self.log10_sigma_bounds[0])
         ub = (self.log10_C_bounds[1], self.log10_sigma_bounds[1])
-        res = maximize(obj, lb, ub, self.optimizer, self.epoch, self.pop_size, self.seed)
+        res = maximize(obj, lb, ub, self.optimizer, self.epoch, self.pop_size, int(self.random_state))
         C, sigma = obj.params(res.x)
         self.best_params_ = {"C": float(C), "sigma": float(sigma)}
         self.best_score_ = res.fun

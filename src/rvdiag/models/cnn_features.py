@@ -10,19 +10,18 @@ shape (n, 32).  Use it as ``make_classical_model("svm", "cnn")`` / ``rvdiag trai
 
 Persistence: the trained weights are kept as plain NumPy arrays (``weights_``) and the network is rebuilt
 from them on first use, so the fitted transformer holds no torch object and a classical pipeline that
-contains it is saved by skops like any other (its type is registered as trusted on import).
+contains it is saved by skops like any other (its type is on :data:`rvdiag.registry.TRUSTED_TYPES`).  The
+class lives in the models layer because it trains a model; torch is imported only when a network is built.
 """
 
 from __future__ import annotations
 
 import numpy as np
-import torch
 from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils.validation import check_is_fitted
 
 from rvdiag.errors import ParameterError
-from rvdiag.features import register_features
-from rvdiag.features._base import as_signal_matrix
+from rvdiag.features import as_signal_matrix
 
 
 class CNNFeatures(TransformerMixin, BaseEstimator):
@@ -90,6 +89,8 @@ class CNNFeatures(TransformerMixin, BaseEstimator):
         clf = getattr(self, "_clf", None)
         if clf is not None:
             return clf
+        import torch
+
         from rvdiag.models.cnn import build_network
         from rvdiag.models.torch_estimator import CNNClassifier
 
@@ -106,9 +107,10 @@ class CNNFeatures(TransformerMixin, BaseEstimator):
     def transform(self, X):
         """FC-layer activations averaged over each sample's windows, shape (n, 32)."""
         check_is_fitted(self, "weights_")
-        A = as_signal_matrix(X)
+        A = as_signal_matrix(X, 1)
         if A.shape[1] != self.n_features_in_:
-            raise ParameterError(f"windows of {A.shape[1]} points, the cnn features were fitted on {self.n_features_in_}")
+            raise ParameterError(f"X has {A.shape[1]} features, but CNNFeatures is expecting {self.n_features_in_} "
+                                 f"features as input (windows of {A.shape[1]} points, fitted on {self.n_features_in_})")
         return self._restore().embed(A.astype(np.float32)).astype(np.float64)
 
     def get_feature_names_out(self, input_features=None):
@@ -120,11 +122,3 @@ class CNNFeatures(TransformerMixin, BaseEstimator):
         state.pop("_clf", None)  # the torch net is rebuilt from weights_; nothing torch is serialised
         return state
 
-
-register_features("cnn", CNNFeatures)
-try:
-    from rvdiag.models.pipelines import register_trusted_type
-
-    register_trusted_type("rvdiag.features.cnn.CNNFeatures")
-except ImportError:  # pragma: no cover - pipelines absent
-    pass

@@ -1,0 +1,71 @@
+"""Types a saved classical model may contain: the trusted-type list of :mod:`rvdiag.models.pipelines`.
+
+This module sits below every other rvdiag layer (it imports nothing from rvdiag), so the list is complete
+whatever has been imported before a model is loaded: a fresh interpreter loads every model that
+``save_classical`` writes.  The names are skops type names (``module.qualname``); loading refuses anything
+else and never unpickles.
+"""
+
+from __future__ import annotations
+
+#: The skops type names of everything rvdiag itself puts into a saved classical pipeline.
+_BUILTIN: frozenset[str] = frozenset({
+    "rvdiag.features.RawSignal",
+    "rvdiag.features.timedomain.TimeDomainFeatures",
+    "rvdiag.features.spectrum.SpectrumFeatures",
+    "rvdiag.features.spectrum.CharacteristicBandEnergy",
+    "rvdiag.features.spectrum.EnvelopeSpectrumFeatures",
+    "rvdiag.features.wavelet.WaveletPacketEnergy",
+    "rvdiag.features.bearing.BearingEnvelopeFeatures",
+    "rvdiag.features.eemd.EEMDFeatures",
+    "rvdiag.models.cnn_features.CNNFeatures",
+    "rvdiag.models.kelm.KELMClassifier",
+    "rvdiag.models.tuning.TunedKELM",
+    "sklearn.pipeline.Pipeline",
+    "sklearn.preprocessing._data.StandardScaler",
+    "sklearn.svm._classes.SVC",
+    "sklearn.model_selection._search.GridSearchCV",
+    "sklearn.model_selection._split.StratifiedKFold",
+    "sklearn.metrics._scorer._PassthroughScorer",
+    "sklearn.calibration.CalibratedClassifierCV",
+    "sklearn.calibration._CalibratedClassifier",
+    "sklearn.calibration._SigmoidCalibration",
+    "sklearn.preprocessing._label.LabelEncoder",
+    "sklearn.preprocessing._label.LabelBinarizer",
+    "sklearn.utils._bunch.Bunch",
+    "numpy.ma.core.MaskedArray",
+    "numpy.ma.core.MaskedConstant",
+    "numpy.float64",
+    "numpy.int64",
+    "numpy.int32",
+    "numpy.bool_",
+    "numpy.str_",
+    "numpy.ndarray",
+    "numpy.dtype",
+    "builtins.slice",
+    "builtins.tuple",
+    "builtins.dict",
+    "builtins.list",
+    "builtins.int",
+    "builtins.float",
+    "builtins.str",
+    "builtins.bool",
+    "builtins.NoneType",
+})
+
+#: Types a saved classical model may contain (skops type names); nothing else is loaded.
+TRUSTED_TYPES: set[str] = set(_BUILTIN)
+
+
+def register_trusted_type(name: str) -> None:
+    """Allow another type in saved models, by its skops name (``'package.module.ClassName'``).
+
+    For user extensions only: every type rvdiag writes is listed here already, so loading never depends
+    on which modules happen to have been imported.
+    """
+    if not (isinstance(name, str) and "." in name):
+        raise ValueError(f"a trusted type is a dotted 'module.ClassName' string, got {name!r}")
+    TRUSTED_TYPES.add(name)
+
+
+__all__ = ["TRUSTED_TYPES", "register_trusted_type"]
