@@ -1,6 +1,6 @@
 """Simulation speed of the compiled integrator against scipy's solve_ivp on the same equations.
 
-Healthy RV-20E, 48 kHz output, default model settings (``ModelSettings().substeps`` RK4 sub-steps
+Healthy RV-20E, 48 kHz output, default model settings (``ModelSettings().substeps`` sub-steps of ``ModelSettings().method``
 per sample unless ``--substeps``), 1000 rpm input, rated load, one CPU core (NUMBA_NUM_THREADS=1).
 ``sim_s_per_wall_s`` is recorded signal seconds per wall second of a whole ``simulate()`` call
 (gears TVMS, static solve, 0.1 s transient and output included, compilation excluded; best of
@@ -60,7 +60,7 @@ def main() -> None:
     ap.add_argument("--numpy-duration", type=float, default=0.002,
                     help="simulated seconds for scipy on the NumPy right-hand side")
     ap.add_argument("--mesh-source", default="auto")
-    ap.add_argument("--substeps", type=int, default=None, help="RK4 sub-steps (default: ModelSettings')")
+    ap.add_argument("--substeps", type=int, default=None, help="sub-steps (default: ModelSettings')")
     ap.add_argument("--repeat", type=int, default=3, help="best of this many rvdiag runs")
     ap.add_argument("--workers", type=int, default=1, help="also time N segments on N threads (N > 1)")
     ap.add_argument("--segment", type=float, default=None, help="segment length, s (default duration / N)")
@@ -110,7 +110,7 @@ def main() -> None:
     if args.json:
         print(json.dumps(out))
     else:
-        print(f"rvdiag RK4 (numba, {model.settings.substeps} sub-steps, {res.signal.shape[1]} samples): "
+        print(f"rvdiag {model.settings.method} (numba, {model.settings.substeps} sub-steps, {res.signal.shape[1]} samples): "
               f"{rate:.3f} simulated s per wall s ({wall:.2f} s for {args.duration:g} s)")
         print(f"scipy solve_ivp RK45 rtol 1e-6, NumPy right-hand side ({nfev_n} evaluations): {srate:.5f} "
               f"simulated s per wall s ({swall_n:.2f} s for {args.numpy_duration:g} s); ratio {rate / srate:.0f}x")
