@@ -24,12 +24,26 @@ def loaded():
     return m, static_equilibrium(m, 0.0)
 
 
-def test_dof_layout_27_named_coordinates():
+def test_dof_layout_27_named_coordinates_and_the_motor_rotor():
     names = mdl.dof_names(2, 2)
     assert len(names) == 27 and len(set(names)) == 27
     assert names[:3] == ["sun.x", "sun.y", "sun.th"] and names[-1] == "pin_wheel.th"
     m = prepare(P0, input_speed_rpm=1000.0)
-    assert m.n_dof == 27 and np.all(m.mass > 0)
+    # the default [drive] puts the servo rotor on the input shaft as a 28th coordinate
+    assert m.n_dof == 28 and m.names[-1] == "motor.th" and np.all(m.mass > 0)
+    assert m.mass[-1] == P0.drive.motor_inertia
+    ideal = prepare(P0.replace(drive={"speed_loop_bandwidth_hz": 0.0}), input_speed_rpm=1000.0)
+    assert ideal.n_dof == 27 and not ideal.has_motor
+
+
+def test_the_speed_loop_holds_the_rotor_at_its_static_angle(loaded):
+    """The steady drive torque is T_L / i, which the input shaft passes on, so the speed loop's spring is
+    unloaded at the static solution: the rotor sits at its nominal angle (measured 1.5e-7 of the sun's wind-up,
+    the static solve's tolerance on a 13 N m/rad speed-loop spring)."""
+    m, q = loaded
+    assert m.has_motor
+    assert abs(q[-1]) < 1e-6 * abs(q[2])
+    assert_allclose(m.P[mdl.I_TDRIVE], 120.0 / P0.ratio, rtol=1e-12)
 
 
 def test_forces_are_minus_gradient_of_independent_potential():
@@ -149,7 +163,8 @@ def test_stiffness_matrix_symmetric_and_positive_definite(loaded):
     assert np.max(np.abs(K - K.T)) <= 1e-9 * np.max(np.abs(K))
     assert np.min(np.linalg.eigvalsh(0.5 * (K + K.T))) > 0
     f = natural_frequencies(m, q=q).frequencies_hz
-    assert f.size == 27 and 100.0 < f[0] < f[-1] < 2e5
+    # 28 with the motor rotor; its mode on the speed loop and the input shaft is the lowest (~50 Hz)
+    assert f.size == 28 and 10.0 < f[0] < 100.0 < f[1] < f[-1] < 2e5
 
 
 def test_rectangular_table_mean_is_contact_ratio_times_pair_stiffness():

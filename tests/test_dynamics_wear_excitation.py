@@ -202,9 +202,11 @@ def test_constant_error_only_shifts_the_static_deflection(healthy_signal):
             return (q[0] * sap + q[1] * cap + P[mdl.I_RB1] * q[2] - q[ip] * P[mdl.I_SINA]
                     - q[ip + 1] * P[mdl.I_COSA] + P[mdl.I_RB2] * q[ip + 2])
         assert_allclose(d(q1) - d(q0), c, rtol=1e-6)
-    # the input coupling and the housing carry the same torques
-    assert_allclose(q1[2], q0[2], rtol=1e-9, atol=1e-15)
-    assert_allclose(q1[-1], q0[-1], rtol=1e-9, atol=1e-15)
+    # the input coupling and the housing carry the same torques (to the static solve's tolerance: 3e-8 with
+    # the soft speed-loop spring on the motor rotor)
+    assert_allclose(q1[2], q0[2], rtol=1e-7, atol=1e-15)
+    i_rt = mdl.dof_layout(2, 2)["pin_wheel"] + 2
+    assert_allclose(q1[i_rt], q0[i_rt], rtol=1e-9, atol=1e-15)
     shifted = simulate(P0, const, **SIM).signal
     one = simulate(P0, base, **SIM).signal
     assert _rel_change(shifted, one) < 5e-3

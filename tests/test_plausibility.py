@@ -76,7 +76,8 @@ def test_no_contact_ever_pulls():
     v = np.zeros_like(q)
     v[2] = -100.0
     Q = mdl.forces(m, 0.0, q, v)
-    assert Q[2] == pytest.approx(-m.P[mdl.I_KIN] * q[2] - m.P[mdl.I_CIN] * v[2], rel=1e-12, abs=1e-12)
+    qm = q[-1] if m.has_motor else 0.0
+    assert Q[2] == pytest.approx(-m.P[mdl.I_KIN] * (q[2] - qm) - m.P[mdl.I_CIN] * v[2], rel=1e-12, abs=1e-12)
     iR = lay["pin_wheel"] + 2
     support_only = -m.P[mdl.I_KRT] * q[iR]
     rocked = []

@@ -121,10 +121,10 @@ def _rotation_increments(angle_b, angle_w):
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
-def _record_sensor(dydt, n, sx, sy, sensor, out, s):
+def _record_sensor(dydt, n, iR, sx, sy, sensor, out, s):
     """``out[c, s]``: the housing acceleration at the sensor point ``(sx, sy)`` (pin-wheel translation
-    plus its rotation's tangential part, docs/model.md section 6) along each sensor direction ``c``."""
-    iR = n - 3
+    plus its rotation's tangential part, docs/model.md section 6; ``iR`` its first coordinate) along each
+    sensor direction ``c``."""
     ax = dydt[n + iR] - dydt[n + iR + 2] * sy
     ay = dydt[n + iR + 1] + dydt[n + iR + 2] * sx
     for c in range(sensor.shape[0]):
@@ -151,6 +151,7 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tv
     n = n2 // 2
     dts = 1.0 / fs
     hnom = dts / substeps
+    iR = 6 + 6 * int(P[mdl.I_NPL]) + 3 * int(P[mdl.I_NDISC])  # the pin wheel's first coordinate
     sx = P[mdl.I_SENSX]
     sy = P[mdl.I_SENSY]
     lim = P[mdl.I_DISPLIM]
@@ -195,7 +196,7 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tv
             if j == 0:
                 mdl.rhs_with_terms(y, P, inv_mass, planet, ma, gS, rS, Q, k1)
                 if record:
-                    _record_sensor(k1, n, sx, sy, sensor, out, s)
+                    _record_sensor(k1, n, iR, sx, sy, sensor, out, s)
             else:
                 mdl.rhs_with_terms(y, P, inv_mass, planet, ma, gT, rT, Q, k1)
             cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
@@ -249,6 +250,7 @@ def rk38_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, t
     n = n2 // 2
     dts = 1.0 / fs
     hnom = dts / substeps
+    iR = 6 + 6 * int(P[mdl.I_NPL]) + 3 * int(P[mdl.I_NDISC])  # the pin wheel's first coordinate
     sx = P[mdl.I_SENSX]
     sy = P[mdl.I_SENSY]
     lim = P[mdl.I_DISPLIM]
@@ -278,7 +280,7 @@ def rk38_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, t
                 cdb, sdb, cdw, sdw = _rotation_increments(rate_b * h3, rate_w * h3)
             mdl.rhs_with_terms(y, P, inv_mass, planet, ma, ga, ra, Q, k1)
             if j == 0 and record:
-                _record_sensor(k1, n, sx, sy, sensor, out, s)
+                _record_sensor(k1, n, iR, sx, sy, sensor, out, s)
             cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
             mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gb, rb)
             mdl.mesh_terms(ta, P, tvms, mb)

@@ -137,7 +137,10 @@ def potential_energy(model: mdl.Model, t: float, q: np.ndarray) -> float:
     N, D = model.n_planets, model.n_discs
     lay = mdl.dof_layout(N, D)
     s, H, R = lay["sun"], lay["carrier"], lay["pin_wheel"]
-    V = 0.5 * P[mdl.I_KSS] * (q[s] ** 2 + q[s + 1] ** 2) + 0.5 * P[mdl.I_KIN] * q[s + 2] ** 2
+    qm = q[-1] if model.has_motor else 0.0  # the motor rotor (or the ideal speed source at rest)
+    V = 0.5 * P[mdl.I_KSS] * (q[s] ** 2 + q[s + 1] ** 2) + 0.5 * P[mdl.I_KIN] * (q[s + 2] - qm) ** 2
+    if model.has_motor:  # the speed loop's spring and the steady drive torque's work on the rotor
+        V += 0.5 * P[mdl.I_KSL] * qm**2 - P[mdl.I_TDRIVE] * qm
     V += 0.5 * P[mdl.I_KHS] * (q[H] ** 2 + q[H + 1] ** 2) + P[mdl.I_TLOAD] * q[H + 2]
     V += 0.5 * P[mdl.I_KRH] * (q[R] ** 2 + q[R + 1] ** 2) + 0.5 * P[mdl.I_KRT] * q[R + 2] ** 2
     alpha, rb1, rb2, hb = P[mdl.I_ALPHA], P[mdl.I_RB1], P[mdl.I_RB2], P[mdl.I_HALF_BACKLASH]

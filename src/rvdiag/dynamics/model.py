@@ -61,7 +61,9 @@ I_ROTLIM = 49
 I_CPH, I_SPH = 50, 51  # cos and sin of the disc phase
 I_NSLOT = 52  # tooth-pair slots of each sun-planet mesh (rows of Model.tables: k, e, c per slot)
 I_IRAMP = 53  # 1 / MESH_DAMPING_RAMP_M
-N_P = 54
+I_MOTOR = 54  # 1.0: a motor rotor DOF (the last coordinate) on the input shaft, held by the speed loop
+I_KSL, I_CSL, I_TDRIVE = 55, 56, 57  # speed-loop spring and damper on the rotor, its steady drive torque
+N_P = 58
 
 #: approach (m) over which a tooth pair's damper grows from nothing to its full value once the flanks touch
 #: (a penetration-dependent damper, Hunt & Crossley 1975, J. Appl. Mech. 42, in its simplest, linear-ramp form):
@@ -219,8 +221,9 @@ def pin_contact_stiffness(params: ReducerParams, load_Nm: float) -> float:
     return float(np.mean(vals))
 
 
-def dof_layout(n_planets: int, n_discs: int) -> dict[str, int]:
-    """Index of the first (x) coordinate of every body: ``{"sun": 0, "planet0": 3, ...}``."""
+def dof_layout(n_planets: int, n_discs: int, motor: bool = False) -> dict[str, int]:
+    """Index of the first (x) coordinate of every body: ``{"sun": 0, "planet0": 3, ...}``; with ``motor``, the
+    motor rotor's single coordinate (its rotation) comes last."""
     out = {"sun": 0}
     for i in range(n_planets):
         out[f"planet{i}"] = 3 + 3 * i
@@ -230,14 +233,18 @@ def dof_layout(n_planets: int, n_discs: int) -> dict[str, int]:
         out[f"disc{j}"] = 3 + 6 * n_planets + 3 * j
     out["carrier"] = 3 + 6 * n_planets + 3 * n_discs
     out["pin_wheel"] = out["carrier"] + 3
+    if motor:
+        out["motor"] = out["pin_wheel"] + 3
     return out
 
 
-def dof_names(n_planets: int, n_discs: int) -> list[str]:
-    """Names of the generalized coordinates, e.g. ``sun.x``, ``planet1.th``, ``pin_wheel.y``."""
+def dof_names(n_planets: int, n_discs: int, motor: bool = False) -> list[str]:
+    """Names of the generalized coordinates, e.g. ``sun.x``, ``planet1.th``, ``pin_wheel.y``, ``motor.th``."""
     names: list[str] = []
     for body in dof_layout(n_planets, n_discs):
         names += [f"{body}.x", f"{body}.y", f"{body}.th"]
+    if motor:
+        names.append("motor.th")
     return names
 
 
@@ -303,8 +310,13 @@ class Model:
         return self.mass.size
 
     @property
+    def has_motor(self) -> bool:
+        """True when the last coordinate is the motor rotor's rotation (``[drive]`` speed loop on)."""
+        return bool(self.P[I_MOTOR] != 0.0)
+
+    @property
     def names(self) -> list[str]:
-        return dof_names(self.n_planets, self.n_discs)
+        return dof_names(self.n_planets, self.n_discs, self.has_motor)
 
     def frozen(self, t: float = 0.0) -> "Model":
         """Copy with every time-varying term frozen at time ``t`` (for modal and static analysis)."""
@@ -417,8 +429,10 @@ def build_model(
     Omega = omega_s / params.ratio
     a = s1.centre_distance
 
-    lay = dof_layout(N, D)
-    n = lay["pin_wheel"] + 3
+    drive = params.drive
+    motor = drive.speed_loop_bandwidth_hz > 0.0
+    lay = dof_layout(N, D, motor)
+    n = lay["pin_wheel"] + 3 + (1 if motor else 0)
     mass = np.empty(n)
 
     def put(body: str, m: float, J: float) -> None:
@@ -432,6 +446,8 @@ def build_model(
     for j in range(D):
         put(f"disc{j}", bp.cycloid.mass, bp.cycloid.inertia)
     put("carrier", bp.carrier.mass, bp.carrier.inertia)
+    if motor:
+        mass[lay["motor"]] = drive.motor_inertia
     # the pin wheel carries the housing shell and the mounting flange ([mounting] housing_added_mass, a thin
     # ring at the outer radius)
     m_add = params.mounting.housing_added_mass
@@ -475,6 +491,16 @@ def build_model(
     P[I_KPIN], P[I_CPIN] = k_pin, c(zp, k_pin, bp.cycloid.mass, mass[lay["pin_wheel"]])
     P[I_CMESH] = c(zm, k_mean, m_mesh)
     P[I_IRAMP] = 1.0 / MESH_DAMPING_RAMP_M
+    if motor:
+        # speed PI of the servo drive on the rotor (docs/model.md section 3): a damper c = J w_c and a spring
+        # k = c w_c / 4 (PI corner at a quarter of the bandwidth), tuned on the rotor plus the train reflected to
+        # it; the steady drive torque T_L / i holds the static rotor angle at zero
+        w_c = TWO_PI * drive.speed_loop_bandwidth_hz
+        c_sl = (drive.motor_inertia + J_eff) * w_c
+        P[I_MOTOR] = 1.0
+        P[I_CSL] = c_sl if st.damping else 0.0
+        P[I_KSL] = c_sl * w_c / 4.0
+        P[I_TDRIVE] = load_Nm / params.ratio
     P[I_TLOAD] = load_Nm
     P[I_TFROZEN] = -1.0 if st.excitation else 0.0
     P[I_CORIOLIS] = 1.0 if st.coriolis else 0.0
@@ -729,7 +755,15 @@ def generalized_forces(y, P, planet, mt, geo, rot, Q):
     css = P[I_CSS]
     S0 = -(kss * y[0] + css * y[n])
     S1 = -(kss * y[1] + css * y[n + 1])
-    S2 = -(P[I_KIN] * y[2] + P[I_CIN] * y[n + 2])
+    mot = P[I_MOTOR] != 0.0
+    iM = n - 1
+    qm = y[iM] if mot else 0.0
+    vm = y[n + iM] if mot else 0.0
+    # input shaft between the motor rotor (or the ideal speed source) and the sun
+    T_sh = P[I_KIN] * (y[2] - qm) + P[I_CIN] * (y[n + 2] - vm)
+    S2 = -T_sh
+    if mot:  # the rotor: drive torque, speed loop, and the shaft's reaction
+        Q[iM] = P[I_TDRIVE] - P[I_KSL] * qm - P[I_CSL] * vm + T_sh
     # ---- carrier: support, load torque
     qH0 = y[iH]
     qH1 = y[iH + 1]
@@ -941,7 +975,7 @@ def accelerations(y, P, inv_mass, planet, mt, geo, rot, Q, dydt):
     N = int(P[I_NPL]) & 255
     D = int(P[I_NDISC]) & 255
     n = Q.size & 65535
-    iR = n - 3
+    iR = 6 + 6 * N + 3 * D
     Om = P[I_OMEGA]
     for i in range(n):
         dydt[n + i] = Q[i] * inv_mass[i]
@@ -1072,7 +1106,7 @@ def sensor_acceleration(model: Model, acc: np.ndarray) -> np.ndarray:
     The pin wheel is the housing part of the model: a point r on it accelerates by
     ``a_r + alpha_r z x r`` (small rotations), projected on each direction.
     """
-    iR = model.n_dof - 3
+    iR = dof_layout(model.n_planets, model.n_discs)["pin_wheel"]
     acc = np.asarray(acc)
     ax = acc[..., iR] - acc[..., iR + 2] * model.P[I_SENSY]
     ay = acc[..., iR + 1] + acc[..., iR + 2] * model.P[I_SENSX]

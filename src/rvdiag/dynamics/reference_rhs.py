@@ -40,7 +40,7 @@ class ReferenceRHS:
     >>> m = prepare(output_speed_deg_s=45.0, load_Nm=100.0, mesh_source="rectangular")
     >>> f = ReferenceRHS(m)
     >>> f(0.0, np.zeros(2 * m.n_dof)).shape
-    (54,)
+    (56,)
     """
 
     def __init__(self, model: mdl.Model) -> None:
@@ -107,7 +107,12 @@ class ReferenceRHS:
 
         # supports, input coupling, load torque
         Q[0:2] -= P[mdl.I_KSS] * q[0:2] + P[mdl.I_CSS] * v[0:2]
-        Q[2] -= P[mdl.I_KIN] * q[2] + P[mdl.I_CIN] * v[2]
+        # input shaft from the motor rotor (the last coordinate) or an ideal speed source (angle 0)
+        qm, vm = (q[-1], v[-1]) if P[mdl.I_MOTOR] != 0.0 else (0.0, 0.0)
+        t_shaft = P[mdl.I_KIN] * (q[2] - qm) + P[mdl.I_CIN] * (v[2] - vm)
+        Q[2] -= t_shaft
+        if P[mdl.I_MOTOR] != 0.0:  # rotor: steady drive torque, speed-loop spring and damper, shaft reaction
+            Q[-1] += P[mdl.I_TDRIVE] - P[mdl.I_KSL] * qm - P[mdl.I_CSL] * vm + t_shaft
         Q[iH:iH + 2] -= P[mdl.I_KHS] * q[iH:iH + 2] + P[mdl.I_CHS] * v[iH:iH + 2]
         Q[iH + 2] -= P[mdl.I_TLOAD]
         Q[iR:iR + 2] -= P[mdl.I_KRH] * q[iR:iR + 2] + P[mdl.I_CRH] * v[iR:iR + 2]

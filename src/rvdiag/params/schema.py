@@ -200,6 +200,22 @@ class Modification:
 
 
 @dataclass(frozen=True)
+class Drive:
+    """The servo drive on the input shaft: its rotor and the speed loop that holds its speed
+    (:mod:`rvdiag.dynamics.model`, docs/model.md section 3).
+
+    ``motor_inertia`` (kg m^2) is the rotor's; default 1.26e-4, a 0.75 kW, 3000 rpm low-inertia servo
+    (Mitsubishi HG-KR73 class, the size of the motor-current rig's 0.75 kW motor).  The speed PI acts on the
+    rotor as a damper ``c = J w_c`` and a spring ``k = c w_c / 4`` (``w_c = 2 pi speed_loop_bandwidth_hz``,
+    the PI corner at a quarter of it; default 100 Hz, a typical industrial velocity-loop bandwidth under load).
+    ``speed_loop_bandwidth_hz = 0`` removes the rotor: the input shaft is then driven by an ideal speed source.
+    """
+
+    motor_inertia: float = _positive(default=1.26e-4)
+    speed_loop_bandwidth_hz: float = _nonnegative(default=100.0)
+
+
+@dataclass(frozen=True)
 class Mounting:
     """What the pin wheel (housing) carries and how the sensor sees it.
 
@@ -228,10 +244,11 @@ _SECTIONS: dict[str, type] = {
     "damping": Damping,
     "operation": Operation,
     "modification": Modification,
+    "drive": Drive,
     "mounting": Mounting,
 }
 #: sections added after the first parameter files: a file without them takes every default of the section
-OPTIONAL_SECTIONS = ("modification", "mounting")
+OPTIONAL_SECTIONS = ("modification", "drive", "mounting")
 
 
 @dataclass(frozen=True)
@@ -250,6 +267,7 @@ class ReducerParams:
     damping: Damping
     operation: Operation
     modification: Modification = field(default_factory=Modification)
+    drive: Drive = field(default_factory=Drive)
     mounting: Mounting = field(default_factory=Mounting)
     source: str = field(default="", compare=False)
 
