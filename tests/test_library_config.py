@@ -152,7 +152,8 @@ def test_relative_params_path_is_relative_to_the_config(tmp_path):
     assert LibraryConfig.load(tmp_path / "c.toml").reducer_params().stage1.face_width == 0.012
 
 
-@pytest.mark.parametrize("name", ["paper", "demo", "independent", "experiments/independent20", "experiments/snr"])
+@pytest.mark.parametrize("name", ["paper", "demo", "independent", "transfer", "experiments/independent20",
+                                  "experiments/snr"])
 def test_shipped_configs_are_valid(name):
     cfg = LibraryConfig.load(ROOT / "configs" / f"{name}.toml")
     assert cfg.classes == ["T1", "T2", "T3", "T4", "T5", "T6"]

@@ -82,6 +82,10 @@ class Unit:
     scales: Mapping[str, float]
     split: str | None
     rows: int
+    #: ``[mounting]`` key -> value drawn for this unit (``[randomise]`` path keys)
+    mounting: Mapping[str, float] = field(default_factory=dict)
+    #: colour of the added noise (PSD ~ 1 / f^beta), ``None`` = white
+    noise_exponent: float | None = None
 
 
 def _streams(unit_seed: int) -> list[np.random.SeedSequence]:
@@ -115,8 +119,11 @@ def make_plan(cfg: LibraryConfig) -> list[Unit]:
             split = None
             if cfg.mode == "independent":
                 split = "test" if k >= cfg.simulations_per_state - cfg.test_simulations_per_state else "train"
+            # drawn after every earlier draw, so a config without them keeps its units bit for bit
+            mounting = {key: float(sw.draw(rng)) for key, sw in cfg.path.items()}
+            colour = None if cfg.noise_colour_exponent is None else float(cfg.noise_colour_exponent.draw(rng))
             units.append(Unit(u, state, k, seeds[u], severity, speed, load, snr, scales, split,
-                              cfg.rows_per_simulation(state)))
+                              cfg.rows_per_simulation(state), mounting, colour))
             u += 1
     return units
 
@@ -215,6 +222,8 @@ def run_unit(unit: Unit, job: Job) -> UnitResult:
             section, key = name.split(".")
             changes.setdefault(section, {})[key] = getattr(getattr(params, section), key) * factor
         params = params.replace(**changes)
+    if unit.mounting:
+        params = params.replace(mounting=dict(unit.mounting))
     spec = FaultSpec(unit.state, unit.severity)
     sim = resolve_simulator(job.simulator)
     fault = spec if getattr(sim, "accepts_fault_spec", False) else spec.to_tooth_faults()
@@ -234,9 +243,9 @@ def run_unit(unit: Unit, job: Job) -> UnitResult:
     if not np.all(np.isfinite(x)):
         raise SimulationError(f"unit {unit.index} ({unit.state}): the simulated signal contains NaN or Inf")
     if unit.noise_snr_db is not None:
-        from rvdiag.dynamics.noise import add_awgn  # here: keep numba out of `import rvdiag.library`
+        from rvdiag.dynamics.noise import add_coloured_noise  # here: keep numba out of `import rvdiag.library`
 
-        x = add_awgn(x, unit.noise_snr_db, np.random.default_rng(noise_ss))
+        x = add_coloured_noise(x, unit.noise_snr_db, unit.noise_exponent or 0.0, np.random.default_rng(noise_ss))
     starts = segment_starts(x.shape[0], job.segment_length, job.hop)
     if job.mode == "paper":
         n = starts.shape[0]
@@ -269,6 +278,10 @@ def run_unit(unit: Unit, job: Job) -> UnitResult:
         meta[p] = [unit.severity.get(p)] * rows
     for name in job.scale_columns:
         meta["scale." + name] = [unit.scales[name]] * rows
+    for name, value in unit.mounting.items():
+        meta["mounting." + name] = [value] * rows
+    if unit.noise_exponent is not None:
+        meta["noise_colour_exponent"] = [unit.noise_exponent] * rows
     return UnitResult(unit.index, X, [unit.state] * rows, meta, time.perf_counter() - t0)
 
 

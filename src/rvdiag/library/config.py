@@ -65,6 +65,13 @@ STIFFNESS_KEYS: tuple[tuple[str, str], ...] = (
     ("bearings", "input_torsional"),
     ("bearings", "output_torsional"),
 )
+#: ``[randomise]`` keys drawn as absolute values of the ``[mounting]`` section (the sensor's transfer path and
+#: the mass the housing carries), with the range each must lie in
+PATH_KEYS: dict[str, tuple[float, float]] = {
+    "path_resonance_hz": (0.0, 24000.0),
+    "path_damping_ratio": (1e-3, 1.0),
+    "housing_added_mass": (0.0, 200.0),
+}
 #: Parameters scaled by ``[randomise] damping_pct``.
 DAMPING_KEYS: tuple[tuple[str, str], ...] = (
     ("damping", "mesh_damping_ratio"),
@@ -76,7 +83,8 @@ _TOP_KEYS = {"name", "mode", "seed", "simulator", "params", "channel", "model",
 _SECTION_KEYS = {
     "signal": {"fs", "duration_s", "transient_s", "segment_length", "hop"},
     "operation": {"input_speed_rpm", "output_speed_deg_s", "load_Nm", "noise_snr_db"},
-    "randomise": {"stiffness_pct", "damping_pct"},
+    "randomise": {"stiffness_pct", "damping_pct", "path_resonance_hz", "path_damping_ratio", "housing_added_mass",
+                  "noise_colour_exponent"},
     "split": {"train_per_state", "test_per_state", "assign",
               "simulations_per_state", "test_simulations_per_state"},
 }
@@ -187,6 +195,10 @@ class LibraryConfig:
     noise_snr_db: Sweep | None
     stiffness_pct: float = 0.0
     damping_pct: float = 0.0
+    #: ``[randomise]`` draws of ``[mounting]`` values (:data:`PATH_KEYS`), key -> sweep
+    path: Mapping[str, Sweep] = field(default_factory=dict)
+    #: ``[randomise] noise_colour_exponent``: the added noise's PSD falls as 1 / f^beta (0 white, 1 pink)
+    noise_colour_exponent: Sweep | None = None
     train_per_state: int = 0
     test_per_state: int = 0
     assign: str = "random"
@@ -332,6 +344,19 @@ class LibraryConfig:
             pct[key] = _number(rnd.get(key, 0.0), f"{w} {key}")
             if not 0.0 <= pct[key] < 100.0:
                 raise ConfigError(f"{w} {key}: must lie in [0, 100) percent, got {pct[key]:g}")
+        path = {}
+        for key, (lo, hi) in PATH_KEYS.items():
+            if key in rnd:
+                path[key] = Sweep.parse(rnd[key], f"{w} {key}")
+                if not (lo <= path[key].lo and path[key].hi <= hi):
+                    raise ConfigError(f"{w} {key}: must lie in [{lo:g}, {hi:g}], got {path[key].lo:g}..{path[key].hi:g}")
+        colour = None
+        if "noise_colour_exponent" in rnd:
+            colour = Sweep.parse(rnd["noise_colour_exponent"], f"{w} noise_colour_exponent")
+            if not (0.0 <= colour.lo and colour.hi <= 3.0):
+                raise ConfigError(f"{w} noise_colour_exponent: must lie in [0, 3], got {colour.lo:g}..{colour.hi:g}")
+            if noise is None:
+                raise ConfigError(f"{w} noise_colour_exponent: needs [operation] noise_snr_db")
 
         # --- states
         raw_states = data.get("states")
@@ -413,7 +438,7 @@ class LibraryConfig:
             name=name, mode=mode, seed=seed, fs=fs, duration_s=duration_s, transient_s=transient_s,
             segment_length=segment_length, hop=hop, states=states, speed_key=speed_key, speed=speed,
             load_Nm=load, noise_snr_db=noise, stiffness_pct=pct["stiffness_pct"], damping_pct=pct["damping_pct"],
-            simulator=simulator, params=params, channel=channel, model=model, source=source, **kw,
+            path=path, noise_colour_exponent=colour, simulator=simulator, params=params, channel=channel, model=model, source=source, **kw,
         )
 
     # ------------------------------------------------------------------ output
@@ -443,10 +468,18 @@ class LibraryConfig:
             "signal": {"fs": self.fs, "duration_s": self.duration_s, "transient_s": self.transient_s,
                        "segment_length": self.segment_length, "hop": self.hop},
             "operation": operation,
-            "randomise": {"stiffness_pct": self.stiffness_pct, "damping_pct": self.damping_pct},
+            "randomise": self._randomise_dict(),
             "split": split,
             "states": {s: {k: v.to_toml() for k, v in sw.items()} for s, sw in self.states.items()},
         }
+
+    def _randomise_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"stiffness_pct": self.stiffness_pct, "damping_pct": self.damping_pct}
+        for key, sweep in self.path.items():
+            out[key] = sweep.to_toml()
+        if self.noise_colour_exponent is not None:
+            out["noise_colour_exponent"] = self.noise_colour_exponent.to_toml()
+        return out
 
     def replace(self, **changes: Any) -> "LibraryConfig":
         """Copy with top-level or section keys changed, re-validated: ``cfg.replace(seed=2)``,
