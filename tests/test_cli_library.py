@@ -135,3 +135,25 @@ def test_ctrl_c_reports_progress_and_info_says_how_to_finish(tmp_path, config_fi
     monkeypatch.setattr(StoreBuilder, "write_unit", original)
     assert run(["library", "build", str(config_file), "--out", str(out), "--workers", "0", "-q"]) == 0
     assert "2 were already committed" in capsys.readouterr().out
+
+
+def test_build_from_a_given_parameter_file_records_it(tmp_path, config_file, capsys):
+    """``--params`` (what ``rvdiag update`` writes) replaces the config's parameter set and is recorded; a bad
+    file is one error line before anything is written."""
+    from rvdiag.params import ReducerParams
+
+    mine = tmp_path / "updated.toml"
+    ReducerParams.default().replace(bearings={"sun_support": 2.5e8}).save(mine)
+    out = tmp_path / "p.zarr"
+    assert run(["library", "build", str(config_file), "--out", str(out), "--workers", "0", "-q",
+                "--params", str(mine)]) == 0
+    capsys.readouterr()
+    assert run(["library", "info", str(out), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["config"]["params"] == str(mine.resolve())
+    bad = tmp_path / "bad.toml"
+    bad.write_text("name = 'x'\n[stage1]\nsun_teeth = -3\n", encoding="utf-8")
+    assert run(["library", "build", str(config_file), "--out", str(tmp_path / "q.zarr"), "--workers", "0", "-q",
+                "--params", str(bad)]) == 2
+    assert "bad.toml" in one_error_line(capsys)
+    assert not (tmp_path / "q.zarr").exists()

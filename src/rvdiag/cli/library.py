@@ -44,6 +44,11 @@ def register(app: typer.Typer) -> None:
             None, "--scheduler", help="Address of an existing Dask scheduler (tcp://host:8786) to run on instead.",
         ),
         quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+        params: Optional[Path] = typer.Option(
+            None, "--params",
+            help="Reducer parameter file (TOML) to build from instead of the config's `params` (e.g. what "
+                 "`rvdiag update` wrote); recorded in the store.",
+        ),
     ) -> None:
         """Build (or resume) the library of CONFIG into --out, in parallel on Dask.
 
@@ -58,6 +63,11 @@ def register(app: typer.Typer) -> None:
 
         check_run_options(workers, scheduler)
         cfg = LibraryConfig.load(config)
+        if params is not None:
+            from rvdiag.params import ReducerParams
+
+            ReducerParams.load(params)  # a bad file fails here, before anything is written
+            cfg = cfg.replace(params=str(Path(params).resolve()))
         if not quiet:
             typer.echo(cfg.describe(), err=True)
         try:
