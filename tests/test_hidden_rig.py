@@ -1,0 +1,47 @@
+"""The hidden test rig of bench/hidden_rig.py: measured-like files of a perturbed reducer whose values the
+transfer workflow never sees."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+
+from rvdiag.params import ReducerParams
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _rig_module():
+    spec = importlib.util.spec_from_file_location("hidden_rig", ROOT / "bench" / "hidden_rig.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_the_rig_differs_from_the_default_and_is_seeded():
+    rig = _rig_module()
+    a, b, c = rig.rig_parameters(1), rig.rig_parameters(1), rig.rig_parameters(2)
+    base = ReducerParams.default()
+    assert a == b and a != c
+    assert a.bearings != base.bearings and a.mounting.path_resonance_hz > 0.0
+    assert 4.0 <= a.mounting.housing_added_mass <= 12.0
+
+
+def test_rig_files_are_measured_like_csv_and_the_secret_is_kept_apart(tmp_path):
+    rig = _rig_module()
+    out = rig.make_rig(tmp_path / "rig", seed=3, record_s=0.02, calib_s=0.05)
+    files = sorted(p.name for p in out.glob("*.csv"))
+    assert len(files) == 1 + 6 * 3 * 2 and files[0] == "calib_T1_45dps_75Nm.csv"
+    head = (out / "rig_T2_45dps_60Nm.csv").read_text(encoding="utf-8").splitlines()
+    assert head[0] == "time_s,acc"
+    data = np.loadtxt(out / "rig_T2_45dps_60Nm.csv", delimiter=",", skiprows=1)
+    assert data.shape == (int(0.02 * 48000), 2) and np.all(np.isfinite(data)) and data[:, 1].std() > 0
+    assert np.allclose(np.diff(data[:, 0]), 1 / 48000.0)
+    secret = json.loads((out / "RIG_SECRET.json").read_text(encoding="utf-8"))
+    assert ReducerParams.from_dict(secret["params"]) == rig.rig_parameters(3)
+    # the shipped transfer library knows nothing of the rig
+    text = (ROOT / "configs" / "transfer.toml").read_text(encoding="utf-8")
+    assert "RIG" not in text and str(round(secret["params"]["mounting"]["path_resonance_hz"], 1)) not in text
