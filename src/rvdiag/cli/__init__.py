@@ -13,6 +13,7 @@ from __future__ import annotations
 import importlib
 import pkgutil
 import sys
+import warnings
 
 import typer
 
@@ -60,8 +61,22 @@ def build_app() -> typer.Typer:
     return app
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None):  # noqa: ANN001
+    """rvdiag's own warnings as one line ``warning: ...`` on stderr (no source line); others as Python shows them."""
+    from rvdiag.errors import RvdiagWarning
+
+    if issubclass(category, RvdiagWarning):
+        typer.echo(f"warning: {' '.join(str(message).split())}", err=True)
+    else:
+        _python_showwarning(message, category, filename, lineno, file, line)
+
+
+_python_showwarning = warnings.showwarning
+
+
 def main(argv: list[str] | None = None) -> None:
     """Entry point of the ``rvdiag`` console script."""
+    warnings.showwarning = _show_warning
     app = build_app()
     try:
         code = app(args=argv, prog_name="rvdiag", standalone_mode=False)
