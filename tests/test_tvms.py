@@ -48,7 +48,7 @@ def test_single_pair_stiffness_vs_iso6336(z1, z2, x1, x2, rel):
 
 
 def test_rv20e_mean_order_of_reference():
-    """REFERENCE.md sec. 2: mean ~1e8 N/m scaled by face width, ISO c' ~ 14-16 N/(mm um)."""
+    """Mean ~1e8 N/m scaled by face width; ISO 6336-1 single-pair stiffness c' ~ 14-16 N/(mm um)."""
     pair = GearPair.sun_planet(ReducerParams.default())
     res = mesh_stiffness(pair, cycles=11, points_per_cycle=360)
     assert 1e8 < res.mean_N_per_m < 4e8

@@ -5,7 +5,7 @@ how much noise and parameter randomisation, how each simulated signal is cut int
 samples are split into training and test sets.  Two modes:
 
 ``paper``
-    One long simulation per state (the seed paper on dynamics-model driven diagnosis: 60 s at 48 kHz per
+    One long simulation per state (the dynamics-model-driven study, docs/references.md: 60 s at 48 kHz per
     state, cut into non-overlapping 8000-point samples, 260 training and 100 test samples per state).
     The split is by segment: training and test samples come from the same simulation.
 ``independent``
@@ -53,7 +53,7 @@ SPLIT_ASSIGN = ("random", "ordered")
 DEFAULT_SIMULATOR = "rvdiag.library.simulators:dynamics"
 
 #: Parameters scaled by ``[randomise] stiffness_pct``: every support stiffness and Young's modulus (the
-#: mesh stiffness of the potential-energy method is proportional to E, REFERENCE.md section 2).
+#: mesh stiffness of the potential-energy method is proportional to E, Yang & Lin 1987; Sainsot et al. 2004).
 STIFFNESS_KEYS: tuple[tuple[str, str], ...] = (
     ("material", "youngs_modulus"),
     ("bearings", "sun_support"),

@@ -1,6 +1,6 @@
 """The six health states of the library (T1..T6) and their severity parameters.
 
-The states are those of the seed paper on dynamics-model driven diagnosis (REFERENCE.md section 3):
+The states are those of the dynamics-model-driven study (docs/references.md, its section 2):
 
 ====  ==============================  ===============================================
 name  description                     severity parameters (SI units, angles in degrees)
