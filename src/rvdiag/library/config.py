@@ -48,6 +48,25 @@ from rvdiag.errors import ConfigError, ParameterError
 from rvdiag.library.states import SEVERITY_PARAMETERS, STATES
 from rvdiag.tomlfile import read_toml
 
+
+def _configs_dir() -> Path:
+    from importlib.resources import files
+
+    return Path(str(files("rvdiag") / "configs"))
+
+
+def builtin_configs() -> list[str]:
+    """Names of the library configs shipped in the package (``rvdiag/configs/``), e.g. ``demo``, ``experiments/snr``."""
+    root = _configs_dir()
+    return sorted(p.relative_to(root).with_suffix("").as_posix() for p in root.rglob("*.toml"))
+
+
+def builtin_config_path(name: str) -> Path:
+    """The file of the shipped config ``name`` (one of :func:`builtin_configs`)."""
+    if name not in builtin_configs():
+        raise ConfigError(f"no built-in library config {name!r} (built-in: {', '.join(builtin_configs())})")
+    return _configs_dir() / f"{name}.toml"
+
 MODES = ("paper", "independent")
 SPLIT_ASSIGN = ("random", "ordered")
 DEFAULT_SIMULATOR = "rvdiag.library.simulators:dynamics"
@@ -236,8 +255,14 @@ class LibraryConfig:
     # ------------------------------------------------------------------ construction
     @classmethod
     def load(cls, path: str | Path) -> "LibraryConfig":
-        """Read and validate a library TOML file; :class:`ConfigError` names the file and key."""
+        """Read and validate a library TOML file; :class:`ConfigError` names the file and key.
+
+        ``path`` may also name a config shipped with rvdiag (:func:`builtin_configs`): ``demo``, ``paper``,
+        ``independent``, ``experiments/snr``, ... when no file of that name exists.
+        """
         path = Path(path)
+        if not path.exists() and path.suffix == "" and str(path) in builtin_configs():
+            path = builtin_config_path(str(path))
         data = read_toml(path, "library config")
         cfg = cls.from_dict(data, source=str(path))
         object.__setattr__(cfg, "base_dir", str(path.resolve().parent))
