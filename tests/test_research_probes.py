@@ -1,4 +1,4 @@
-"""The accuracy probe behind bench/HISTORY.md's "fifth pass" (``bench/pin_events_probe.py``).
+"""The accuracy probe behind bench/HISTORY.md's "fifth pass" (``research/pin_events_probe.py``).
 
 Its figures rest on two properties checked here: the mode-locked right-hand side is the model's own when
 the mode is the real contact state, and located switches leave the RK4 result where it was (they only
@@ -18,7 +18,8 @@ from rvdiag.dynamics import model as mdl
 from rvdiag.dynamics.integrate import integrate
 from rvdiag.dynamics.linear import static_equilibrium
 
-PROBE = Path(__file__).resolve().parents[1] / "bench" / "pin_events_probe.py"
+RESEARCH = Path(__file__).resolve().parents[1] / "research"
+PROBE = RESEARCH / "pin_events_probe.py"
 
 
 @pytest.fixture(scope="module")
@@ -81,3 +82,25 @@ def test_located_switches_leave_rk4_within_its_own_error(probe, case):
     assert 36 <= n_rhs / n < 40
     err = np.linalg.norm(out - ref) / np.linalg.norm(ref)
     assert err < 1e-3
+
+
+def test_research_holds_the_probes_and_bench_only_benchmarks():
+    probes = {"pin_events_probe.py", "lane_simd_probe.py", "gpu_ensemble_probe.py"}
+    assert probes <= {p.name for p in RESEARCH.glob("*.py")}
+    assert not [p.name for p in (RESEARCH.parent / "bench").glob("*probe*.py")]
+    readme = (RESEARCH / "README.md").read_text()
+    assert all(p in readme for p in probes)
+
+
+def test_gpu_probe_leaves_numpy_alone_on_import():
+    import ast
+
+    tree = ast.parse((RESEARCH / "gpu_ensemble_probe.py").read_text())
+    module_level = [n for n in tree.body if not isinstance(n, (ast.FunctionDef, ast.Expr))]
+    patched = [ast.unparse(n) for n in module_level if "np." in ast.unparse(n) and isinstance(n, ast.Assign)]
+    assert patched == []
+    before = dict(vars(np))
+    spec = importlib.util.spec_from_file_location("gpu_ensemble_probe", RESEARCH / "gpu_ensemble_probe.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)  # imports without numba-cuda: nothing runs until main()
+    assert module.cuda is None and dict(vars(np)) == before
