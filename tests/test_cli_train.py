@@ -119,7 +119,7 @@ def test_diagnose_windows_a_signal(cnn_model, tmp_path, capsys):
     (["train", "{tmp}/missing.zarr", "--out", "{tmp}/x"], "no sample store"),
     (["train", "{store}", "--device", "tpu", "--out", "{tmp}/x"], "unknown device"),
     (["train", "{store}", "--model", "svm", "--features", "fft", "--out", "{tmp}/x"], "unknown feature set"),
-    (["evaluate", "{model}", "{store}", "--report", "{sig}/r.html"], ""),
+    (["evaluate", "{model}", "{store}", "--report", "{sig}/r.html"], "not a writable file path"),
 ])
 def test_bad_input_is_one_line_exit_2(cnn_model, store, tmp_path, capsys, args, message):
     short = tmp_path / "short.npy"

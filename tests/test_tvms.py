@@ -175,7 +175,8 @@ def test_healthy_tvms_matches_ross(z1, z2):
     ours = kp.sum(axis=0)
     ref = k_ross[:-1]
     assert ours.mean() == pytest.approx(ref.mean(), rel=0.05)
-    np.testing.assert_allclose(ours, ref, rtol=0.10)
+    # measured: pointwise within 4.9 % (55/75) and 3.5 % (20/40); README and docs/tvms.md state 5 %
+    np.testing.assert_allclose(ours, ref, rtol=0.05)
 
     # the beam terms (bending, shear, axial) agree to 0.1 % at identical contact points
     gear = pair.driver
