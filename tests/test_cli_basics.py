@@ -79,3 +79,20 @@ def test_console_script_exit_code(tmp_path):
     )
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr and proc.stderr.startswith("error:")
+
+
+def test_cli_exits_with_the_errors_exit_code(monkeypatch, capsys):
+    """``RvdiagError.exit_code`` is the exit status: a subclass with another code gets it."""
+    import rvdiag.cli as cli
+    from rvdiag.errors import ParameterError
+
+    class Special(ParameterError):
+        exit_code = 3
+
+    def boom(*args, **kwargs):
+        raise Special("broken on purpose")
+
+    monkeypatch.setattr(cli, "build_app", lambda: boom)
+    with pytest.raises(SystemExit) as e:
+        cli.main(["params", "show"])
+    assert e.value.code == 3 and capsys.readouterr().err == "error: broken on purpose\n"

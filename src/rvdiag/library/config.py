@@ -230,10 +230,6 @@ class LibraryConfig:
         return int(round(self.duration_s * self.fs))
 
     @property
-    def transient_samples(self) -> int:
-        return int(round(self.transient_s * self.fs))
-
-    @property
     def segments_per_simulation(self) -> int:
         """Segments cut from one simulation: ``floor((N - L) / hop) + 1``."""
         return (self.samples_per_signal - self.segment_length) // self.hop + 1
