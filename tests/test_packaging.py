@@ -77,3 +77,9 @@ def test_wheel_ships_the_configs_and_the_version(tmp_path):
     names = set(zipfile.ZipFile(wheel).namelist())
     assert {f"rvdiag/configs/{n}.toml" for n in SHIPPED} <= names
     assert "rvdiag/params/rv20e.toml" in names
+
+
+def test_every_declared_marker_is_used():
+    declared = [m.split(":")[0] for m in PYPROJECT["tool"]["pytest"]["ini_options"].get("markers", [])]
+    text = "".join(p.read_text() for p in (REPO / "tests").glob("test_*.py"))
+    assert [m for m in declared if f"mark.{m}" not in text] == []
