@@ -1,12 +1,13 @@
 #!/usr/bin/env python
 """The real-data benchmark: writes docs/real-data.md, every number in it computed here.
 
-Data: ``../shared/data`` (SpectraQuest gearbox, healthy vs broken tooth; CWRU bearings, 4 classes), read
+Data: ``--data DIR`` or ``RVDIAG_DATA_DIR`` (docs/real-data.md, "Getting the data": SpectraQuest gearbox,
+healthy vs broken tooth; CWRU bearings, 4 classes), read
 through ``rvdiag.datasets.from_files`` exactly as ``rvdiag dataset from-files`` does (2048-point windows,
-no overlap).  Protocols (issue 6):
+no overlap).  Protocols:
 
-- **random 70/30 x 10** (motor-current seed paper): stratified random split of the windows, 10 seeds;
-- **30 runs** (EEMD-MPA-KELM seed paper): the same split, 30 seeds, for the rows of that paper's
+- **random 70/30 x 10** (Li, Zhao et al. 2024): stratified random split of the windows, 10 seeds;
+- **30 runs** (EEMD-MPA-KELM, Tu et al. 2023): the same split, 30 seeds, for the rows of that paper's
   comparison (its first 10 seeds are the 10 of the previous protocol);
 - **cross-condition**, the ones that matter:
   SpectraQuest: train on the lowest load (0 %), test on every other load;
@@ -71,7 +72,23 @@ from rvdiag.models.kelm import KELMClassifier  # noqa: E402
 from rvdiag.models.pipelines import make_classical_model  # noqa: E402
 from rvdiag.models.tuning import TunedKELM  # noqa: E402
 
-DEFAULT_DATA = REPO.parent / "shared" / "data"
+# the data folder: --data, else RVDIAG_DATA_DIR, else a data/ folder beside the repository's parent (the layout the
+# tests look up too, tests/conftest.py)
+DEFAULT_DATA = Path(os.environ.get("RVDIAG_DATA_DIR") or REPO.parent / "shared" / "data")
+
+GETTING_THE_DATA = (
+    '## Getting the data\n\nNeither set ships with rvdiag. Put them in one folder with the sub-folders '
+    'below and pass it as `--data DIR` (or set `RVDIAG_DATA_DIR=DIR`, which the tests read too):\n\n- '
+    '`spectraquest-gearbox/`: the SpectraQuest Gearbox Fault Diagnostics Simulator data, "Gearbox Fault '
+    'Diagnosis Data" on OpenEI (NREL data submission 623; also on Kaggle; CC-BY-SA), files '
+    '`h30hz<load>.csv.gz` and `b30hz<load>.csv.gz` (loads 0-60 %; gzip the CSV files if your copy is '
+    'plain). SHA-256 of `h30hz0.csv.gz`: '
+    '`076e997257fb6b2599d34f0cd5d8c3242d8040dda3a74116c9bcf0e87c084af8`.\n- `cwru-bearing/`: the Case '
+    'Western Reserve University Bearing Data Center 12 kHz drive-end files, renamed `normal_0.mat`, '
+    '`B007_0.mat` ... `OR021@6_2.mat` (fault diameter, load in hp). SHA-256 of `IR007_0.mat`: '
+    '`f80b0ea04fd06b372a0eaec7c056543ea37e4bb4727a5b173d2a5bacd2aa9cab`.\n\n`tests/conftest.py` lists the '
+    'SHA-256 of every file the tests read.\n'
+)
 
 DATASETS = {
     "spectraquest": {
@@ -374,15 +391,15 @@ def write_doc(path: Path, report: dict) -> None:
              f"(rvdiag {report['rvdiag_version']}, {report['machine']}); do not edit by hand: every number "
              f"below comes from that script. Total run time {report['total_s'] / 60:.1f} min.*\n")
     L.append(
-        "No real RV-reducer data could be obtained, so the classical pipelines of issue 6 are measured on the "
-        "two closest public sets in `../shared/data` (see its README): the **SpectraQuest gearbox** "
+        "No real RV-reducer data could be obtained, so the classical pipelines are measured on the "
+        "two closest public sets (\"Getting the data\" below): the **SpectraQuest gearbox** "
         "(healthy vs broken tooth, 4 accelerometers, sampling rate not published: everything is in cycles per "
         "sample) and the **CWRU bearing** drive-end signals (12 kHz), used as 4 classes normal / ball / inner "
         "race / outer race. Each file is read with `rvdiag dataset from-files` settings (one channel, "
         f"{WINDOW}-point windows, no overlap): SpectraQuest channel `a1`, CWRU channel `DE_time`.\n")
     L.append("## Protocols\n")
     L.append(
-        f"- **Random 70/30** (motor-current seed paper): stratified random split of the windows, "
+        f"- **Random 70/30** (Li, Zhao et al. 2024): stratified random split of the windows, "
         f"{o['runs_random']} seeds; the rows of the EEMD-MPA-KELM paper's comparison are also run "
         f"**{o['runs_eemd']} times** (that paper's protocol; its first {o['runs_random']} seeds are the ones of "
         "the 70/30 table). Neighbouring windows of one recording land on both sides of such a split, so these "
@@ -433,7 +450,7 @@ def write_doc(path: Path, report: dict) -> None:
         goal = 100.0 if ds_name == "spectraquest" else 97.0
         acc = 100 * np.mean([r["acc"] for r in best["runs"]])
         verdict = "meets" if acc >= goal - 1e-9 else "misses"
-        L.append(f"Best pipeline: **{best['row']}**, {acc:.2f} % mean accuracy: it {verdict} the issue's goal "
+        L.append(f"Best pipeline: **{best['row']}**, {acc:.2f} % mean accuracy: it {verdict} the project's goal "
                  f"({goal:g} %). Confusion, pooled over the folds:\n")
         L.append(confusion_md(best) + "\n")
         L.append("### Random 70/30 splits\n")
@@ -458,8 +475,9 @@ def write_doc(path: Path, report: dict) -> None:
     L.append("## Reproduce\n")
     L.append("```\n.venv/bin/python bench/real_data_table.py            # this page\n"
              ".venv/bin/python bench/real_data_table.py --quick    # smoke run, fewer runs\n```\n"
-             "Raw per-run figures go to `out/real-data.json` (`--json`). The data are located at "
-             "`../shared/data` relative to the repository (`--data`).\n")
+             "Raw per-run figures go to `out/real-data.json` (`--json`). The data folder is `--data DIR`, else "
+             "`RVDIAG_DATA_DIR`.\n")
+    L.append(GETTING_THE_DATA)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("\n".join(L))
 
@@ -487,7 +505,7 @@ def discussion(report: dict) -> str:
             f"points on average, most for {big} ({r_acc[big]:.1f} % random vs {c_acc[big]:.1f} % cross-condition).")
         for name in ("SVM spectrum (64 log relative bands)", "SVM spectrum (64 log absolute bands)"):
             if name in c_acc:
-                parts.append(f"  - {name}: {c_acc[name]:.1f} % cross-condition (the issue quotes about "
+                parts.append(f"  - {name}: {c_acc[name]:.1f} % cross-condition (the project's target was about "
                              f"{'99.7' if ds_name == 'spectraquest' else '89'} % for plain FFT band energies + SVM).")
         flat = [k for k in c_kappa if c_kappa[k] < 0.05]
         if flat:
@@ -519,8 +537,9 @@ def discussion(report: dict) -> str:
             ok = all(acc[a] < acc[b] for a, b in zip(order, order[1:]))
             held.append(f"{DATASETS[ds_name]['title'].split(' (')[0]}: {'holds' if ok else 'does not hold'}")
     parts.append(
-        "- The EEMD-MPA-KELM seed paper reports 90.33 % for EEMD-MPA-KELM and 44.67 / 52.33 / 59.33 / 78.67 % for "
-        "KELM / EEMD-KELM / EEMD-GA-KELM / EEMD-PSO-KELM on its own RV-reducer data (REFERENCE.md section 5); "
+        "- The EEMD-MPA-KELM study (Tu et al. 2023, Table 4) reports 90.33 % for EEMD-MPA-KELM and "
+        "44.67 / 52.33 / 59.33 / 78.67 % for "
+        "KELM / EEMD-KELM / EEMD-GA-KELM / EEMD-PSO-KELM on its own RV-reducer data; "
         "those figures are not comparable with these sets. Its strict ranking KELM < EEMD-KELM < GA < PSO < MPA, "
         "on the cross-condition tests here: " + ("; ".join(held) or "not measured") + ".")
     parts.append(

@@ -10,7 +10,7 @@ Two scipy baselines, both ``solve_ivp`` (RK45, rtol 1e-6, atol 1e-12) from the s
 (the static solution):
 
 - ``scipy_sim_s_per_wall_s``: on the independent pure-NumPy right-hand side
-  (:class:`rvdiag.dynamics.reference_rhs.ReferenceRHS`, the same equations written in vectorised
+  (``tests/oracles/reference_rhs.py``, ``ReferenceRHS``, the same equations written in vectorised
   NumPy, no numba).  This is "scipy's solve_ivp on the same equations" of the issue and what
   REFERENCE.md's peer figure (0.0033 simulated s/s, RK45 with a Python right-hand side) measures;
   **``ratio`` = sim_s_per_wall_s / scipy_sim_s_per_wall_s uses this baseline**.
@@ -34,6 +34,8 @@ Usage: ``python bench/sim_speed.py [--json] [--duration S] [--scipy-duration S] 
 from __future__ import annotations
 
 import os
+import sys
+from pathlib import Path
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
@@ -48,7 +50,8 @@ from scipy.integrate import solve_ivp  # noqa: E402
 from rvdiag.dynamics import ModelSettings, prepare, simulate  # noqa: E402
 from rvdiag.dynamics.linear import static_equilibrium  # noqa: E402
 from rvdiag.dynamics.model import make_rhs  # noqa: E402
-from rvdiag.dynamics.reference_rhs import ReferenceRHS  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the NumPy oracle lives with the tests
+from oracles.reference_rhs import ReferenceRHS  # noqa: E402
 
 
 def main() -> None:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,7 +16,7 @@ from rvdiag.features.bearing import (
     spectral_kurtosis,
 )
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+from conftest import DATA, needs_real_data
 FS = 12000.0
 FR = 1797 / 60.0
 N = 4096
@@ -106,7 +105,7 @@ def test_parameter_errors_and_clone():
     assert t.get_params()["harmonics"] == 2 and t.fit(X).transform(X).shape == (2, 6)
 
 
-@pytest.mark.skipif(not DATA.exists(), reason="shared real data not present")
+@needs_real_data("cwru-bearing/IR007_0.mat", "cwru-bearing/OR007@6_0.mat")
 def test_cwru_inner_and_outer_race_files():
     from rvdiag.io import read_signal, window
 

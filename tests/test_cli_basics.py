@@ -39,7 +39,7 @@ def test_params_show_json(capsys):
 def test_params_export_then_check_round_trip(tmp_path, capsys):
     target = tmp_path / "mine.toml"
     assert run(["params", "export", str(target)], capsys)[0] == 0
-    assert "# [Li2024]" in target.read_text() or "Li2024" in target.read_text()
+    assert "# [Li2024]" in target.read_text()  # the sources of the values travel with the copy
     code, out, _ = run(["params", "check", str(target)], capsys)
     assert code == 0 and out.startswith("ok: RV-20E")
     code, _, err = run(["params", "export", str(target)], capsys)
@@ -79,6 +79,23 @@ def test_console_script_exit_code(tmp_path):
     )
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr and proc.stderr.startswith("error:")
+
+
+def test_cli_exits_with_the_errors_exit_code(monkeypatch, capsys):
+    """``RvdiagError.exit_code`` is the exit status: a subclass with another code gets it."""
+    import rvdiag.cli as cli
+    from rvdiag.errors import ParameterError
+
+    class Special(ParameterError):
+        exit_code = 3
+
+    def boom(*args, **kwargs):
+        raise Special("broken on purpose")
+
+    monkeypatch.setattr(cli, "build_app", lambda: boom)
+    with pytest.raises(SystemExit) as e:
+        cli.main(["params", "show"])
+    assert e.value.code == 3 and capsys.readouterr().err == "error: broken on purpose\n"
 
 
 def test_rvdiag_warnings_are_one_line(capsys, monkeypatch):

@@ -11,8 +11,10 @@ import pytest
 from rvdiag.cli import main
 from rvdiag.datasets import SampleStore
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
-needs_data = pytest.mark.skipif(not DATA.exists(), reason="shared real data not present")
+from conftest import DATA, needs_real_data
+
+SQ_FILES = tuple(f"spectraquest-gearbox/{c}30hz{load}.csv.gz" for c in "hb" for load in (0, 60))
+CWRU_FILES = ("cwru-bearing/normal_0.mat", "cwru-bearing/IR007_0.mat", "cwru-bearing/OR021@6_0.mat")
 
 
 def run(args, capsys):
@@ -30,7 +32,7 @@ def run_ok(args, capsys):
     return capsys.readouterr()
 
 
-@needs_data
+@needs_real_data(*SQ_FILES)
 def test_spectraquest_example_on_a_subset(tmp_path, capsys):
     out = tmp_path / "sq.zarr"
     cap = run_ok(["dataset", "from-files", str(DATA / "spectraquest-gearbox"),
@@ -47,7 +49,7 @@ def test_spectraquest_example_on_a_subset(tmp_path, capsys):
     assert info["n_samples"] == s.n_samples and set(info["counts"]) == {"b", "h"}
 
 
-@needs_data
+@needs_real_data(*CWRU_FILES)
 def test_cwru_example_on_a_subset(tmp_path, capsys):
     out = tmp_path / "cwru.zarr"
     run_ok(["dataset", "from-files", str(DATA / "cwru-bearing"),

@@ -66,7 +66,9 @@ def test_train_writes_a_model_directory(cnn_model):
     card = json.loads((cnn_model / "card.json").read_text())
     assert card["classes"] == ["T1", "T2", "T3"] and card["seed"] == 1 and card["fs"] == FS
     assert card["training_store"]["config_hash"] and card["training_store"]["path"].endswith("tiny.zarr")
-    assert 0.0 <= card["metrics"]["accuracy"] <= 1.0
+    # three clearly different tones, seed 1: the card's held-out metrics are perfect (4 windows per class)
+    assert card["metrics"]["accuracy"] == 1.0 and card["metrics"]["kappa"] == 1.0
+    assert {c: v["support"] for c, v in card["metrics"]["per_class"].items()} == {"T1": 4, "T2": 4, "T3": 4}
 
 
 def test_evaluate_json_and_report(cnn_model, store, tmp_path, capsys):
@@ -119,7 +121,7 @@ def test_diagnose_windows_a_signal(cnn_model, tmp_path, capsys):
     (["train", "{tmp}/missing.zarr", "--out", "{tmp}/x"], "no sample store"),
     (["train", "{store}", "--device", "tpu", "--out", "{tmp}/x"], "unknown device"),
     (["train", "{store}", "--model", "svm", "--features", "fft", "--out", "{tmp}/x"], "unknown feature set"),
-    (["evaluate", "{model}", "{store}", "--report", "{sig}/r.html"], ""),
+    (["evaluate", "{model}", "{store}", "--report", "{sig}/r.html"], "not a writable file path"),
 ])
 def test_bad_input_is_one_line_exit_2(cnn_model, store, tmp_path, capsys, args, message):
     short = tmp_path / "short.npy"

@@ -39,7 +39,7 @@ def two_class_data(n_per=24, length=256, seed=0):
 
 # ---------------------------------------------------------------- architectures
 def test_paper_cnn_flatten_matches_paper_fc_input_at_6400_points():
-    # dynamics seed paper: FC input 12800 = 16 channels x 800 at a 6400-point input
+    # the dynamics paper: FC input 12800 = 16 channels x 800 at a 6400-point input
     assert paper_flatten_size(6400, 16) == 12800
     assert paper_flatten_size(8000, 16) == 16000
 

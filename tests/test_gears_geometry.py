@@ -24,7 +24,7 @@ def test_rv20e_sun_root_below_base_and_contact_ratio():
     pair = GearPair.sun_planet(ReducerParams.default())
     sun = pair.driver
     assert sun.root_radius < sun.base_radius  # the case Chen & Shao (2011) warn about
-    # hand calculation (REFERENCE.md sec. 2 formula): eps = 1.4426 for m = 1.25, x = +-0.4
+    # hand calculation (ISO 21771 eq. 74): eps = 1.4426 for m = 1.25, x = +-0.4
     ra1, rb1 = 8.625e-3, 6.875e-3 * math.cos(math.radians(20))
     ra2, rb2 = 21.375e-3, 20.625e-3 * math.cos(math.radians(20))
     eps = (math.sqrt(ra1**2 - rb1**2) + math.sqrt(ra2**2 - rb2**2)

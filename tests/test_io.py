@@ -15,7 +15,7 @@ import scipy.io.wavfile
 from rvdiag.errors import DataFileError, ParameterError
 from rvdiag.io import detect_format, list_channels, read_signal, window, window_starts
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+from conftest import DATA, needs_real_data
 RNG = np.random.default_rng(0)
 X = RNG.standard_normal(500)
 Y = RNG.standard_normal(500)
@@ -260,7 +260,7 @@ def test_window_too_long_names_the_file(tmp_path):
 
 
 # --------------------------------------------------------------------------- real files
-@pytest.mark.skipif(not DATA.exists(), reason="shared real data not present")
+@needs_real_data("cwru-bearing/IR007_0.mat", "spectraquest-gearbox/h30hz0.csv.gz")
 def test_real_cwru_and_spectraquest():
     sig = read_signal(DATA / "cwru-bearing" / "IR007_0.mat", "DE_time", fs=12000)
     assert sig.channel == "X105_DE_time" and sig.n_samples == 121265 and sig.scalar("RPM") == 1797.0

@@ -1,4 +1,4 @@
-"""Characteristic frequencies against the motor-current seed paper's Table 3 (REFERENCE.md section 1)."""
+"""Characteristic frequencies against Table 3 of Li, Zhao et al. 2024 (motor current; docs/references.md)."""
 
 from __future__ import annotations
 

@@ -57,7 +57,7 @@ def test_six_states_and_their_severities():
 
 
 def test_states_map_to_gear_faults_by_kind():
-    """T2 broken, T3 wear, T4 crack (the issue's numbering), whatever the gear module's own labels."""
+    """T2 broken, T3 wear, T4 crack (the library's numbering), whatever the gear module's own labels."""
     from rvdiag.gears import BrokenTooth, RootCrack
 
     assert tooth_faults("T1") is None

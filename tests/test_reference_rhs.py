@@ -1,4 +1,4 @@
-"""The independent NumPy right-hand side (``rvdiag.dynamics.reference_rhs``) against the compiled one.
+"""The independent NumPy right-hand side (``tests/oracles/reference_rhs.py``) against the compiled one.
 
 The NumPy version is written from docs/model.md and shares only the model's data with the numba
 kernels, so agreement at random states (contacts open and closed, every damper active) checks the
@@ -14,9 +14,10 @@ import pytest
 from rvdiag.dynamics import ModelSettings, prepare
 from rvdiag.dynamics import model as mdl
 from rvdiag.dynamics.linear import static_equilibrium
-from rvdiag.dynamics.reference_rhs import ReferenceRHS
 from rvdiag.gears import BrokenTooth, ToothFaults, Wear
 from rvdiag.params import ReducerParams
+
+from oracles.reference_rhs import ReferenceRHS
 
 P0 = ReducerParams.default()
 

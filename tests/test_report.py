@@ -61,7 +61,7 @@ def test_write_report_atomic(tmp_path, html_text):
 
 def test_characteristic_frequencies_from_store_speed():
     f = characteristic_frequencies_for({}, {"output_speed_deg_s": np.array([45.0, 45.0])})
-    assert f["fsp"] == pytest.approx(165.0, rel=1e-3)  # REFERENCE.md Table 3 at 45 deg/s
+    assert f["fsp"] == pytest.approx(165.0, rel=1e-3)  # Li, Zhao et al. 2024, Table 3 at 45 deg/s
     assert f["fcs"] == pytest.approx(195.0, rel=1e-3)
     assert characteristic_frequencies_for({}, {"load_Nm": np.ones(2)}) is None
 

@@ -48,7 +48,7 @@ def test_single_pair_stiffness_vs_iso6336(z1, z2, x1, x2, rel):
 
 
 def test_rv20e_mean_order_of_reference():
-    """REFERENCE.md sec. 2: mean ~1e8 N/m scaled by face width, ISO c' ~ 14-16 N/(mm um)."""
+    """Mean ~1e8 N/m scaled by face width; ISO 6336-1 single-pair stiffness c' ~ 14-16 N/(mm um)."""
     pair = GearPair.sun_planet(ReducerParams.default())
     res = mesh_stiffness(pair, cycles=11, points_per_cycle=360)
     assert 1e8 < res.mean_N_per_m < 4e8
@@ -175,7 +175,8 @@ def test_healthy_tvms_matches_ross(z1, z2):
     ours = kp.sum(axis=0)
     ref = k_ross[:-1]
     assert ours.mean() == pytest.approx(ref.mean(), rel=0.05)
-    np.testing.assert_allclose(ours, ref, rtol=0.10)
+    # measured: pointwise within 4.9 % (55/75) and 3.5 % (20/40); README and docs/tvms.md state 5 %
+    np.testing.assert_allclose(ours, ref, rtol=0.05)
 
     # the beam terms (bending, shear, axial) agree to 0.1 % at identical contact points
     gear = pair.driver

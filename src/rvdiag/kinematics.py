@@ -1,7 +1,7 @@
 """Characteristic frequencies of an RV reducer (pin wheel fixed, sun input, carrier output).
 
-All follow from rigid-body kinematics of the two stages; see REFERENCE.md section 1 and the motor-current
-seed paper (Li, Zhao et al. 2024), Table 2 and the Table 3 test vector they reproduce.
+All follow from rigid-body kinematics of the two stages; see the Nabtesco RD-E description and the motor-current
+study of Li, Zhao et al. 2024 (docs/references.md), Table 2 and the Table 3 test vector they reproduce.
 
 With f_s the sun (input) speed and f_H = f_s / i the carrier (output) speed, i = 1 + (Z2/Z1) Zp:
 
@@ -75,7 +75,7 @@ def characteristic_frequencies(
 
     Examples
     --------
-    Table 3 of the motor-current seed paper (output 30 deg/s, p = 5):
+    Table 3 of Li, Zhao et al. 2024 (output 30 deg/s, p = 5):
 
     >>> from rvdiag.params import ReducerParams
     >>> f = characteristic_frequencies(ReducerParams.default(), output_speed_deg_s=30.0)

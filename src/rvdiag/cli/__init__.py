@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> None:
     try:
         code = app(args=argv, prog_name="rvdiag", standalone_mode=False)
     except RvdiagError as exc:
-        _fail(str(exc))
+        _fail(str(exc), exc.exit_code)
     except (FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError) as exc:
         _fail(f"{exc.strerror or exc}: {exc.filename}" if getattr(exc, "filename", None) else str(exc))
     except _click_exc.ClickException as exc:  # usage errors, bad parameters, unreadable --option files
@@ -99,8 +99,8 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(code)
 
 
-def _fail(message: str) -> None:
-    """Print one line ``error: message`` on stderr and exit with code 2."""
+def _fail(message: str, code: int = 2) -> None:
+    """Print one line ``error: message`` on stderr and exit with ``code`` (2, or the error's ``exit_code``)."""
     first_line = " ".join(str(message).split())
     typer.echo(f"error: {first_line}", err=True)
-    sys.exit(2)
+    sys.exit(code)

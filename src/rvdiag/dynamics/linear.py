@@ -42,23 +42,6 @@ def stiffness_matrix(model: mdl.Model, t: float = 0.0, q: np.ndarray | None = No
     return K
 
 
-def damping_matrix(model: mdl.Model, t: float = 0.0, q: np.ndarray | None = None, h: float = 1e-8) -> np.ndarray:
-    """Tangent viscous damping ``C = -dQ/dv`` at ``q`` (without the gyroscopic Coriolis part)."""
-    n = model.n_dof
-    q = np.zeros(n) if q is None else np.asarray(q, float)
-    C = np.empty((n, n))
-    for j in range(n):
-        dv = np.zeros(n)
-        dv[j] = h
-        C[:, j] = -(mdl.forces(model, t, q, dv) - mdl.forces(model, t, q, -dv)) / (2 * h)
-    return C
-
-
-def mass_matrix(model: mdl.Model) -> np.ndarray:
-    """Diagonal mass matrix (kg for translations, kg m^2 for rotations)."""
-    return np.diag(model.mass)
-
-
 def bilateral_deflection(model: mdl.Model, t: float = 0.0) -> np.ndarray:
     """Static deflection with every contact closed and no backlash: a linear solve that always exists.
 

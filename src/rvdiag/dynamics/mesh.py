@@ -9,11 +9,11 @@ angle ``psi_i`` in the carrier looks the table up at ``phi - psi_i``.
 Two sources of tables:
 
 - :func:`mesh_table_from_gears`: the potential-energy TVMS of :mod:`rvdiag.gears` (healthy or faulty), the
-  physically detailed one (REFERENCE.md section 2 and 3).
+  physically detailed one (Yang & Lin 1987; Sainsot, Velex & Duverger 2004; Chen & Shao 2011).
 - :func:`rectangular_mesh_table`: a stand-in square wave from the contact ratio, single-pair stiffness
   ``k_pair`` in single contact and ``2 k_pair`` in double contact (the classical approximation of the TVMS,
   e.g. Lin & Parker 1999 and Kahraman 1994), with tooth faults as a stiffness factor per sun tooth
-  (a broken tooth carries nothing: factor 0, REFERENCE.md section 3).  Used in tests and only when asked
+  (a broken tooth carries nothing: factor 0, as in the dynamics paper).  Used in tests and only when asked
   for: the gears package is part of rvdiag and imported unconditionally, so the physics never falls back
   to this stand-in silently.
 
@@ -142,7 +142,7 @@ class MeshTable:
 
 
 def contact_ratio(params: ReducerParams) -> float:
-    """Transverse contact ratio of the sun-planet pair (REFERENCE.md section 2).
+    """Transverse contact ratio of the sun-planet pair (ISO 21771, eq. 74).
 
     eps = [sqrt(ra1^2 - rb1^2) + sqrt(ra2^2 - rb2^2) - a sin(alpha)] / (pi m cos(alpha)), with the tip
     radii ``r + m (ha* + x)`` of the profile-shifted (V-zero) pair.
@@ -162,7 +162,7 @@ def contact_ratio(params: ReducerParams) -> float:
 def single_pair_stiffness(params: ReducerParams) -> float:
     """Stand-in single-pair mesh stiffness: ISO 6336 ``c' = 14 N/(mm um)`` times the face width (N/m).
 
-    REFERENCE.md section 2 quotes c' of 14-16 N/(mm um) for steel spur gears.
+    ISO 6336-1 quotes c' of 14-16 N/(mm um) for steel spur gears.
     """
     return 14.0e9 * params.stage1.face_width
 
@@ -177,7 +177,7 @@ def rectangular_mesh_table(
 
     Sun tooth ``j`` is in mesh with the planet while ``phi - j 2pi/Z1`` lies in ``[0, eps 2pi/Z1)``; the
     mesh stiffness is the sum of ``k_pair * tooth_factors[j]`` over the teeth in mesh.  ``tooth_factors``
-    defaults to all ones (healthy); 0 models a broken tooth (REFERENCE.md section 3).
+    defaults to all ones (healthy); 0 models a broken tooth (the tooth carries nothing).
     """
     z1 = params.stage1.sun_teeth
     eps = contact_ratio(params)

@@ -5,10 +5,10 @@ Keys of :func:`classification_metrics` (also the keys of ``rvdiag evaluate --jso
 ``accuracy``         fraction of samples classified correctly
 ``precision_macro``  unweighted mean over classes of TP / (TP + FP)
 ``recall_macro``     unweighted mean over classes of TP / (TP + FN) (= mean per-class accuracy, the
-                     figure the seed papers tabulate per state)
+                     figure Li, Zhao et al. 2024 and the dynamics paper tabulate per state)
 ``f1_macro``         unweighted mean of the per-class F1 = 2 P R / (P + R)
 ``kappa``            Cohen's kappa (Cohen 1960): (p_o - p_e) / (1 - p_e), agreement beyond chance; the
-                     EEMD-MPA-KELM seed paper reports it (0.82)
+                     EEMD-MPA-KELM study (Tu et al. 2023) reports it (0.82)
 ``per_class``        {class: {precision, recall, f1, support}}
 ``confusion``        confusion matrix as a list of rows: row = true class, column = predicted, in the
                      order of ``labels``
@@ -83,7 +83,7 @@ def classification_metrics(y_true, y_pred, labels: Sequence[str] | None = None) 
 
 
 def repeat_summary(runs: Sequence[dict]) -> dict:
-    """Best and mean accuracy per class over repeated runs (the seed paper's per-state table).
+    """Best and mean accuracy per class over repeated runs (the dynamics paper's per-state table).
 
     Parameters
     ----------

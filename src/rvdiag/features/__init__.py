@@ -3,12 +3,12 @@
 =========  ==========================================  ===================================
 name       transformer                                 source
 =========  ==========================================  ===================================
-time       :class:`TimeDomainFeatures` (10 statistics)  motor-current seed paper
+time       :class:`TimeDomainFeatures` (10 statistics)  Li, Zhao et al. 2024
 spectrum   :class:`SpectrumFeatures` (FFT band powers)
 logspec    :class:`SpectrumFeatures` (every FFT bin, log    the input of the ``logspec`` CNNs
            of the relative magnitude)
-wpd        :class:`WaveletPacketEnergy` (16 bands)      motor-current seed paper
-eemd       :class:`EEMDFeatures` (mean |IMF| x 6)        EEMD-MPA-KELM seed paper
+wpd        :class:`WaveletPacketEnergy` (16 bands)      Li, Zhao et al. 2024
+eemd       :class:`EEMDFeatures` (mean |IMF| x 6)        Tu et al. 2023
 none       :class:`RawSignal` (the samples themselves)
 =========  ==========================================  ===================================
 

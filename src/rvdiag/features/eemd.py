@@ -21,7 +21,7 @@ Implementation choices (all in :func:`_emd_into`):
   than three extrema (then it and the remaining IMFs are zero and it stays in the residue).
 
 :class:`EEMDFeatures` gives, per window, the mean absolute value of each of the first six IMFs: the
-features of the EEMD-MPA-KELM seed paper.  The same noise realisations are used for every window (one
+features of the EEMD-MPA-KELM study (Tu et al. 2023).  The same noise realisations are used for every window (one
 seeded ensemble, scaled by each window's std), so a window's features do not depend on the batch it is in.
 
 PyEMD (package EMD-signal, ``PyEMD.EEMD``) is the reference implementation; ``tests/test_eemd.py``
@@ -381,7 +381,7 @@ def eemd(x, n_imfs: int = 6, ensemble_size: int = 100, noise_width: float = 0.2,
 class EEMDFeatures(SignalTransformer):
     """scikit-learn transformer: mean |IMF| of the first ``n_imfs`` EEMD IMFs of each window.
 
-    These are the features of the EEMD-MPA-KELM seed paper (first six IMFs, mean absolute value of each).
+    These are the features of the EEMD-MPA-KELM study of Tu et al. 2023 (first six IMFs, mean absolute value of each).
 
     Parameters
     ----------

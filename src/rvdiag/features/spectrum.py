@@ -7,11 +7,11 @@ when it is.  A centre can also be given in **orders** (multiples of a shaft freq
 Three transformers:
 
 - :class:`SpectrumFeatures` -- the one-sided FFT magnitude, either whole or summed into ``n_bands``
-  equal bands (band energies, the "plain FFT band energies" of the issue).
+  equal bands (band energies, "plain FFT band energies").
 - :class:`CharacteristicBandEnergy` -- energy of the power spectrum in narrow bands around the first
   ``harmonics`` multiples of given characteristic frequencies.  :meth:`CharacteristicBandEnergy.from_operating_point`
   takes them from :func:`rvdiag.kinematics.characteristic_frequencies` (RV reducer: mesh, crank, fault
-  frequencies; REFERENCE.md section 1).
+  frequencies; docs/references.md, Li, Zhao et al. 2024, Table 2).
 - :class:`EnvelopeSpectrumFeatures` -- the same band energies, or equal bands, of the squared-envelope
   spectrum of the (optionally band-passed) signal: the classic bearing diagnostic (Randall & Antoni,
   "Rolling element bearing diagnostics -- a tutorial", Mech. Syst. Signal Process. 25 (2011) 485-520,
@@ -298,7 +298,7 @@ class CharacteristicBandEnergy(_CentredBands):
                              **kw) -> "CharacteristicBandEnergy":
         """Centres from :func:`rvdiag.kinematics.characteristic_frequencies` at a known operating point.
 
-        ``keys`` picks frequencies by their ``rvdiag freqs --json`` names (REFERENCE.md section 1).
+        ``keys`` picks frequencies by their ``rvdiag freqs --json`` names (:mod:`rvdiag.kinematics`).
         """
         from rvdiag.kinematics import characteristic_frequencies
 

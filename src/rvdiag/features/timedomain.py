@@ -1,6 +1,6 @@
 """Ten time-domain statistics of a vibration or current window.
 
-The set is the one of the motor-current seed paper (Li, Zhao et al. 2024, time-domain features fed to an
+The set is the one of the motor-current study (Li, Zhao et al. 2024, time-domain features fed to an
 SVM): peak-to-peak, mean, variance, RMS, square-root amplitude, kurtosis, pulse (impulse) factor, margin
 (clearance) factor, peak (crest) factor and waveform (shape) factor.  The definitions below are the
 standard ones of the condition-monitoring literature, e.g. Lei, He & Zi, "Application of an intelligent

@@ -1,7 +1,7 @@
 """Wavelet-packet band energies (PyWavelets).
 
 A level-L wavelet packet decomposition splits [0, fs/2] into 2^L bands of equal width; the energy
-(sum of squared coefficients) of each terminal node is one feature.  The motor-current seed paper
+(sum of squared coefficients) of each terminal node is one feature.  The motor-current study
 (Li, Zhao et al. 2024) feeds the level-4 energies of the 16 bands to an SVM.  The nodes are taken in
 **frequency order** (``pywt.WaveletPacket.get_level(L, order="freq")``): the natural (Paley) order of
 the tree is not monotone in frequency because high-pass branches mirror their spectra (Wickerhauser,

@@ -38,7 +38,7 @@ import numpy as np
 from rvdiag.errors import GeometryError, ParameterError
 
 #: default torque on one disc about its centre: half the RV-20E rated output torque 167 N m
-#: (Nabtesco catalog, REFERENCE.md sec. 1) for the two discs
+#: (Nabtesco RV-E catalog, as quoted) for the two discs
 DEFAULT_DISC_TORQUE_N_M = 0.5 * 167.0
 
 

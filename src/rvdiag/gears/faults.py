@@ -16,7 +16,7 @@ Wear (Archard)
     is zero at the pitch point, where rolling is pure.  F is the load share: the full load in single
     contact, half in double contact (equal sharing).  The profile is scaled so its maximum equals
     the severity ``depth``.  A normal depth h removes h / cos(tau) of half thickness, tau being the
-    angle between the flank normal and the section (the load angle alpha_1 of Tian 2004); the seed
+    angle between the flank normal and the section (the load angle alpha_1 of Tian 2004); the dynamics
     paper writes h cos(alpha), which differs by less than 10 % on an RV-20E flank.
 Root crack
     A straight crack from the loaded flank at the base circle (at the root circle when that lies
@@ -30,7 +30,7 @@ Root crack
     the integral over the section stops; :meth:`RootCrack.case` names them.
 Broken tooth
     A fraction ``fraction`` of the tooth height (tip to root circle) is lost; contact points above
-    the cut carry nothing (REFERENCE.md sec. 3).  ``fraction = 1`` is a missing tooth: where it
+    the cut carry nothing (the dynamics paper, docs/references.md).  ``fraction = 1`` is a missing tooth: where it
     would be the only pair in contact the mesh stiffness is zero.
 """
 
@@ -134,10 +134,10 @@ Fault = Wear | RootCrack | BrokenTooth
 DEFAULT_WEAR_DEPTH = 20e-6       # 20 um: moderate wear, about 1.5 % of the RV-20E module
 DEFAULT_CRACK_DEPTH = 0.8e-3     # 0.8 mm at 45 deg: about half way from the RV-20E sun flank to its centreline
 DEFAULT_CRACK_ANGLE_DEG = 45.0   # the angle used by Chen & Shao (2011) and Tian (2004)
-DEFAULT_BROKEN_FRACTION = 1.0    # whole tooth lost (REFERENCE.md sec. 3)
+DEFAULT_BROKEN_FRACTION = 1.0    # whole tooth lost (as in the dynamics paper)
 T6_CRACK_OFFSET = 5               # T6: the crack sits this many teeth after the broken tooth
 
-#: the health states of issue 4 (and of the seed paper on dynamics-model driving)
+#: the health states of the library (those of the dynamics-model-driven study, docs/references.md)
 STATES = {
     "T1": "healthy",
     "T2": "broken",
@@ -162,7 +162,7 @@ class ToothFaults:
         Wear of every tooth of the gear (wear is distributed, not local); a per-tooth ``Wear`` in
         ``teeth`` overrides it for that tooth.
     gear : {"driver", "driven"}
-        Which gear carries the faults (default the driver, the sun in the seed papers).
+        Which gear carries the faults (default the driver, the sun in the RV studies of docs/references.md).
 
     Examples
     --------
@@ -226,7 +226,7 @@ class ToothFaults:
                   broken_fraction: float = DEFAULT_BROKEN_FRACTION,
                   tooth: int = 0, crack_tooth: int | None = None,
                   gear: str = "driver") -> "ToothFaults":
-        """The health states of issue 4: T1 healthy, T2 broken tooth, T3 wear, T4 root crack,
+        """The health states of the library: T1 healthy, T2 broken tooth, T3 wear, T4 root crack,
         T5 broken + wear, T6 broken + wear + crack.
 
         Wear acts on every tooth; the broken tooth is ``tooth``; the crack is on ``tooth`` in T4

@@ -427,7 +427,7 @@ class GearPair:
 
     @property
     def contact_ratio(self) -> float:
-        """Transverse contact ratio eps = g_alpha / p_b (REFERENCE.md sec. 2; ISO 21771 eq. 74)."""
+        """Transverse contact ratio eps = g_alpha / p_b (ISO 21771, eq. 74)."""
         return self.path_of_contact / self.base_pitch
 
     @property

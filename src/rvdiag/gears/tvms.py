@@ -1,6 +1,6 @@
 """Time-varying mesh stiffness (TVMS) of a spur gear pair by the potential-energy method.
 
-One tooth pair in contact is a series of springs (Yang & Lin 1987; Tian 2004; REFERENCE.md sec. 2):
+One tooth pair in contact is a series of springs (Yang & Lin 1987; Tian 2004; docs/references.md):
 
     1/k = 1/k_h + sum over both gears (1/k_b + 1/k_s + 1/k_a + 1/k_f),
 
@@ -19,7 +19,7 @@ and a tooth section of area A(y) = (x_l + x_o) L and second moment I(y) = (x_l +
   1/k_f = cos^2(a1) / (E L) [L* (u_f/S_f)^2 + M* (u_f/S_f) + P* (1 + Q* tan^2(a1))],
   S_f = 2 r_f theta_f, u_f the distance from the root circle to the point where the load line
   crosses the centreline, u_f = y_k - x_k tan(a1) - r_f; L*, M*, P*, Q* from the fitted
-  polynomials in h_fi = r_f / r_int and theta_f (REFERENCE.md table).
+  polynomials in h_fi = r_f / r_int and theta_f (Sainsot et al. 2004, Table 1).
 
 The integrals run from the root circle through the trochoidal fillet to the load point, so a root
 circle below the base circle (Chen & Shao 2011) is always accounted for.
@@ -45,7 +45,7 @@ from rvdiag.errors import ModelRangeWarning, ParameterError
 from rvdiag.gears.faults import DamagedProfile, ToothFaults, Wear, archard_wear_profile, damaged_profile
 from rvdiag.gears.geometry import Gear, GearPair
 
-# Sainsot, Velex & Duverger (2004), Table 1 (REFERENCE.md sec. 2): rows L*, M*, P*, Q*;
+# Sainsot, Velex & Duverger (2004), Table 1: rows L*, M*, P*, Q*;
 # columns A, B, C, D, E, F of X* = A/theta_f^2 + B h_fi^2 + C h_fi/theta_f + D/theta_f + E h_fi + F
 SAINSOT_COEFFICIENTS = np.array([
     [-5.574e-5, -1.9986e-3, -2.3015e-4, 4.7702e-3, 0.0271, 6.8045],

@@ -5,7 +5,7 @@ how much noise and parameter randomisation, how each simulated signal is cut int
 samples are split into training and test sets.  Two modes:
 
 ``paper``
-    One long simulation per state (the seed paper on dynamics-model driven diagnosis: 60 s at 48 kHz per
+    One long simulation per state (the dynamics-model-driven study, docs/references.md: 60 s at 48 kHz per
     state, cut into non-overlapping 8000-point samples, 260 training and 100 test samples per state).
     The split is by segment: training and test samples come from the same simulation.
 ``independent``
@@ -48,12 +48,31 @@ from rvdiag.errors import ConfigError, ParameterError
 from rvdiag.library.states import SEVERITY_PARAMETERS, STATES
 from rvdiag.tomlfile import read_toml
 
+
+def _configs_dir() -> Path:
+    from importlib.resources import files
+
+    return Path(str(files("rvdiag") / "configs"))
+
+
+def builtin_configs() -> list[str]:
+    """Names of the library configs shipped in the package (``rvdiag/configs/``), e.g. ``demo``, ``experiments/snr``."""
+    root = _configs_dir()
+    return sorted(p.relative_to(root).with_suffix("").as_posix() for p in root.rglob("*.toml"))
+
+
+def builtin_config_path(name: str) -> Path:
+    """The file of the shipped config ``name`` (one of :func:`builtin_configs`)."""
+    if name not in builtin_configs():
+        raise ConfigError(f"no built-in library config {name!r} (built-in: {', '.join(builtin_configs())})")
+    return _configs_dir() / f"{name}.toml"
+
 MODES = ("paper", "independent")
 SPLIT_ASSIGN = ("random", "ordered")
 DEFAULT_SIMULATOR = "rvdiag.library.simulators:dynamics"
 
 #: Parameters scaled by ``[randomise] stiffness_pct``: every support stiffness and Young's modulus (the
-#: mesh stiffness of the potential-energy method is proportional to E, REFERENCE.md section 2).
+#: mesh stiffness of the potential-energy method is proportional to E, Yang & Lin 1987; Sainsot et al. 2004).
 STIFFNESS_KEYS: tuple[tuple[str, str], ...] = (
     ("material", "youngs_modulus"),
     ("bearings", "sun_support"),
@@ -223,10 +242,6 @@ class LibraryConfig:
         return int(round(self.duration_s * self.fs))
 
     @property
-    def transient_samples(self) -> int:
-        return int(round(self.transient_s * self.fs))
-
-    @property
     def segments_per_simulation(self) -> int:
         """Segments cut from one simulation: ``floor((N - L) / hop) + 1``."""
         return (self.samples_per_signal - self.segment_length) // self.hop + 1
@@ -248,8 +263,14 @@ class LibraryConfig:
     # ------------------------------------------------------------------ construction
     @classmethod
     def load(cls, path: str | Path) -> "LibraryConfig":
-        """Read and validate a library TOML file; :class:`ConfigError` names the file and key."""
+        """Read and validate a library TOML file; :class:`ConfigError` names the file and key.
+
+        ``path`` may also name a config shipped with rvdiag (:func:`builtin_configs`): ``demo``, ``paper``,
+        ``independent``, ``experiments/snr``, ... when no file of that name exists.
+        """
         path = Path(path)
+        if not path.exists() and path.suffix == "" and str(path) in builtin_configs():
+            path = builtin_config_path(str(path))
         data = read_toml(path, "library config")
         cfg = cls.from_dict(data, source=str(path))
         object.__setattr__(cfg, "base_dir", str(path.resolve().parent))

@@ -17,7 +17,7 @@ A library simulator is a module-level function ``"package.module:function"`` (na
 An optional attribute ``check_options(model: dict) -> None`` of the function's module validates the
 ``[model]`` table on the client before anything runs (raising :class:`rvdiag.errors.ConfigError`).
 
-:func:`dynamics` (the default) adapts :func:`rvdiag.dynamics.simulate` (the 26-DOF model);
+:func:`dynamics` (the default) adapts :func:`rvdiag.dynamics.simulate` (the 27-DOF model);
 ``rvdiag.library.synthetic:simulate`` is a fast analytic stand-in for tests.
 """
 
@@ -59,7 +59,7 @@ def dynamics(
     model: Mapping[str, Any] | None = None,
     **operating: Any,
 ) -> Any:
-    """The 26-DOF dynamic model (:func:`rvdiag.dynamics.simulate`) with the library's contract.
+    """The 27-DOF dynamic model (:func:`rvdiag.dynamics.simulate`) with the library's contract.
 
     ``operating`` holds the speed (``input_speed_rpm`` or ``output_speed_deg_s``) and ``load_Nm``.
     Returns a :class:`rvdiag.dynamics.SimulationResult` (two housing-acceleration channels, x and y).

@@ -1,6 +1,6 @@
 """The six health states of the library (T1..T6) and their severity parameters.
 
-The states are those of the seed paper on dynamics-model driven diagnosis (REFERENCE.md section 3):
+The states are those of the dynamics-model-driven study (docs/references.md, its section 2):
 
 ====  ==============================  ===============================================
 name  description                     severity parameters (SI units, angles in degrees)
@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 from rvdiag.errors import ParameterError
+from rvdiag.gears.faults import STATES as GEAR_STATES
 
 
 @dataclass(frozen=True)
@@ -112,20 +113,25 @@ class HealthState:
         return {p: SEVERITY_PARAMETERS[p].default for p in self.parameters}
 
 
-STATES: dict[str, HealthState] = {
-    s.name: s
-    for s in (
-        HealthState("T1", "healthy"),
-        HealthState("T2", "broken tooth", ("broken_fraction",)),
-        HealthState("T3", "wear", ("wear_depth",)),
-        HealthState("T4", "root crack", ("crack_depth", "crack_angle_deg")),
-        HealthState("T5", "broken tooth + wear", ("broken_fraction", "wear_depth")),
-        HealthState(
-            "T6", "broken tooth + wear + crack",
-            ("broken_fraction", "wear_depth", "crack_depth", "crack_angle_deg"),
-        ),
-    )
+#: what each fault kind adds to a state: its words in the description and its severity parameters
+_KIND_WORDS = {"broken": "broken tooth", "wear": "wear", "crack": "crack"}
+_KIND_PARAMETERS = {
+    "broken": ("broken_fraction",),
+    "wear": ("wear_depth",),
+    "crack": ("crack_depth", "crack_angle_deg"),
 }
+
+
+def _health_state(name: str, kinds: str) -> HealthState:
+    parts = [] if kinds == "healthy" else kinds.split("+")
+    if not parts:
+        return HealthState(name, "healthy")
+    description = "root crack" if parts == ["crack"] else " + ".join(_KIND_WORDS[k] for k in parts)
+    return HealthState(name, description, tuple(p for k in parts for p in _KIND_PARAMETERS[k]))
+
+
+#: the six states, derived from the one state table of :mod:`rvdiag.gears.faults`
+STATES: dict[str, HealthState] = {name: _health_state(name, kinds) for name, kinds in GEAR_STATES.items()}
 
 
 def get_state(name: str) -> HealthState:
@@ -170,16 +176,9 @@ class FaultSpec:
         return tooth_faults(self.state, **self.severity)
 
 
-#: The fault kinds of each state, in the names ``rvdiag.gears.ToothFaults.from_name`` understands.  The
-#: library maps by kind, not by T-number, so it does not depend on the gear module's own numbering.
-FAULT_KINDS: dict[str, str] = {
-    "T1": "healthy",
-    "T2": "broken",
-    "T3": "wear",
-    "T4": "crack",
-    "T5": "broken+wear",
-    "T6": "broken+wear+crack",
-}
+#: The fault kinds of each state, in the names ``rvdiag.gears.ToothFaults.from_name`` understands: the gear
+#: module's state table (``rvdiag.gears.faults.STATES``), the one table both layers read.
+FAULT_KINDS: dict[str, str] = dict(GEAR_STATES)
 
 
 def tooth_faults(state: str, **severity: float) -> Any:

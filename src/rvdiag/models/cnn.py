@@ -3,7 +3,7 @@
 Three architectures, all taking a batch of shape ``(n, 1, input_length)`` and returning class logits
 (softmax is applied by the loss / by :meth:`predict_proba`, never inside the net):
 
-``cnn1d`` — :class:`PaperCNN1D`, the dynamics-model-driving seed paper's network, exactly as its §3
+``cnn1d`` — :class:`PaperCNN1D`, the dynamics-model-driven study's network (docs/references.md), exactly as its §3
     (network figure and table) gives it::
 
         Conv(k5, s2, p2) ReLU -> Conv(k3, s1, p1) ReLU -> MaxPool 2 -> Conv(k3, s1, p1) ReLU -> MaxPool 2
@@ -22,7 +22,7 @@ Three architectures, all taking a batch of shape ``(n, 1, input_length)`` and re
     parameters, trains an order of magnitude faster on a CPU, and accepts any input length (the global
     pooling makes the head independent of the length).  See ``docs/models.md`` for the comparison.
 
-``mcsa-cnn`` — :class:`McsaCNN`, the motor-current seed paper's network (Li, Zhao et al. 2024,
+``mcsa-cnn`` — :class:`McsaCNN`, the motor-current study's network (Li, Zhao et al. 2024,
     Table 5): input 4096 points; conv kernel 7 / 8 channels; max-pool 3 stride 2; conv 5 / 8; pool;
     conv 3 / 16; pool; FC 32; output.  The table gives no padding: we use "same" padding (k // 2),
     stride 1 in the convs, and ReLU after each conv and the FC layer.  The 32-unit FC output is the
@@ -71,7 +71,7 @@ def paper_flatten_size(input_length: int, channels: int = 16) -> int:
 
 
 class PaperCNN1D(nn.Module):
-    """The seed paper's 1-D CNN (dynamics-model driving, §3); see the module docstring.
+    """The dynamics paper's 1-D CNN (dynamics-model-driven study, §3); see the module docstring.
 
     Parameters
     ----------
@@ -151,7 +151,7 @@ class LeanCNN1D(nn.Module):
 
 
 class McsaCNN(nn.Module):
-    """The motor-current seed paper's CNN (Li, Zhao et al. 2024, Table 5); see the module docstring.
+    """The CNN of Li, Zhao et al. 2024 (motor current, Table 5); see the module docstring.
 
     Parameters
     ----------

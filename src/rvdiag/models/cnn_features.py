@@ -1,6 +1,6 @@
-"""Feature set ``cnn``: the motor-current seed paper's CNN as a feature extractor (CNN features + SVM).
+"""Feature set ``cnn``: the CNN of Li, Zhao et al. 2024 as a feature extractor (CNN features + SVM).
 
-Li, Zhao et al. (2024, motor-current seed paper) train the CNN of their Table 5 (see
+Li, Zhao et al. (2024, motor-current study) train the CNN of their Table 5 (see
 :class:`rvdiag.models.cnn.McsaCNN`) on the labelled windows and feed the 32 activations of its FC layer
 to an SVM; they report > 96 % on measured motor current against <= 83.75 % for time-domain features.
 

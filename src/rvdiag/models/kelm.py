@@ -13,7 +13,7 @@ argmax of f(x).
 Kernel: the Gaussian (RBF) kernel K(x, y) = exp(-||x - y||^2 / sigma^2).  Conventions differ: Huang's
 reference MATLAB code (``elm_kernel.m``, ``kernel_matrix``) writes exp(-||x - y||^2 / sigma) with the
 parameter standing for sigma^2; papers on EEMD-MPA-KELM diagnosis usually print exp(-||x - y||^2 / sigma^2)
-or exp(-||x - y||^2 / (2 sigma^2)).  The seed paper's exact text could not be checked here (it was not
+or exp(-||x - y||^2 / (2 sigma^2)).  Tu et al. 2023's exact text could not be checked here (it was not
 available), so this module uses exp(-||x - y||^2 / sigma^2), i.e. scikit-learn's RBF ``gamma = 1/sigma^2``;
 a tuner searching log(sigma) is unaffected by the choice up to a constant shift.
 

@@ -8,14 +8,14 @@ for the model names of ``rvdiag train --model``:
 
 =========  =====================================================================================
 svm        RBF SVC (C = 10, gamma = "scale") with Platt-scaled probabilities; ``grid=True`` picks C
-           from {1, 10, 100, 1000} by 3-fold stratified CV (motor-current seed paper: features + SVM).
+           from {1, 10, 100, 1000} by 3-fold stratified CV (Li, Zhao et al. 2024: features + SVM).
            Probabilities come from ``CalibratedClassifierCV(method="sigmoid", ensemble=False)``,
            scikit-learn 1.9's replacement for the deprecated ``SVC(probability=True)`` (same Platt
            scaling; Platt 1999)
 kelm       :class:`~rvdiag.models.kelm.KELMClassifier` (C = 1, sigma = "scale")
 kelm-mpa   :class:`~rvdiag.models.tuning.TunedKELM` with the Marine Predators Algorithm
 kelm-ga    ... with a genetic algorithm
-kelm-pso   ... with particle swarm optimisation   (EEMD-MPA-KELM seed paper and its comparisons)
+kelm-pso   ... with particle swarm optimisation   (Tu et al. 2023, EEMD-MPA-KELM, and its comparisons)
 =========  =====================================================================================
 
 and the feature-set names of :func:`feature_names`: those of :func:`rvdiag.features.make_features`

@@ -1,10 +1,10 @@
 """Tuning KELM's (C, sigma) by cross-validated accuracy with MPA, GA or PSO (mealpy 3.0.3).
 
-The EEMD-MPA-KELM seed paper tunes the regularisation C and the kernel width sigma of a KELM with the
+The EEMD-MPA-KELM study (Tu et al. 2023) tunes the regularisation C and the kernel width sigma of a KELM with the
 Marine Predators Algorithm (Faramarzi, Heidarinejad, Mirjalili & Gandomi, "Marine Predators Algorithm: a
 nature-inspired metaheuristic", Expert Syst. Appl. 152 (2020) 113377) and compares a genetic algorithm
 (Holland 1975; mealpy ``BaseGA``) and particle swarm optimisation (Kennedy & Eberhart 1995; mealpy
-``OriginalPSO``).  The optimisers come from mealpy, pinned to 3.0.3 in ``pyproject.toml``:
+``OriginalPSO``).  The optimisers come from mealpy, pinned to 3.0.3 in ``constraints.txt``:
 ``mealpy.swarm_based.MPA.OriginalMPA``, ``mealpy.evolutionary_based.GA.BaseGA``,
 ``mealpy.swarm_based.PSO.OriginalPSO``.
 

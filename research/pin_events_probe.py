@@ -20,7 +20,7 @@ production's ``integrate()`` (RK4, 9 sub-steps).  Each is compared with scipy DO
 atol 1e-15) over 0.05 s by the relative L2 error of the sensor signal, as
 ``tests/test_integrator.py::test_matches_scipy_dop853_over_50ms``.
 
-    .venv/bin/python bench/pin_events_probe.py [--cases 45,1000,3000] [--schemes rk4:9,dop853:1,...]
+    .venv/bin/python research/pin_events_probe.py [--cases 45,1000,3000] [--schemes rk4:9,dop853:1,...]
         [--cache out/probe_refs]
 
 The references are cached (a few seconds each to recompute).  Results: bench/HISTORY.md, "fifth pass".

@@ -14,7 +14,7 @@ It prints ns per call, ns per simulation and the gain per simulation against ``s
 run, and counts the packed (``ymm``) and scalar fused multiply-adds in each kernel's assembly.
 Results: bench/HISTORY.md, "fifth pass".
 
-    .venv/bin/python bench/lane_simd_probe.py
+    .venv/bin/python research/lane_simd_probe.py
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ recomputed here.  Two uses:
   random states, healthy and faulty, with and without excitation);
 - the honest speed baseline of ``bench/sim_speed.py``: scipy's ``solve_ivp`` on a Python/NumPy
   right-hand side of the same equations, which is what a reader gets without the compiled kernels
-  (REFERENCE.md's peer figure, 0.0033 simulated s per s for RK45 with a Python RHS, measures this).
+  (the peer figure in bench/HISTORY.md, 0.0033 simulated s per s for RK45 with a Python RHS, measures this).
 
 Conventions that the documentation leaves open and that this file shares with the kernels (so the
 comparison is exact): a damping force is ``c`` times the projection of the relative *velocity* on the

@@ -1,0 +1,64 @@
+"""Shared test helpers: where the public measured data sets are, and how a test that needs them skips.
+
+The real-data tests read two public data sets that do not ship with rvdiag (docs/real-data.md, "Getting the
+data"). They look for them in ``$RVDIAG_DATA_DIR``, else in a ``shared/data`` folder beside the checkout (the
+layout of the development machines), and run wherever the files are; elsewhere they skip with a reason that
+says where to get each file and its SHA-256.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+#: where each data set comes from
+SOURCES = {
+    "spectraquest-gearbox": "SpectraQuest Gearbox Fault Diagnostics Simulator data, 'Gearbox Fault Diagnosis Data' "
+                            "on OpenEI (NREL data submission 623; also on Kaggle), CSV files gzipped",
+    "cwru-bearing": "Case Western Reserve University Bearing Data Center, 12 kHz drive-end MAT files "
+                    "(normal_<load>, B/IR/OR<size>@6_<load>)",
+}
+
+#: SHA-256 of every file a test reads
+SHA256 = {
+    "spectraquest-gearbox/h30hz0.csv.gz": "076e997257fb6b2599d34f0cd5d8c3242d8040dda3a74116c9bcf0e87c084af8",
+    "spectraquest-gearbox/h30hz60.csv.gz": "8fcb6b862eae5eb91b19b8f48e3914839622e20eed59f3604359cdabb99ae479",
+    "spectraquest-gearbox/b30hz0.csv.gz": "992eeae01ed9768b54e428eda9125d8895e54dfe416db2d744206a2ac5fbaaa9",
+    "spectraquest-gearbox/b30hz60.csv.gz": "8c6b79f90d2bff439cb6d5c1e952c123c8d8a5b1e1933dd23642c1975253b6c8",
+    "cwru-bearing/normal_0.mat": "16bf48babcf1c7ac224bc1a81cd9eafdb27e42d5cf559761907e067e8eeadf3c",
+    "cwru-bearing/IR007_0.mat": "f80b0ea04fd06b372a0eaec7c056543ea37e4bb4727a5b173d2a5bacd2aa9cab",
+    "cwru-bearing/OR007@6_0.mat": "35a095307d0971477049b343a1b5981dde465a58fb7f233ad89b035068c1717d",
+    "cwru-bearing/OR021@6_0.mat": "ebcbdb96612e8085bbdbf81f0e5e8e8a8d1a693d1ec559c4894f7792771aa9b2",
+}
+
+
+def real_data_dir() -> Path:
+    """The folder holding the measured data sets: ``$RVDIAG_DATA_DIR``, else ``shared/data`` beside the checkout."""
+    env = os.environ.get("RVDIAG_DATA_DIR")
+    return Path(env) if env else REPO.parent / "shared" / "data"
+
+
+DATA = real_data_dir()
+
+
+def missing_reason(files: tuple[str, ...], data: Path | None = None) -> str | None:
+    """Why the tests on ``files`` (paths relative to the data folder) cannot run, or ``None`` when they can."""
+    data = DATA if data is None else data
+    missing = [f for f in files if not (data / f).is_file()]
+    if not missing:
+        return None
+    wanted = "; ".join(f"{f} from {SOURCES[f.split('/')[0]]}, sha256 {SHA256[f]}" for f in missing)
+    return (f"measured data not found in {data} (set RVDIAG_DATA_DIR to the folder that holds it); get {wanted} "
+            "(docs/real-data.md, 'Getting the data')")
+
+
+def needs_real_data(*files: str):
+    """A ``skipif`` mark for a test that reads ``files`` of the measured data sets."""
+    unknown = [f for f in files if f not in SHA256]
+    assert not unknown, f"add the SHA-256 of {unknown} to tests/conftest.py"
+    reason = missing_reason(files)
+    return pytest.mark.skipif(reason is not None, reason=reason or "")

@@ -1,0 +1,33 @@
+"""Figures that README and docstrings state, checked against the code and against the figures they derive from."""
+
+from __future__ import annotations
+
+import re
+
+from conftest import REPO
+
+import rvdiag
+from rvdiag.dynamics.model import dof_names
+
+
+def test_dof_count_stated_everywhere_is_the_models():
+    n = len(dof_names(2, 2))
+    assert n == 27
+    texts = {
+        "README.md": (REPO / "README.md").read_text(),
+        "pyproject.toml": (REPO / "pyproject.toml").read_text(),
+        "rvdiag/__init__.py": rvdiag.__doc__,
+        "library/simulators.py": (REPO / "src/rvdiag/library/simulators.py").read_text(),
+    }
+    for name, text in texts.items():
+        counts = {int(m) for m in re.findall(r"(\d+)-DOF", text)}
+        assert counts == {n}, (name, counts)
+
+
+def test_speed_shortfall_is_the_ratio_of_the_readme_figures():
+    text = (REPO / "README.md").read_text()
+    speed = float(re.search(r"\| ([\d.]+) simulated s per wall s \(RK4, 9 sub-steps", text).group(1))
+    goal = float(re.search(r"goal: ([\d.]+) simulated s per s at 9 sub-steps", text).group(1))
+    short = float(re.search(r"simulator is ([\d.]+)x short of its one-core speed goal", text).group(1))
+    assert (speed, goal) == (2.12, 5.0)
+    assert short == round(goal / speed, 1) == 2.4
