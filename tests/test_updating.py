@@ -104,9 +104,6 @@ def test_envelope_pcc_sees_the_impulse_rate():
     other = ref.score(impulse_train(73.0, n, 2))
     assert same > 0.8
     assert other < 0.3
-    # the log spectrum cannot tell them apart: both ring the same resonance
-    spec = Objective("logspec", impulse_train(50.0, n, 0), FS, n)
-    assert spec.score(impulse_train(73.0, n, 2)) > 0.9
 
 
 # ----------------------------------------------------------------------------- bounds and values
@@ -211,9 +208,10 @@ def run(argv, capsys):
 
 
 @pytest.fixture(scope="module")
-def csv_file(tmp_path_factory, measured):
+def csv_file(tmp_path_factory):
+    """0.6 s at 48 kHz of the default set with a hidden 4 kHz path resonance, pink noise at 20 dB."""
     path = tmp_path_factory.mktemp("upd") / "healthy.csv"
-    write_csv(path, measured[:int(0.6 * FS)])
+    write_csv(path, measured_record({"path_resonance_hz": 4000.0}, 0.6))
     return path
 
 
