@@ -93,7 +93,8 @@ def log_spectrum(x: np.ndarray, fs: float, nperseg: int, fmax: float = LOGSPEC_F
     return f[keep], 10.0 * np.log10(p + floor)
 
 
-def envelope_spectrum(x: np.ndarray, fs: float, nperseg: int, fmax: float = ENVELOPE_FMAX_HZ) -> tuple[np.ndarray, np.ndarray]:
+def envelope_spectrum(x: np.ndarray, fs: float, nperseg: int,
+                      fmax: float = ENVELOPE_FMAX_HZ) -> tuple[np.ndarray, np.ndarray]:
     """Frequencies and amplitude of the envelope spectrum over ``(0, min(fs/4, fmax)]``.
 
     The envelope is the modulus of the analytic signal (Hilbert transform) of the mean-free record; its mean is

@@ -33,7 +33,8 @@ def before_after_figure(result: UpdateResult, path: str | Path, title: str = "")
     ax.set_xlabel("time (s)" if result.objective == "time" else "frequency (Hz)")
     ax.set_ylabel({"logspec": "power spectral density (dB)", "envelope": "envelope spectrum amplitude",
                    "time": "acceleration"}[result.objective])
-    ax.set_title(title or f"model updating, objective {result.objective}")
+    note = " (PCC with the fitted noise floor; spectra without it)" if obj.name == "logspec" and obj.fit_floor else ""
+    ax.set_title((title or f"model updating, objective {result.objective}") + note, fontsize=10)
     ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
     fig.savefig(path, dpi=120)
