@@ -1,0 +1,18 @@
+"""Model updating: tune the assumed parameters of a reducer model to a measured healthy signal.
+
+- :mod:`rvdiag.updating.objectives`: the similarity scores (PCC of log spectra, envelope spectra or records);
+- :mod:`rvdiag.updating.space`: the tuned parameters, their bounds and scales;
+- :mod:`rvdiag.updating.tuner`: the seeded global + local search (:func:`update_parameters`);
+- :mod:`rvdiag.updating.annotate`: the updated parameter file, every changed value commented.
+"""
+
+from __future__ import annotations
+
+from rvdiag.updating.objectives import OBJECTIVES, Objective, envelope_spectrum, log_spectrum, pcc
+from rvdiag.updating.space import TUNABLE_NAMES, TUNABLES, Tunable, apply_values, bounds_for
+from rvdiag.updating.tuner import UpdateResult, update_parameters
+
+__all__ = [
+    "OBJECTIVES", "Objective", "TUNABLES", "TUNABLE_NAMES", "Tunable", "UpdateResult", "apply_values",
+    "bounds_for", "envelope_spectrum", "log_spectrum", "pcc", "update_parameters",
+]
