@@ -18,7 +18,7 @@ LAYERS = {
     "params": 1,
     "gears": 2, "kinematics": 2,
     "dynamics": 3, "motor": 3,
-    "library": 4, "datasets": 4, "io": 4,
+    "library": 4, "datasets": 4, "io": 4, "updating": 4,
     "features": 5,
     "models": 6,
     "evaluation": 7,

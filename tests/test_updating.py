@@ -186,7 +186,6 @@ def test_update_is_deterministic_for_a_seed(measured):
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(not os.environ.get("RVDIAG_RUN_SLOW"), reason="full recovery takes ~2 min; RVDIAG_RUN_SLOW=1")
 def test_full_recovery_all_eight_parameters():
     """All 8 parameters from the default set, 150 simulations.  Asserted: PCC and the identifiable three."""
     meas = measured_record(HIDDEN, 1.0)

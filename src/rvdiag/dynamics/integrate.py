@@ -11,7 +11,7 @@ to 4500 rpm instead of ~2500 (bench/HISTORY.md 2026-11-23).
 What depends on time only is computed once per distinct stage time and shared by the stages: the mesh
 stiffness and profile deviation of each sun-planet mesh (:func:`rvdiag.dynamics.model.mesh_terms`), the
 frame rotations (rotated by half-step increments from exact values at each sample's start;
-REFERENCE.md section 5) and the cycloid-pin geometry.  RK4 takes the geometry exactly at each sample's
+by angle addition) and the cycloid-pin geometry.  RK4 takes the geometry exactly at each sample's
 start, middle and end and interpolates it quadratically at the inner stage times
 (:func:`rvdiag.dynamics.model.interpolate_geometry`; output change 1e-8 to 2e-7 relative against the
 exact geometry at every stage); the 3/8 rule evaluates it exactly at every stage time.
@@ -158,7 +158,7 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tv
     limr = P[mdl.I_ROTLIM]
     tol = 1e-6 * hnom
     # frame angles b_0 = beta_0 - Zp Omega t and W = Omega t advance linearly: within a sample their
-    # cos/sin are rotated by half-step increments (angle addition, REFERENCE.md section 5) from the exact
+    # cos/sin are rotated by half-step increments (angle addition) from the exact
     # values at the sample's start; libm's sincos at every stage time would cost ~8 % of the run
     f_rel, rate_b, rate_w = _time_rates(P)
     cdb0, sdb0, cdw0, sdw0 = _rotation_increments(0.5 * rate_b * hnom, 0.5 * rate_w * hnom)

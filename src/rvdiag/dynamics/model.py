@@ -12,7 +12,7 @@ displacements about the rigid-body motion at constant speed:
   planet i (x radial, y tangential);
 - pin wheel ``(x_r, y_r, th_r)`` in the fixed housing frame (its rotation, on the stiff housing support,
   carries the stage-2 reaction torque to the housing, where the sensor sits; see docs/model.md for why
-  we add it to the 26 DOF of the issue).
+  we add it to the 26 DOF of the dynamics paper's model).
 
 Forces: sun-planet meshes along the line of action with the TVMS table and a backlash dead zone
 (Kahraman & Singh 1990); planet-crank spline (radial + torsional); crank-carrier and crank-cycloid
@@ -549,7 +549,7 @@ def pin_geometry(t, P, cosk, sink, geo, rot):
     loop vectorises); ``rot[j] = (cos b, sin b, cos B, sin B)``, ``b`` the eccentric angle of disc j in
     the carrier frame and ``B = b + Omega t`` in the fixed frame.  The pin angles relative to the
     eccentric are ``eta_k = eta_0 + 2 pi k / Zp``: one sin/cos per disc, the rest by angle addition
-    with the precomputed ``cosk, sink`` (REFERENCE.md section 5).  When the discs' phase is a whole
+    with the precomputed ``cosk, sink`` (measured: the same output as per-pin sin/cos, ~10x cheaper; bench/HISTORY.md).  When the discs' phase is a whole
     number of pin pitches (``P[I_GSHARED]``; 180 deg with an even pin count) every disc sees the same
     set of pin angles, only relabelled, and one geometry ``g = 0`` serves all discs.
     """
