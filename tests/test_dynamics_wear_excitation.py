@@ -24,8 +24,11 @@ from rvdiag.errors import ParameterError
 from rvdiag.gears import ToothFaults, Wear
 from rvdiag.params import ReducerParams
 
+#: perfect involutes without relief or extended contact: the wear deviation is then the only separation, which
+#: isolates the excitation this module is about
 P0 = ReducerParams.default().replace(
-    modification={"iso1328_grade": 0, "tip_relief_sun": 0.0, "tip_relief_planet": 0.0})
+    modification={"iso1328_grade": 0, "tip_relief_sun": 0.0, "tip_relief_planet": 0.0,
+                  "extended_contact_separation": 0.0})
 #: the library engineer's operating point (docs/library.md): 45 deg/s output, 75 N m, no noise
 OP = dict(output_speed_deg_s=45.0, load_Nm=75.0)
 SIM = dict(duration_s=0.1, fs=48000.0, settings=ModelSettings(transient_s=0.05), **OP)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import tracemalloc
 
@@ -254,22 +255,33 @@ def test_steps_are_cut_at_the_mesh_table_events():
     assert found == int(inside.sum()) > 50
 
 
-def test_table_events_are_the_stiffness_ramps():
-    """Healthy RV-20E table: the kinks are the entry and exit of every tooth pair in its slot (2 nodes each, 11
-    teeth: 44 nodes), seen by both planets half a revolution apart; everything else in the table is smooth."""
+def test_table_events_are_the_path_ends_and_the_corner_handovers():
+    """Healthy RV-20E table: the kinks are where each tooth pair's path of contact starts or ends (the stiffness's
+    slope changes there: the extended contact carries the end value on; the last node of the path at each end, 11
+    teeth: 22 nodes, each beside a ramp of the table without extended contact), and where a slot hands over from one pair's corner contact
+    to the next's, far off the path, at a separation of over 100 um that no mesh approaches; both planets see
+    them half a revolution apart; everything else in the table is smooth."""
     m = prepare(P0, input_speed_rpm=1000.0)
+    bare = prepare(dataclasses.replace(P0, modification=dataclasses.replace(
+        P0.modification, extended_contact_separation=0.0)), input_speed_rpm=1000.0)
     S = int(m.P[mdl.I_NSLOT])
-    kbar = m.tables[:S].sum(axis=0).mean()
-    big_all = []
-    for k in m.tables[:S]:
+    kbar = m.tvms.mean()
+    big_all, ends_all = [], []
+    for s_ in range(S):
+        k, kb, e = m.tables[s_], bare.tables[s_], m.tables[S + s_]
         d2 = np.abs(np.roll(k, -1) - 2 * k + np.roll(k, 1)) / kbar
         big = np.flatnonzero(d2 > mdl.EVENT_STIFFNESS_KINK)
-        assert d2[d2 <= mdl.EVENT_STIFFNESS_KINK].max() < 1e-4 < 0.1 < d2[big].min()
-        # every kink is where the pair of this slot starts or stops touching
-        assert np.all((k[big] == 0) | (np.roll(k, 1)[big] == 0) | (np.roll(k, -1)[big] == 0))
+        assert d2[d2 <= mdl.EVENT_STIFFNESS_KINK].max() < 1e-4
+        ends = np.flatnonzero((kb > 0) & ((np.roll(kb, 1) == 0) | (np.roll(kb, -1) == 0)))
+        handover = np.setdiff1d(big, ends)
+        assert np.all(np.isin(ends, big))
+        # a hand-over: the stiffness steps between neighbours, where the separation is large or a pair ends
+        near = np.maximum(np.maximum(e[handover], np.roll(e, 1)[handover]), np.roll(e, -1)[handover])
+        assert np.all(near > 100e-6), near
         big_all.append(big)
+        ends_all.append(ends)
+    assert np.unique(np.concatenate(ends_all)).size == 22
     big = np.unique(np.concatenate(big_all))
-    assert big.size == 44
     n = m.tables.shape[1]
     expect = np.unique(np.concatenate([big / n, (big / n + 0.5) % 1.0]))
     assert_array_equal(m.events, expect)

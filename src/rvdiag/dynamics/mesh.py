@@ -17,6 +17,10 @@ Two sources of tables:
   for: the gears package is part of rvdiag and imported unconditionally, so the physics never falls back
   to this stand-in silently.
 
+Each pair's contact is carried off the ends of its path of contact as a corner contact (extended tooth contact,
+:func:`extend_off_path`), so that a pair lagging by more than its separation touches before, or leaves after, the
+nominal path instead of meeting the whole interference at a fixed angle.
+
 A table may also carry the mesh profile deviation ``error_m`` (wear), which the model subtracts from the
 mesh deflection as a transmission-error excitation (docs/model.md, "Fault sensitivity").
 """
@@ -31,8 +35,8 @@ import numpy as np
 
 from rvdiag.errors import ParameterError
 from rvdiag.gears import GearPair, mesh_stiffness
-from rvdiag.gears.modification import (ProfileModification, iso1328_tolerances, profile_slope_separation,
-                                       relief_separation, tooth_position_errors)
+from rvdiag.gears.modification import (ProfileModification, corner_contact_coefficient, iso1328_tolerances,
+                                       profile_slope_separation, relief_separation, tooth_position_errors)
 from rvdiag.params import ReducerParams
 
 TWO_PI = 2.0 * math.pi
@@ -198,6 +202,65 @@ def rectangular_mesh_table(
     return MeshTable(phi, k, TWO_PI, source=f"rectangular(eps={eps:.4f}, k_pair={kp:.4g})")
 
 
+def _runs(on: np.ndarray) -> list[tuple[int, int]]:
+    """``(first, last)`` node of every run of True in the periodic boolean row ``on`` (``last`` may wrap below
+    ``first``); none when the row is all False or all True."""
+    if not on.any() or on.all():
+        return []
+    starts = np.flatnonzero(on & ~np.roll(on, 1))
+    ends = np.flatnonzero(on & ~np.roll(on, -1))
+    if ends[0] < starts[0]:  # the first run wraps around the table's end
+        ends = np.roll(ends, -1)
+    return list(zip(starts.tolist(), ends.tolist()))
+
+
+def extend_off_path(k_slots: np.ndarray, e_slots: np.ndarray, droll: float, pair: GearPair,
+                    limit: float) -> None:
+    """Carry each tooth pair's contact off the ends of its path of contact, in place (extended tooth contact).
+
+    In the nodes where a slot holds no pair, each neighbouring pair gets its stiffness at the end it left or has
+    yet to reach, and its separation there plus ``c s^2`` at a roll distance ``s`` off that end
+    (:func:`rvdiag.gears.modification.corner_contact_coefficient`: at the entry the driven gear's tip corner, at
+    the exit the driver's tip, or the fracture edge of a broken tooth, which ends its pair's path early).  Of two
+    candidates at a node the one with the smaller separation is kept (the pair that touches first); up to a
+    separation of ``limit`` (m).  Within the path nothing changes.  Without it a pair meets the full interference of
+    a lagging gear at a fixed angle and its force steps, and a planet whose sun tooth is missing swings into the gap
+    until the next pair switches on against it (docs/model.md section 9).
+
+    ``k_slots``, ``e_slots``: ``(slots, n)`` over one relative sun revolution on a uniform grid of ``droll`` (m of roll
+    along the path per node); each slot's runs of ``k > 0`` start at roll 0 of their pair.
+    """
+    n = k_slots.shape[1]
+    L = pair.path_of_contact
+    rb1, rb2 = pair.driver.base_radius, pair.driven.base_radius
+    rho1_in, rho2_in = pair.roll_lengths(np.array(0.0))
+    c_in = corner_contact_coefficient(float(rho1_in), float(rho2_in), rb2, float(rho2_in))
+    steps_in = int(math.sqrt(limit / c_in) / droll)
+    for s_ in range(k_slots.shape[0]):
+        runs = _runs(k_slots[s_] > 0)
+        best_e = np.full(n, np.inf)
+        best_k = np.zeros(n)
+        for first, last in runs:
+            length = (last - first) % n
+            roll_end = min(length * droll, L)
+            rho1, rho2 = pair.roll_lengths(np.array(roll_end))
+            c_out = corner_contact_coefficient(float(rho1), float(rho2), rb1, float(rho1))
+            steps_out = int(math.sqrt(limit / c_out) / droll)
+            for end, c, steps, sign in ((first, c_in, steps_in, -1), (last, c_out, steps_out, 1)):
+                j = np.arange(1, steps + 1)
+                idx = (end + sign * j) % n
+                blocked = np.flatnonzero(k_slots[s_, idx] > 0)
+                if blocked.size:
+                    j, idx = j[:blocked[0]], idx[:blocked[0]]
+                cand = e_slots[s_, end] + c * (j * droll) ** 2
+                better = cand < best_e[idx]
+                best_e[idx[better]] = cand[better]
+                best_k[idx[better]] = k_slots[s_, end]
+        fill = np.isfinite(best_e)
+        k_slots[s_, fill] = best_k[fill]
+        e_slots[s_, fill] = best_e[fill]
+
+
 def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_cycle: int = 360) -> MeshTable:
     """Potential-energy TVMS of :mod:`rvdiag.gears` over one relative sun revolution (Z1 mesh cycles), with
     the separation of every tooth pair.
@@ -255,6 +318,9 @@ def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_c
         e_slots[s_] = np.where(on, sep, 0.0).sum(axis=0)
     k = k_slots.sum(axis=0)
     err = np.divide((k_slots * e_slots).sum(axis=0), k, out=np.zeros_like(k), where=k > 0)
+    if md.extended_contact_separation > 0:
+        droll = pair.driver.base_radius * (angle[1] - angle[0])
+        extend_off_path(k_slots, e_slots, droll, pair, md.extended_contact_separation)
     angle = angle - angle[0]
     period = TWO_PI
     keep = angle < period - 1e-12

@@ -160,3 +160,28 @@ def profile_slope_separation(roll: np.ndarray, path_length: float, tol: FlankTol
     at the entry side and added at the exit side, linear in the roll position, zero mean over the path."""
     s = np.asarray(roll, dtype=float)
     return 0.5 * tol.profile_slope * (0.5 - s / float(path_length))
+
+
+def corner_contact_coefficient(rho_driver: float, rho_driven: float, base_radius_cornered: float,
+                               rho_cornered: float) -> float:
+    """Coefficient ``c`` (1/m) of the separation ``c s^2`` of a tooth pair whose contact point has moved a roll
+    distance ``s`` off the end of one gear's profile (corner contact, "extended tooth contact").
+
+    Off the end of the path of contact the mating flanks no longer touch on the line of action: the corner of the
+    profile that ends (the driven gear's tip at the entry, the driver's tip, or a broken tooth's fracture edge,
+    at the exit) meets the mate's involute.  Near the virtual contact point, where the two involutes would be
+    tangent, two convex profiles of radii of curvature ``rho_1`` and ``rho_2`` lie ``a^2 (1/rho_1 + 1/rho_2) / 2``
+    apart at an arc length ``a`` from it (the Hertz gap geometry, Johnson 1985, Contact Mechanics, sec. 4.1), and
+    on an involute of base radius ``r_b`` the arc between roll lengths ``rho`` and ``rho + s`` is
+    ``(2 rho s + s^2) / (2 r_b) ~ rho s / r_b``; so ``c = (rho_c / r_b,c)^2 (1/rho_1 + 1/rho_2) / 2`` with the
+    cornered gear's roll length ``rho_c`` and base radius ``r_b,c`` at the profile's end.  A loaded pair that
+    lags or leads by more than its separation therefore starts before, or ends after, the nominal path, and
+    its force builds up over a roll distance instead of switching on with the full interference (the
+    premature and prolonged contact of loaded gears, "extended tooth contact": Ma, Pang, Feng, Song & Wen 2015,
+    Eng. Fail. Anal. 48, 105-120).  Roll lengths in m, all > 0.
+    """
+    for name, v in (("rho_driver", rho_driver), ("rho_driven", rho_driven),
+                    ("base_radius_cornered", base_radius_cornered), ("rho_cornered", rho_cornered)):
+        if not (math.isfinite(v) and v > 0):
+            raise ParameterError(f"corner contact: {name} must be > 0 (m), got {v!r}")
+    return 0.5 * (rho_cornered / base_radius_cornered) ** 2 * (1.0 / rho_driver + 1.0 / rho_driven)

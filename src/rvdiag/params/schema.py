@@ -186,6 +186,11 @@ class Modification:
     Relief amounts and lengths in m along the line of action; ``relief_exponent`` 1 (linear) or 2
     (parabolic); ``iso1328_grade`` the ISO 1328-1:2013 flank tolerance class of both gears (0: perfect
     involutes, no pitch or profile error); ``error_seed`` seeds the drawn pitch deviations.
+    ``extended_contact_separation`` (m) is the largest separation up to which a tooth pair's corner contact off
+    the ends of the path of contact is carried (extended tooth contact, :func:`rvdiag.gears.modification.
+    corner_contact_coefficient`; default 1 mm, which spans the whole gap between two pairs of a slot, so that a
+    pair lagging by any realistic amount meets the next tooth's corner); 0 ends every pair's contact at the
+    path's ends (the model before 2026-11-25).
     """
 
     tip_relief_sun: float = _nonnegative(default=1.0e-6)
@@ -197,6 +202,7 @@ class Modification:
     relief_exponent: int = _positive(default=2)
     iso1328_grade: int = _nonnegative(default=5)
     error_seed: int = _nonnegative(default=0)
+    extended_contact_separation: float = _nonnegative(default=1.0e-3)
 
 
 @dataclass(frozen=True)
