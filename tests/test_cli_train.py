@@ -53,7 +53,8 @@ def store(tmp_path_factory):
 def cnn_model(store, tmp_path_factory):
     out = tmp_path_factory.mktemp("m") / "model"
     main_args = ["train", store, "--model", "cnn1d-lean", "--out", out, "--epochs", "8", "--lr", "0.01",
-                 "--batch-size", "8", "--device", "cpu", "--seed", "1", "--quiet"]
+                 "--batch-size", "8", "--device", "cpu", "--seed", "1", "--quiet", "--representation", "waveform",
+                 "--patience", "5"]
     try:
         main([str(a) for a in main_args])
     except SystemExit as exc:  # pragma: no cover - a failure shows here
@@ -197,6 +198,34 @@ def test_evaluate_accuracy_against_added_noise(cnn_model, store, capsys):
     assert code == 0 and "accuracy against added-noise SNR" in out
     code, _, err = run(["evaluate", cnn_model, store, "--snr-db", "loud"], capsys)
     assert code == 2 and "--snr-db" in err
+
+
+def test_evaluate_shows_progress_on_stderr_unless_quiet(cnn_model, store, capsys):
+    """Scoring and the --snr-db levels report progress (bars with an ETA on a terminal; in a log, one line per
+    finished stage) on stderr, never on stdout; -q turns it off."""
+    code, out, err = run(["evaluate", cnn_model, store, "--json", "--snr-db", "0,10"], capsys)
+    assert code == 0 and json.loads(out)["snr"]
+    lines = err.splitlines()
+    assert [ln.split(" in ")[0] for ln in lines] == ["scoring: 12/12", "scoring: 12/12", "scoring: 12/12",
+                                                    "SNR levels: 2/2"], err
+    code, out, err = run(["evaluate", cnn_model, store, "--json", "--snr-db", "0,10", "-q"], capsys)
+    assert code == 0 and err == ""
+
+
+def test_train_defaults_train_the_recommended_setup(store, tmp_path, capsys):
+    """With no model options `train` builds the recommended network (mcsa-cnn on logspec) and says so in the
+    card; the tiny store's 256-point samples are shorter than its 4096-point input, hence the named option."""
+    code, _, err = run(["train", store, "-o", tmp_path / "m", "-q"], capsys)
+    assert code == 2 and err == ("error: mcsa-cnn takes windows of 4096 points but the samples have only 256; give a "
+                                 "shorter --input-length or use cnn1d-lean\n")
+    code, _, err = run(["train", store, "-o", tmp_path / "m", "-q", "--input-length", "128", "--epochs", "1",
+                        "--device", "cpu"], capsys)
+    assert code == 0, err
+    from rvdiag.models.persistence import read_card
+
+    card = read_card(tmp_path / "m")
+    assert card["model"] == "mcsa-cnn" and card["params"]["representation"] == "logspec"
+    assert card["params"]["learning_rate"] == 3e-3 and card["params"]["n_iter_no_change"] == 6
 
 
 def test_train_with_added_noise_is_recorded_and_seeded(store, tmp_path, capsys):

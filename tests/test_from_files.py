@@ -59,7 +59,7 @@ def test_store_contents_and_metadata(tmp_path):
 
 
 def test_test_fraction_splits_by_file_by_default(tmp_path):
-    """Issue 18, item 3: a random split of windows put neighbours of one recording on both sides.  By default no
+    """A random split of windows put neighbours of one recording on both sides.  By default no
     file contributes windows to both splits; each class holds out round(f * its files) whole files."""
     d = _folder(tmp_path)
     kw = dict(label_regex=REGEX, channel="DE", window_length=100, hop=50, test_fraction=0.5)
