@@ -261,3 +261,17 @@ def test_snr_curve_example_trains_one_model_per_level(store, tmp_path):
     assert [r["snr_db"] for r in rows] == [-30.0, 30.0]
     assert rows[0]["accuracy"] < rows[1]["accuracy"] and "--snr-db -30" in rows[0]["command"]
     assert (out / "snr_curve.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_classical_fit_shows_the_tuning_progress_unless_quiet(store, tmp_path, capsys):
+    """A tuned KELM reports every objective evaluation (mealpy's budget: pop_size x (epoch + 1) = 20 x 21); in a
+    log (not a terminal) one line per finished stage; -q: nothing."""
+    args = ["train", store, "--model", "kelm-pso", "--features", "time", "--json"]
+    code, out, err = run(args + ["-o", tmp_path / "a"], capsys)
+    assert code == 0 and err == ""  # --json is quiet
+    code, out, err = run(args[:-1] + ["-o", tmp_path / "b"], capsys)
+    assert code == 0, err
+    stages = [ln.split(" in ")[0] for ln in err.splitlines() if " in " in ln and ": " in ln]
+    assert "PSO tuning: 420/420" in stages and "seed 0: fitting" in err
+    code, out, err = run(args[:-1] + ["-o", tmp_path / "c", "-q"], capsys)
+    assert code == 0 and "PSO tuning" not in err
