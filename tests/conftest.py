@@ -62,3 +62,16 @@ def needs_real_data(*files: str):
     assert not unknown, f"add the SHA-256 of {unknown} to tests/conftest.py"
     reason = missing_reason(files)
     return pytest.mark.skipif(reason is not None, reason=reason or "")
+
+
+def run_cli(argv: list, capsys) -> tuple[int, str, str]:
+    """Run ``rvdiag ARGV`` in this process: (exit code, stdout, stderr)."""
+    from rvdiag.cli import main
+
+    try:
+        main([str(a) for a in argv])
+        code = 0
+    except SystemExit as exc:
+        code = 0 if exc.code is None else exc.code
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err

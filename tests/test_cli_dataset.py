@@ -55,7 +55,7 @@ def test_cwru_example_on_a_subset(tmp_path, capsys):
     run_ok(["dataset", "from-files", str(DATA / "cwru-bearing"),
             "--label-regex", r"^(?P<label>normal|B\d{3}|IR\d{3}|OR\d{3})", "--meta-regex", r"_(?P<load>\d)\.mat$",
             "--channel", "DE_time", "--window", "2048", "--fs", "12000", "--include", r"^(normal|IR007|OR021@6)_0",
-            "--scalar", "rpm=RPM", "--test-fraction", "0.25", "--out", str(out)], capsys)
+            "--scalar", "rpm=RPM", "--test-fraction", "0.25", "--split-by", "window", "--out", str(out)], capsys)
     s = SampleStore.open(out)
     smp = s.load()
     assert s.classes == ["IR007", "OR021", "normal"] and s.fs == 12000.0
@@ -126,3 +126,42 @@ def test_bad_scalar_spec_and_missing_store(tmp_path, capsys):
     assert code == 2 and "expected NAME=REGEX" in err
     code, _, err = run(["dataset", "info", str(tmp_path / "none.zarr")], capsys)
     assert code == 2 and err.startswith("error: no sample store")
+
+
+def _two_loads(tmp_path: Path) -> Path:
+    """Two classes x three recordings of 600 points (windows of 100 with hop 50 overlap)."""
+    d = tmp_path / "raw3"
+    d.mkdir()
+    rng = np.random.default_rng(1)
+    for c in "hb":
+        for load in (0, 30, 60):
+            (d / f"{c}_{load}.csv").write_text("a1\n" + "\n".join(map(repr, rng.standard_normal(600))) + "\n")
+    return d
+
+
+def test_from_files_test_fraction_holds_out_whole_files(tmp_path, capsys):
+    """By default no recording contributes windows to both splits (the old random split of
+    windows put overlapping neighbours on both sides)."""
+    out = tmp_path / "s.zarr"
+    cap = run_ok(["dataset", "from-files", str(_two_loads(tmp_path)), "--label-regex", r"^(?P<label>[hb])_",
+                  "--window", "100", "--hop", "50", "--test-fraction", "0.3", "-o", str(out), "-q"], capsys)
+    assert "warning" not in cap.err
+    smp = SampleStore.open(out).load()
+    per_file = {src: set(smp.meta["split"][smp.meta["source"] == src]) for src in set(smp.meta["source"])}
+    assert len(per_file) == 6 and all(len(s) == 1 for s in per_file.values()), per_file
+    assert sorted(src[0] for src, s in per_file.items() if s == {"test"}) == ["b", "h"]  # round(0.3 * 3) = 1 each
+    assert np.sum(smp.meta["split"] == "test") == 2 * 11  # (600 - 100) // 50 + 1 windows per file
+
+
+def test_from_files_window_split_is_explicit_and_warns_once(tmp_path, capsys):
+    out = tmp_path / "s.zarr"
+    cap = run_ok(["dataset", "from-files", str(_two_loads(tmp_path)), "--label-regex", r"^(?P<label>[hb])_",
+                  "--window", "100", "--hop", "50", "--test-fraction", "0.3", "--split-by", "window",
+                  "-o", str(out), "-q"], capsys)
+    warnings = [ln for ln in cap.err.splitlines() if ln.startswith("warning:")]
+    assert warnings == ["warning: --split-by window puts neighbouring windows of one recording in both train and "
+                        "test: the test accuracy is optimistic (the default --split-by unit holds out whole files)"]
+    smp = SampleStore.open(out).load()
+    both = [src for src in set(smp.meta["source"]) if len(set(smp.meta["split"][smp.meta["source"] == src])) == 2]
+    assert both  # the leak the default avoids
+    assert np.sum(smp.meta["split"] == "test") == 2 * round(0.3 * 33)

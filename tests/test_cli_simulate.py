@@ -38,7 +38,7 @@ def test_freqs_table(capsys):
 def test_simulate_writes_repeatable_npz(tmp_path, capsys):
     path = tmp_path / "s.npz"
     argv = ["simulate", "--state", "T2", "--output-speed", "30", "--load", "60", "--duration", "0.01",
-            "--fs", "12000", "--substeps", "40", "--transient", "0.005", "--noise-snr", "20", "--seed", "3",
+            "--fs", "12000", "--substeps", "40", "--transient", "0.005", "--snr-db", "20", "--seed", "3",
             "--quiet", "--out", str(path)]
     code, out, err = run(argv, capsys)
     assert code in (0, None), err
@@ -70,7 +70,7 @@ def test_simulate_writes_repeatable_npz(tmp_path, capsys):
     (["simulate", "--state", "T9", "--input-speed", "100"], "unknown fault state"),
     (["simulate", "--input-speed", "1000", "--substeps", "1", "--transient", "0", "--duration", "0.01"],
      "increase the sub-steps"),
-    (["simulate", "--input-speed", "1000", "--duration", "0"], "duration_s must be"),
+    (["simulate", "--input-speed", "1000", "--duration", "0"], "--duration must be"),
     (["simulate", "--state", "T2", "--input-speed", "1000", "--broken-fraction", "2"], "broken fraction"),
     (["simulate", "--state", "T1", "--input-speed", "1000", "--wear-depth", "0.01"], "does not apply"),
     (["freqs", "--output-speed", "-3"], "output speed must be > 0"),
@@ -147,8 +147,8 @@ def test_cli_workers_and_segment(tmp_path, capsys):
 
 @pytest.mark.parametrize("extra, match", [
     (["--workers", "0"], "--workers must be >= 1"),
-    (["--segment", "-1"], "segment_s must be >= 0"),
-    (["--segment", "0.01", "--transient", "0"], "transient_s > 0"),
+    (["--segment", "-1"], "--segment must be >= 0"),
+    (["--segment", "0.01", "--transient", "0"], "--transient > 0"),
 ])
 def test_cli_bad_segment_options(tmp_path, capsys, extra, match):
     path = tmp_path / "s.npz"
@@ -156,3 +156,19 @@ def test_cli_bad_segment_options(tmp_path, capsys, extra, match):
                         "--out", str(path), *extra], capsys)
     assert code == 2 and match in err and "Traceback" not in err
     assert len(err.strip().splitlines()) == 1 and not path.exists()
+
+
+def test_simulate_default_transient_and_the_old_noise_option(tmp_path, capsys):
+    """Without --transient, simulate discards the model's run-in (0.1 s, as library configs do); the old
+    spelling --noise-snr still sets the noise, with one warning line."""
+    from rvdiag.library.config import DEFAULT_TRANSIENT_S
+
+    path = tmp_path / "s.npz"
+    code, out, err = run(["simulate", "--output-speed", "30", "--duration", "0.005", "--fs", "8000",
+                          "--substeps", "40", "--noise-snr", "20", "-q", "-o", str(path)], capsys)
+    assert code in (0, None), err
+    assert [ln for ln in err.splitlines() if "deprecated" in ln] == ["warning: --noise-snr is deprecated; use --snr-db"]
+    with np.load(path, allow_pickle=False) as z:
+        settings = json.loads(str(z["settings"]))
+    assert settings["model_settings"]["transient_s"] == DEFAULT_TRANSIENT_S == ModelSettings().transient_s
+    assert settings["noise_snr_db"] == 20.0

@@ -53,7 +53,8 @@ def store(tmp_path_factory):
 def cnn_model(store, tmp_path_factory):
     out = tmp_path_factory.mktemp("m") / "model"
     main_args = ["train", store, "--model", "cnn1d-lean", "--out", out, "--epochs", "8", "--lr", "0.01",
-                 "--batch-size", "8", "--device", "cpu", "--seed", "1", "--quiet"]
+                 "--batch-size", "8", "--device", "cpu", "--seed", "1", "--quiet", "--representation", "waveform",
+                 "--patience", "5"]
     try:
         main([str(a) for a in main_args])
     except SystemExit as exc:  # pragma: no cover - a failure shows here
@@ -199,6 +200,34 @@ def test_evaluate_accuracy_against_added_noise(cnn_model, store, capsys):
     assert code == 2 and "--snr-db" in err
 
 
+def test_evaluate_shows_progress_on_stderr_unless_quiet(cnn_model, store, capsys):
+    """Scoring and the --snr-db levels report progress (bars with an ETA on a terminal; in a log, one line per
+    finished stage) on stderr, never on stdout; -q turns it off."""
+    code, out, err = run(["evaluate", cnn_model, store, "--json", "--snr-db", "0,10"], capsys)
+    assert code == 0 and json.loads(out)["snr"]
+    lines = err.splitlines()
+    assert [ln.split(" in ")[0] for ln in lines] == ["scoring: 12/12", "scoring: 12/12", "scoring: 12/12",
+                                                    "SNR levels: 2/2"], err
+    code, out, err = run(["evaluate", cnn_model, store, "--json", "--snr-db", "0,10", "-q"], capsys)
+    assert code == 0 and err == ""
+
+
+def test_train_defaults_train_the_recommended_setup(store, tmp_path, capsys):
+    """With no model options `train` builds the recommended network (mcsa-cnn on logspec) and says so in the
+    card; the tiny store's 256-point samples are shorter than its 4096-point input, hence the named option."""
+    code, _, err = run(["train", store, "-o", tmp_path / "m", "-q"], capsys)
+    assert code == 2 and err == ("error: mcsa-cnn takes windows of 4096 points but the samples have only 256; give a "
+                                 "shorter --input-length or use cnn1d-lean\n")
+    code, _, err = run(["train", store, "-o", tmp_path / "m", "-q", "--input-length", "128", "--epochs", "1",
+                        "--device", "cpu"], capsys)
+    assert code == 0, err
+    from rvdiag.models.persistence import read_card
+
+    card = read_card(tmp_path / "m")
+    assert card["model"] == "mcsa-cnn" and card["params"]["representation"] == "logspec"
+    assert card["params"]["learning_rate"] == 3e-3 and card["params"]["n_iter_no_change"] == 6
+
+
 def test_train_with_added_noise_is_recorded_and_seeded(store, tmp_path, capsys):
     from rvdiag.models.persistence import read_card
 
@@ -232,3 +261,17 @@ def test_snr_curve_example_trains_one_model_per_level(store, tmp_path):
     assert [r["snr_db"] for r in rows] == [-30.0, 30.0]
     assert rows[0]["accuracy"] < rows[1]["accuracy"] and "--snr-db -30" in rows[0]["command"]
     assert (out / "snr_curve.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_classical_fit_shows_the_tuning_progress_unless_quiet(store, tmp_path, capsys):
+    """A tuned KELM reports every objective evaluation (mealpy's budget: pop_size x (epoch + 1) = 20 x 21); in a
+    log (not a terminal) one line per finished stage; -q: nothing."""
+    args = ["train", store, "--model", "kelm-pso", "--features", "time", "--json"]
+    code, out, err = run(args + ["-o", tmp_path / "a"], capsys)
+    assert code == 0 and err == ""  # --json is quiet
+    code, out, err = run(args[:-1] + ["-o", tmp_path / "b"], capsys)
+    assert code == 0, err
+    stages = [ln.split(" in ")[0] for ln in err.splitlines() if " in " in ln and ": " in ln]
+    assert "PSO tuning: 420/420" in stages and "seed 0: fitting" in err
+    code, out, err = run(args[:-1] + ["-o", tmp_path / "c", "-q"], capsys)
+    assert code == 0 and "PSO tuning" not in err

@@ -32,3 +32,27 @@ def test_speed_shortfall_is_the_ratio_of_the_readme_figures():
     assert (speed, goal) == (1.56, 5.0)
     assert short == round(goal / speed, 1) == 3.2
     assert f"({speed} of {goal:g} simulated s per s" in text
+
+
+def test_train_defaults_are_the_recommended_setup_of_results_md():
+    """`rvdiag train STORE -o M` trains what docs/results.md recommends: the statement there, the registry's
+    RECOMMENDED_TRAINING, the command's defaults and `make demo` (which no longer overrides them) agree."""
+    import typer
+
+    from rvdiag.cli import build_app
+    from rvdiag.registry import RECOMMENDED_TRAINING
+
+    text = (REPO / "docs" / "results.md").read_text()
+    stated = re.search(r"\*\*Recommended setup\*\* \(the defaults of `rvdiag train`.*?: `(--model [^`]*)`", text,
+                       re.S).group(1)
+    options = dict(re.findall(r"--([\w-]+) (\S+)", stated))
+    assert {k: type(RECOMMENDED_TRAINING[k])(v) for k, v in options.items()} == RECOMMENDED_TRAINING
+    assert RECOMMENDED_TRAINING == {"model": "mcsa-cnn", "representation": "logspec", "epochs": 40, "lr": 3e-3,
+                                   "patience": 6}
+    train = typer.main.get_command(build_app()).commands["train"]
+    defaults = {p.name: p.default for p in train.params}
+    assert {k: defaults[k] for k in RECOMMENDED_TRAINING} == RECOMMENDED_TRAINING
+    demo = (REPO / "examples" / "demo.py").read_text()
+    assert "--representation" not in demo and "--lr" not in demo and "--epochs" not in demo
+    readme = (REPO / "README.md").read_text()
+    assert "rvdiag train out/demo.zarr -o out/model   # the recommended setup: mcsa-cnn on log spectra" in readme

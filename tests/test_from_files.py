@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -10,7 +11,7 @@ import scipy.io
 
 from rvdiag.datasets import SampleStore
 from rvdiag.datasets.from_files import build_from_files, select_files
-from rvdiag.errors import DataFileError, ParameterError, StoreError
+from rvdiag.errors import DataFileError, ParameterError, SplitLeakWarning, StoreError
 
 N = 1000
 
@@ -57,12 +58,49 @@ def test_store_contents_and_metadata(tmp_path):
     assert s.attrs["config"]["label_regex"] == REGEX
 
 
-def test_include_and_test_fraction_is_stratified_and_seeded(tmp_path):
+def test_test_fraction_splits_by_file_by_default(tmp_path):
+    """A random split of windows put neighbours of one recording on both sides.  By default no
+    file contributes windows to both splits; each class holds out round(f * its files) whole files."""
     d = _folder(tmp_path)
-    kw = dict(label_regex=REGEX, channel="DE", window_length=100, include=r"_0\.mat$", test_fraction=0.3)
+    kw = dict(label_regex=REGEX, channel="DE", window_length=100, hop=50, test_fraction=0.5)
     build_from_files(d, tmp_path / "a.zarr", seed=1, **kw)
     build_from_files(d, tmp_path / "b.zarr", seed=1, **kw)
-    build_from_files(d, tmp_path / "c.zarr", seed=2, **kw)
+    a, b = (SampleStore.open(tmp_path / f"{n}.zarr") for n in "ab")
+    smp = a.load()
+    sides = {src: set(smp.meta["split"][smp.meta["source"] == src]) for src in set(smp.meta["source"])}
+    assert len(sides) == 6 and all(len(v) == 1 for v in sides.values()), sides
+    test_files = sorted(src for src, v in sides.items() if v == {"test"})
+    assert len(test_files) == 3 and sorted(f.split("_")[0] for f in test_files) == ["IR007", "OR014", "normal"]
+    assert a.attrs["config"]["split_by"] == "unit"
+    np.testing.assert_array_equal(smp.meta["split"], b.load().meta["split"])
+    held_out = set()
+    for seed in range(2, 6):  # other seeds hold out other files
+        build_from_files(d, tmp_path / f"s{seed}.zarr", seed=seed, **kw)
+        other = SampleStore.open(tmp_path / f"s{seed}.zarr").load()
+        held_out.add(tuple(sorted(set(other.meta["source"][other.meta["split"] == "test"]))))
+    assert len(held_out) > 1
+
+
+def test_split_by_file_needs_two_files_per_class_and_writes_nothing(tmp_path):
+    d = _folder(tmp_path)
+    with pytest.raises(ParameterError, match=r"class 'IR007' has one file \(IR007_0\.mat\).*--split-by window"):
+        build_from_files(d, tmp_path / "a.zarr", label_regex=REGEX, channel="DE", window_length=100,
+                         include=r"_0\.mat$", test_fraction=0.3)
+    assert not (tmp_path / "a.zarr").exists()
+    with pytest.raises(ParameterError, match=re.escape("--split-by must be one of unit|window, got 'file'")):
+        build_from_files(d, tmp_path / "a.zarr", label_regex=REGEX, channel="DE", window_length=100,
+                         test_fraction=0.3, split_by="file")
+
+
+def test_window_split_warns_and_is_stratified_and_seeded(tmp_path):
+    d = _folder(tmp_path)
+    kw = dict(label_regex=REGEX, channel="DE", window_length=100, include=r"_0\.mat$", test_fraction=0.3,
+              split_by="window")
+    with pytest.warns(SplitLeakWarning, match="neighbouring windows of one recording in both train and test"):
+        build_from_files(d, tmp_path / "a.zarr", seed=1, **kw)
+    with pytest.warns(SplitLeakWarning):
+        build_from_files(d, tmp_path / "b.zarr", seed=1, **kw)
+        build_from_files(d, tmp_path / "c.zarr", seed=2, **kw)
     a, b, c = (SampleStore.open(tmp_path / f"{n}.zarr").load() for n in "abc")
     assert set(a.meta["source"]) == {"normal_0.mat", "IR007_0.mat", "OR014_0.mat"}
     for cls in ["normal", "IR007", "OR014"]:

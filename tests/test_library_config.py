@@ -192,3 +192,28 @@ def test_plan_draws_are_seeded_and_within_ranges():
     t2 = [u.severity["broken_fraction"] for u in plan if u.state == "T2"]
     assert len(set(t2)) == 4 and all(0.5 <= v <= 1.0 for v in t2)
     assert len({u.speed for u in plan}) == 12  # each simulation draws its own operating point
+
+
+def test_default_transient_is_the_models_and_simulates():
+    """One transient default.  A config that leaves [signal] transient_s out gets the model's
+    run-in (ModelSettings.transient_s, docs/model.md section 7), as `rvdiag simulate` does without --transient
+    (tests/test_cli_simulate.py); before, configs took 0 s."""
+    import re
+
+    from rvdiag.dynamics import ModelSettings
+    from rvdiag.library.config import DEFAULT_TRANSIENT_S
+
+    assert cfg_with(signal__transient_s=None).transient_s == DEFAULT_TRANSIENT_S == ModelSettings().transient_s == 0.1
+    assert cfg_with(signal__transient_s=0.0).transient_s == 0.0  # an explicit value is kept
+    stated = re.search(r"`transient_s` = ([\d.]+) s by default", (ROOT / "docs" / "model.md").read_text())
+    assert float(stated.group(1)) == DEFAULT_TRANSIENT_S
+    assert "| `transient_s` | simulated first and discarded: the start-up transient (s) | 0.1 " in (
+        ROOT / "docs" / "library.md").read_text()
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "configs").rglob("*.toml")), ids=lambda p: p.stem)
+def test_shipped_configs_set_their_transient(path):
+    """The default changed from 0 to 0.1 s: every shipped config states its transient, so it builds the same bits."""
+    import tomllib
+
+    assert "transient_s" in tomllib.loads(path.read_text("utf-8")).get("signal", {}), path

@@ -234,9 +234,9 @@ def test_cli_update_writes_annotated_toml_and_json(csv_file, tmp_path, capsys):
     assert len(lines) == 1 and "# updated by rvdiag update from healthy.csv: was 0.0" in lines[0]
     assert tomllib.loads(out.read_text())["mounting"]["path_resonance_hz"] == after
     assert png.stat().st_size > 1000
-    # an existing --out is not overwritten without --force
+    # an existing --out is not overwritten without --overwrite
     code, _, err = run(argv, capsys)
-    assert code == 2 and err.startswith("error:") and "--force" in err
+    assert code == 2 and err.startswith("error:") and "use --overwrite" in err
 
 
 @pytest.mark.parametrize("change, message", [
@@ -269,6 +269,6 @@ def test_cli_update_refuses_unreadable_file_and_overwriting_the_base(csv_file, t
     ReducerParams.default().save(base)
     text = base.read_text()
     code, _, err = run(["update", str(csv_file), "--channel", "acc", "--output-speed", "30", "--load", "100",
-                        "--params", str(base), "--out", str(base), "--force", "-q"], capsys)
+                        "--params", str(base), "--out", str(base), "--overwrite", "-q"], capsys)
     assert code == 2 and "base parameter file" in err
     assert base.read_text() == text

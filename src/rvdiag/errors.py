@@ -52,3 +52,7 @@ class ModelRangeWarning(RvdiagWarning):
 
 class FallbackWarning(RvdiagWarning):
     """A value could not be read and a documented default was used instead (the report says so too)."""
+
+
+class SplitLeakWarning(RvdiagWarning):
+    """A train/test split lets one recording contribute to both sides: the test score is optimistic."""

@@ -1,4 +1,11 @@
-"""Types a saved classical model may contain: the trusted-type list of :mod:`rvdiag.models.pipelines`.
+"""The names rvdiag's models answer to, and the types a saved classical model may contain.
+
+:data:`CNN_MODELS` and :data:`CLASSICAL_MODELS` are the ``rvdiag train --model`` names: the architectures that
+:mod:`rvdiag.models.cnn` builds and the pipelines of :mod:`rvdiag.models.pipelines` (both check against these
+tuples), listed here so that the command line reads them without importing torch or scikit-learn.
+:data:`RECOMMENDED_TRAINING` is the setup docs/results.md recommends, and the defaults of ``rvdiag train``.
+
+The trusted-type list of :mod:`rvdiag.models.pipelines` follows.
 
 This module sits below every other rvdiag layer (it imports nothing from rvdiag), so the list is complete
 whatever has been imported before a model is loaded: a fresh interpreter loads every model that
@@ -7,6 +14,19 @@ else and never unpickles.
 """
 
 from __future__ import annotations
+
+#: The 1-D CNN architectures (``rvdiag train --model``; :data:`rvdiag.models.cnn.ARCHITECTURES`).
+CNN_MODELS: tuple[str, ...] = ("cnn1d", "cnn1d-lean", "mcsa-cnn")
+
+#: The classical pipelines (``rvdiag train --model``; :data:`rvdiag.models.pipelines.MODEL_NAMES`).
+CLASSICAL_MODELS: tuple[str, ...] = ("svm", "kelm", "kelm-mpa", "kelm-ga", "kelm-pso")
+
+#: The training setup docs/results.md recommends (the motor-current paper's CNN on the log spectrum: 100 % on
+#: 5 paper-mode seeds, the best CNN on the demo): the defaults of ``rvdiag train``, so that the command with
+#: no options trains it.  Keys are the ``rvdiag train`` option names without the leading ``--``.
+RECOMMENDED_TRAINING: dict[str, object] = {
+    "model": "mcsa-cnn", "representation": "logspec", "epochs": 40, "lr": 3e-3, "patience": 6,
+}
 
 #: The skops type names of everything rvdiag itself puts into a saved classical pipeline.
 _BUILTIN: frozenset[str] = frozenset({
@@ -68,4 +88,4 @@ def register_trusted_type(name: str) -> None:
     TRUSTED_TYPES.add(name)
 
 
-__all__ = ["TRUSTED_TYPES", "register_trusted_type"]
+__all__ = ["CLASSICAL_MODELS", "CNN_MODELS", "RECOMMENDED_TRAINING", "TRUSTED_TYPES", "register_trusted_type"]

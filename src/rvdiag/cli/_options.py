@@ -1,11 +1,144 @@
-"""Option parsing shared by several commands (a ``_`` module: not a command itself)."""
+"""The shared option vocabulary of the ``rvdiag`` command (a ``_`` module: not a command itself).
+
+One name per concept, and every command that has the concept uses it (``tests/test_cli_options.py``
+checks the app):
+
+===============  =====================================================================================
+``-o, --out``    the file or folder a command writes
+``-q, --quiet``  no progress bar (progress bars, with their ETA, go to stderr)
+``--overwrite``  replace an existing output
+``--snr-db``     signal-to-noise ratio of added white Gaussian noise, dB (per sample)
+``--seed``       random seed
+``--params``     reducer parameter file (TOML); default: the built-in RV-20E
+``--json``       print the result as JSON on stdout
+``--fs``         sampling rate, Hz
+``-c, --channel``  regular expression picking one channel of a file
+===============  =====================================================================================
+
+Old spellings (:data:`DEPRECATED`) stay accepted as hidden options that print one ``warning:`` line
+(:class:`DeprecatedOptionWarning`) and do what the new name does, so scripts keep working.
+
+The ``--model`` names of ``rvdiag train`` come from :mod:`rvdiag.registry` (the lists the estimators themselves
+check), never from a copy here.  :func:`option_names` turns the Python parameter names that a library error
+names (``duration_s``) into the options the user typed (``--duration``).
+"""
 
 from __future__ import annotations
 
 import math
-from typing import Optional
+import re
+import warnings
+from contextlib import contextmanager
+from typing import Any, Iterator, Optional
 
-from rvdiag.errors import ParameterError
+import typer
+
+from rvdiag.errors import ParameterError, RvdiagError, RvdiagWarning
+
+#: Concept -> the option strings every command uses for it (long name first).
+VOCABULARY: dict[str, tuple[str, ...]] = {
+    "out": ("--out", "-o"),
+    "quiet": ("--quiet", "-q"),
+    "overwrite": ("--overwrite",),
+    "snr_db": ("--snr-db",),
+    "seed": ("--seed",),
+    "params": ("--params",),
+    "json": ("--json",),
+    "fs": ("--fs",),
+    "channel": ("--channel", "-c"),
+}
+
+#: Old spelling -> the shared name that replaces it (accepted, hidden, warns).
+DEPRECATED: dict[str, str] = {
+    "--noise-snr": "--snr-db",
+    "--force": "--overwrite",
+}
+
+
+class DeprecatedOptionWarning(RvdiagWarning):
+    """An old option spelling was used; it still works, under its new name."""
+
+
+def out(help: str, default: Any = ...) -> Any:
+    """``-o/--out``: what the command writes (required unless ``default`` is given)."""
+    return typer.Option(default, *VOCABULARY["out"], help=help)
+
+
+def quiet() -> Any:
+    """``-q/--quiet``: no progress bar."""
+    return typer.Option(False, *VOCABULARY["quiet"], help="No progress bar (progress goes to stderr).")
+
+
+def overwrite(help: str = "Replace an existing output.") -> Any:
+    """``--overwrite``."""
+    return typer.Option(False, *VOCABULARY["overwrite"], help=help)
+
+
+def snr_db(help: str, default: Any = None) -> Any:
+    """``--snr-db``: SNR of added white Gaussian noise, dB."""
+    return typer.Option(default, *VOCABULARY["snr_db"], help=help)
+
+
+def seed(help: str) -> Any:
+    """``--seed``."""
+    return typer.Option(0, *VOCABULARY["seed"], help=help)
+
+
+def params(help: str = "Reducer parameter TOML (default: built-in RV-20E).") -> Any:
+    """``--params``."""
+    return typer.Option(None, *VOCABULARY["params"], help=help)
+
+
+def json_flag(help: str = "Print one JSON object.") -> Any:
+    """``--json``."""
+    return typer.Option(False, *VOCABULARY["json"], help=help)
+
+
+def fs(help: str, default: Any = None) -> Any:
+    """``--fs``."""
+    return typer.Option(default, *VOCABULARY["fs"], help=help)
+
+
+def channel(help: str = "Regular expression picking one channel (may be left out when the file holds one).") -> Any:
+    """``-c/--channel``."""
+    return typer.Option(None, *VOCABULARY["channel"], help=help)
+
+
+def deprecated(old: str, *, flag: bool = False) -> Any:
+    """A hidden option under the old spelling ``old`` of :data:`DEPRECATED`; pass its value to :func:`resolve`."""
+    return typer.Option(False if flag else None, old, hidden=True, help=f"Deprecated: use {DEPRECATED[old]}.")
+
+
+def resolve(new_value: Any, old_value: Any, old: str, default: Any = None) -> Any:
+    """The value of an option given under its new name or its old spelling ``old`` (which warns once).
+
+    ``default`` is the new option's default: giving both spellings with different values is an error.
+    """
+    if old_value is None or old_value is False:
+        return new_value
+    new = DEPRECATED[old]
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", DeprecatedOptionWarning)  # every run says it, not only the first
+        warnings.warn(f"{old} is deprecated; use {new}", DeprecatedOptionWarning, stacklevel=2)
+    if new_value != default and new_value != old_value:
+        raise ParameterError(f"give {new} or its old spelling {old}, not both")
+    return old_value
+
+
+@contextmanager
+def option_names(names: dict[str, str]) -> Iterator[None]:
+    """Re-raise an rvdiag error whose message names a Python parameter (a key of ``names``, e.g.
+    ``duration_s``) with the command-line option instead (``--duration``); the error class stays."""
+    try:
+        yield
+    except RvdiagError as exc:
+        text = str(exc)
+        pattern = re.compile(r"(?<![\w-])(" + "|".join(map(re.escape, names)) + r")(?![\w-])")
+        new = pattern.sub(lambda m: names[m.group(1)], text)
+        new = re.sub(r"(--[\w-]+) \(\1\)", r"\1", new)  # "--x (--x)", where the message named both
+        if new == text:
+            raise
+        raise type(exc)(new) from None
 
 
 def mm_to_m(name: str, value: Optional[float]) -> Optional[float]:

@@ -8,6 +8,7 @@ from typing import List, Optional
 
 import typer
 
+from rvdiag.cli import _options as opt
 from rvdiag.errors import ParameterError
 
 
@@ -31,31 +32,39 @@ def register(app: typer.Typer) -> None:
         folder: Path = typer.Argument(..., help="Folder holding the measured files (not searched recursively)."),
         label_regex: str = typer.Option(..., "--label-regex",
                                         help="Regex with a named group (?P<label>...) matched against each file name."),
-        channel: Optional[str] = typer.Option(None, "--channel",
-                                              help="Regex matching exactly one channel (column, variable) per file."),
+        channel: Optional[str] = opt.channel("Regex matching exactly one channel (column, variable) per file."),
         window: int = typer.Option(..., "--window", help="Window length in samples (one sample per window)."),
         hop: Optional[int] = typer.Option(None, "--hop", help="Step between windows in samples (default: --window)."),
-        fs: Optional[float] = typer.Option(None, "--fs", help="Sampling rate in Hz (default: from the files, if stated)."),
+        fs: Optional[float] = opt.fs("Sampling rate in Hz (default: from the files, if stated)."),
         meta_regex: Optional[str] = typer.Option(None, "--meta-regex",
                                                  help="Regex whose named groups become metadata columns, e.g. 'hz(?P<load>\\d+)'."),
         include: Optional[str] = typer.Option(None, "--include", help="Keep only files whose names match this regex."),
         test_fraction: Optional[float] = typer.Option(None, "--test-fraction",
-                                                      help="Put this fraction of each class in split 'test' (default: all 'train')."),
-        seed: int = typer.Option(0, "--seed", help="Seed of the --test-fraction split."),
+                                                      help="Put this fraction of each class's files in split 'test' "
+                                                           "(default: all 'train')."),
+        split_by: str = typer.Option("unit", "--split-by",
+                                     help="unit: --test-fraction holds out whole files (no recording on both sides) "
+                                          "| window: draws windows, so neighbouring windows of one recording land "
+                                          "on both sides (optimistic; warns)."),
+        seed: int = opt.seed("Seed of the --test-fraction split."),
         scalar: List[str] = typer.Option([], "--scalar",
                                          help="NAME=REGEX: record the file's scalar matching REGEX as column NAME (e.g. rpm=RPM)."),
-        out: Path = typer.Option(..., "--out", help="Store to write (PATH.zarr)."),
-        overwrite: bool = typer.Option(False, "--overwrite", help="Replace an existing store."),
-        as_json: bool = typer.Option(False, "--json", help="Print the summary as one JSON object."),
+        out: Path = opt.out("Store to write (PATH.zarr)."),
+        overwrite: bool = opt.overwrite("Replace an existing store."),
+        as_json: bool = opt.json_flag("Print the summary as one JSON object."),
+        quiet: bool = opt.quiet(),
     ) -> None:
-        """Window, label and store every matching file of FOLDER (kind "measured", written atomically)."""
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+        """Window, label and store every matching file of FOLDER (kind "measured", written atomically).
 
+        With --test-fraction, whole files go to the test split (--split-by unit, the default)."""
+        from rich.progress import Progress, TextColumn
+
+        from rvdiag.cli._progress import bar_columns, stderr_console
         from rvdiag.datasets.from_files import build_from_files
 
         scalars = _parse_scalars(scalar)
-        with Progress(TextColumn("[bold]reading[/bold] {task.description}"), BarColumn(), MofNCompleteColumn(),
-                      TimeElapsedColumn(), transient=True, console=_stderr_console()) as bar:
+        with Progress(TextColumn("[bold]reading[/bold]"), *bar_columns(), transient=True, console=stderr_console(),
+                      disable=quiet) as bar:
             task = bar.add_task("", total=None)
 
             def progress(done: int, total: int, name: str) -> None:
@@ -63,7 +72,7 @@ def register(app: typer.Typer) -> None:
 
             summary = build_from_files(
                 folder, out, label_regex=label_regex, channel=channel, window_length=window, hop=hop, fs=fs,
-                meta_regex=meta_regex, include=include, test_fraction=test_fraction, seed=seed,
+                meta_regex=meta_regex, include=include, test_fraction=test_fraction, seed=seed, split_by=split_by,
                 scalars=scalars, overwrite=overwrite, progress=progress,
             )
         if as_json:
@@ -81,7 +90,7 @@ def register(app: typer.Typer) -> None:
     @ds_app.command("info")
     def info(
         path: Path = typer.Argument(..., help="Sample store (PATH.zarr)."),
-        as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+        as_json: bool = opt.json_flag(),
     ) -> None:
         """Describe a sample store: kind, classes, counts per split, length, fs, metadata columns."""
         from rvdiag.datasets import SampleStore
@@ -103,9 +112,3 @@ def register(app: typer.Typer) -> None:
 
         for name in list_channels(path):
             typer.echo(name)
-
-
-def _stderr_console():
-    from rich.console import Console
-
-    return Console(stderr=True)

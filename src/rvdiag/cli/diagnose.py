@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
+from rvdiag.cli import _options as opt
 from rvdiag.errors import DataFileError
 
 MAX_ROWS = 40
@@ -62,9 +63,9 @@ def register(app: typer.Typer) -> None:
     def diagnose(
         model_dir: Path = typer.Argument(..., help="Model directory written by 'rvdiag train'."),
         file: Path = typer.Argument(..., help="Signal file: CSV/CSV.gz, MAT, NPY, NPZ, WAV, TDMS."),
-        channel: str = typer.Option(None, "--channel", "-c", help="Regular expression picking one channel."),
-        fs: float = typer.Option(None, "--fs", help="Sampling rate in Hz (overrides the file's)."),
-        json_out: bool = typer.Option(False, "--json", help="Print the result as JSON."),
+        channel: str = opt.channel(),
+        fs: float = opt.fs("Sampling rate in Hz (overrides the file's)."),
+        json_out: bool = opt.json_flag("Print the result as JSON."),
     ) -> None:
         """Diagnose the state of a reducer from one signal file."""
         from rvdiag.io import read_signal

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import typer
 
+from rvdiag.cli import _options as opt
 from rvdiag.errors import ParameterError
 
 
@@ -16,20 +17,20 @@ def register(app: typer.Typer) -> None:
         model_dir: Path = typer.Argument(..., help="Model directory written by 'rvdiag train'."),
         data: Path = typer.Argument(..., help="Sample store (.zarr) to score."),
         split: str = typer.Option("test", "--split", help="test | train | all (or any split of the store)."),
-        json_out: bool = typer.Option(False, "--json",
-                                      help="Print accuracy, precision_macro, recall_macro, f1_macro, kappa, "
-                                           "per_class, confusion as JSON."),
+        json_out: bool = opt.json_flag("Print accuracy, precision_macro, recall_macro, f1_macro, kappa, "
+                                       "per_class, confusion as JSON."),
         report: Path = typer.Option(None, "--report", help="Write a self-contained HTML report here."),
         by: str = typer.Option(None, "--by",
                                help="Also give the accuracy per value/bin of a metadata column, e.g. noise_snr_db "
                                     "(accuracy against SNR); JSON key 'by'."),
-        snr_db: str = typer.Option(None, "--snr-db",
-                                   help="Also score the split with white noise added at each of these SNRs, e.g. "
-                                        "--snr-db=-5,0,5,10,15,20 (the '=' lets the list start with a minus); "
-                                        "accuracy against SNR, JSON key 'snr'."),
-        seed: int = typer.Option(0, "--seed", help="Seed of the noise added by --snr-db."),
+        snr_db: str = opt.snr_db("Also score the split with white noise added at each of these SNRs, e.g. "
+                                 "--snr-db=-5,0,5,10,15,20 (the '=' lets the list start with a minus); "
+                                 "accuracy against SNR, JSON key 'snr'."),
+        seed: int = opt.seed("Seed of the noise added by --snr-db."),
+        quiet: bool = opt.quiet(),
     ) -> None:
-        """Score a saved model on a split of a sample store."""
+        """Score a saved model on a split of a sample store (progress with an ETA on stderr; -q: none)."""
+        from rvdiag.cli._progress import progress_bars
         from rvdiag.datasets import SampleStore
         from rvdiag.evaluation.evaluate import accuracy_against_snr, accuracy_by, evaluate_on_store, report_html
         from rvdiag.evaluation.report import write_report
@@ -40,9 +41,10 @@ def register(app: typer.Typer) -> None:
         levels = _parse_levels(snr_db) if snr_db is not None else None
         loaded = load_model(model_dir)
         store = SampleStore.open(data)
-        ev = evaluate_on_store(loaded, store, split)
-        groups = accuracy_by(ev, by) if by else None
-        curve = accuracy_against_snr(loaded, ev, levels, seed) if levels else None
+        with progress_bars(quiet):
+            ev = evaluate_on_store(loaded, store, split)
+            groups = accuracy_by(ev, by) if by else None
+            curve = accuracy_against_snr(loaded, ev, levels, seed) if levels else None
         for w in ev.warnings:
             typer.echo(w, err=True)
         if report is not None:

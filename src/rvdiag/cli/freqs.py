@@ -8,6 +8,7 @@ from typing import Optional
 
 import typer
 
+from rvdiag.cli import _options as opt
 from rvdiag.errors import ParameterError
 
 DESCRIPTIONS = {
@@ -31,9 +32,9 @@ def register(app: typer.Typer) -> None:
     def freqs(
         input_speed: Optional[float] = typer.Option(None, "--input-speed", help="Motor (sun) speed, rpm."),
         output_speed: Optional[float] = typer.Option(None, "--output-speed", help="Output (carrier) speed, deg/s."),
-        params: Optional[Path] = typer.Option(None, "--params", help="Reducer parameter TOML (default: built-in RV-20E)."),
+        params: Optional[Path] = opt.params(),
         pole_pairs: Optional[int] = typer.Option(None, "--pole-pairs", help="Motor pole pairs (default: the parameter set's)."),
-        as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+        as_json: bool = opt.json_flag(),
     ) -> None:
         """Characteristic frequencies (Hz): fe, f1, f2, f3, fsp, fcs and the fault frequencies."""
         from rvdiag.kinematics import characteristic_frequencies

@@ -8,6 +8,7 @@ from typing import Optional
 
 import typer
 
+from rvdiag.cli import _options as opt
 from rvdiag.errors import StoreError
 
 
@@ -35,7 +36,7 @@ def register(app: typer.Typer) -> None:
     @lib.command("build")
     def build(
         config: Path = typer.Argument(..., help="Library config (TOML), e.g. configs/demo.toml."),
-        out: Path = typer.Option(..., "--out", "-o", help="Store to write (PATH.zarr); an unfinished one resumes."),
+        out: Path = opt.out("Store to write (PATH.zarr); an unfinished one resumes."),
         workers: Optional[int] = typer.Option(
             None, "--workers", "-w",
             help="Worker processes of the local Dask cluster (default: one per core; 0 = no Dask, in this process).",
@@ -43,12 +44,10 @@ def register(app: typer.Typer) -> None:
         scheduler: Optional[str] = typer.Option(
             None, "--scheduler", help="Address of an existing Dask scheduler (tcp://host:8786) to run on instead.",
         ),
-        quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
-        params: Optional[Path] = typer.Option(
-            None, "--params",
-            help="Reducer parameter file (TOML) to build from instead of the config's `params` (e.g. what "
-                 "`rvdiag update` wrote); recorded in the store.",
-        ),
+        quiet: bool = opt.quiet(),
+        params: Optional[Path] = opt.params(
+            "Reducer parameter file (TOML) to build from instead of the config's `params` (e.g. what "
+            "`rvdiag update` wrote); recorded in the store."),
     ) -> None:
         """Build (or resume) the library of CONFIG into --out, in parallel on Dask.
 
@@ -88,7 +87,7 @@ def register(app: typer.Typer) -> None:
     @lib.command("info")
     def info(
         path: Path = typer.Argument(..., help="A sample store (PATH.zarr)."),
-        as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON."),
+        as_json: bool = opt.json_flag("Print the summary as JSON."),
     ) -> None:
         """Counts per state and split, sample length, fs and the config of a sample store."""
         from rvdiag.datasets import SampleStore

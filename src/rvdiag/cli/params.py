@@ -8,7 +8,8 @@ from typing import Optional
 
 import typer
 
-from rvdiag.errors import ConfigError
+from rvdiag.cli import _options as opt
+from rvdiag.errors import ConfigError, ParameterError
 from rvdiag.params import ReducerParams, body_properties
 
 
@@ -18,8 +19,8 @@ def register(app: typer.Typer) -> None:
 
     @params_app.command("show")
     def show(
-        params: Optional[Path] = typer.Option(None, "--params", help="Parameter file (default: built-in RV-20E)."),
-        as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+        params: Optional[Path] = opt.params("Parameter file (default: built-in RV-20E)."),
+        as_json: bool = opt.json_flag(),
     ) -> None:
         """Print a parameter set with its derived ratio, masses and inertias."""
         p = ReducerParams.load(params)
@@ -48,13 +49,19 @@ def register(app: typer.Typer) -> None:
 
     @params_app.command("export")
     def export(
-        out: Path = typer.Argument(..., help="Where to write the TOML file."),
-        params: Optional[Path] = typer.Option(None, "--params", help="Source parameter file (default: built-in)."),
-        force: bool = typer.Option(False, "--force", help="Overwrite an existing file."),
+        target: Optional[Path] = typer.Argument(None, metavar="OUT", help="Where to write the TOML file (or -o)."),
+        out_opt: Optional[Path] = opt.out("Where to write the TOML file (the same as the OUT argument).", None),
+        params: Optional[Path] = opt.params("Source parameter file (default: built-in)."),
+        overwrite: bool = opt.overwrite("Overwrite an existing file."),
+        force: bool = opt.deprecated("--force", flag=True),
     ) -> None:
         """Write a parameter set (the built-in RV-20E by default) to a file you can edit."""
-        if out.exists() and not force:
-            raise ConfigError(f"{out} exists; use --force to overwrite")
+        overwrite = opt.resolve(overwrite, force, "--force", default=False)
+        if (target is None) == (out_opt is None):
+            raise ParameterError("give the file to write once: rvdiag params export OUT, or -o/--out OUT")
+        out = target if target is not None else out_opt
+        if out.exists() and not overwrite:
+            raise ConfigError(f"{out} exists; use --overwrite to replace it")
         p = ReducerParams.load(params)
         if params is None:
             from importlib import resources

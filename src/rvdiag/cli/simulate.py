@@ -7,6 +7,7 @@ from typing import Optional
 
 import typer
 
+from rvdiag.cli import _options as opt
 from rvdiag.cli._options import fault_severities
 from rvdiag.errors import ParameterError
 
@@ -14,6 +15,11 @@ from rvdiag.errors import ParameterError
 _USES = {"wear_depth": "wear", "crack_depth": "crack", "crack_angle_deg": "crack", "broken_fraction": "broken"}
 _OPTION = {"wear_depth": "--wear-depth", "crack_depth": "--crack-depth", "crack_angle_deg": "--crack-angle",
            "broken_fraction": "--broken-fraction"}
+#: Python parameters of :func:`rvdiag.dynamics.simulate` and :class:`~rvdiag.dynamics.ModelSettings` -> options.
+SIMULATE_OPTION_NAMES = {"duration_s": "--duration", "fs": "--fs", "substeps": "--substeps",
+                         "transient_s": "--transient", "segment_s": "--segment", "workers": "--workers",
+                         "noise_snr_db": "--snr-db", "load_Nm": "--load", "input_speed_rpm": "--input-speed",
+                         "output_speed_deg_s": "--output-speed"}
 
 
 def _check_severities(state: str, severities: dict) -> None:
@@ -47,25 +53,27 @@ def register(app: typer.Typer) -> None:
         crack_depth_mm: Optional[float] = typer.Option(None, "--crack-depth", help="Crack depth (mm)."),
         crack_angle: Optional[float] = typer.Option(None, "--crack-angle", help="Crack angle from the tooth centreline (deg)."),
         broken_fraction: Optional[float] = typer.Option(None, "--broken-fraction", help="Lost fraction of the tooth height, (0, 1]."),
-        params: Optional[Path] = typer.Option(None, "--params", help="Reducer parameter TOML (default: built-in RV-20E)."),
+        params: Optional[Path] = opt.params(),
         input_speed: Optional[float] = typer.Option(None, "--input-speed", help="Motor (sun) speed, rpm."),
         output_speed: Optional[float] = typer.Option(None, "--output-speed", help="Output (carrier) speed, deg/s."),
         load: Optional[float] = typer.Option(None, "--load", help="Output load torque, N m (default: rated torque)."),
         duration: float = typer.Option(1.0, "--duration", help="Recorded signal length, s (after the transient)."),
-        fs: float = typer.Option(48000.0, "--fs", help="Sampling rate, Hz."),
-        noise_snr: Optional[float] = typer.Option(None, "--noise-snr", help="Add white Gaussian noise at this SNR (dB)."),
-        seed: int = typer.Option(0, "--seed", help="Seed of the noise."),
+        fs: float = opt.fs("Sampling rate, Hz.", 48000.0),
+        snr_db: Optional[float] = opt.snr_db("Add white Gaussian noise at this SNR (dB)."),
+        noise_snr: Optional[float] = opt.deprecated("--noise-snr"),
+        seed: int = opt.seed("Seed of the noise."),
         substeps: int = typer.Option(9, "--substeps", help="RK4 steps per output sample (default as ModelSettings: "
                                      "9, within 1e-3 of scipy's DOP853 up to 4500 rpm at 48 kHz)."),
-        transient: float = typer.Option(0.1, "--transient", help="Discarded start-up time, s."),
+        transient: Optional[float] = typer.Option(None, "--transient", help="Discarded start-up time, s (default: "
+                                                  "the model's, 0.1 s; library configs default to the same)."),
         workers: int = typer.Option(1, "--workers", help="Time segments integrated at once (threads); the "
                                     "signal does not depend on it."),
         segment: Optional[float] = typer.Option(None, "--segment", help="Cut the record into segments of this "
                                                 "many seconds, each started --transient ahead and integrated "
                                                 "on its own (0: one continuous run; default 0, or 1 s with "
                                                 "--workers > 1)."),
-        out: Path = typer.Option(..., "--out", help="Output .npz (signal, fs, settings)."),
-        quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
+        out: Path = opt.out("Output .npz (signal, fs, settings)."),
+        quiet: bool = opt.quiet(),
     ) -> None:
         """Simulate the housing acceleration (x, y) of the reducer; write signal, fs and settings to an .npz."""
         from rvdiag.dynamics import ModelSettings, simulate
@@ -85,27 +93,32 @@ def register(app: typer.Typer) -> None:
         _check_severities(fault.label or state.upper(), severities)
         if workers < 1:
             raise ParameterError(f"--workers must be >= 1, got {workers}")
+        snr_db = opt.resolve(snr_db, noise_snr, "--noise-snr")
         p = ReducerParams.load(params)
         if segment is None:
             segment = 1.0 if workers > 1 else 0.0
-        settings = ModelSettings(substeps=substeps, transient_s=transient, segment_s=segment)
+        with opt.option_names(SIMULATE_OPTION_NAMES):
+            settings = ModelSettings(substeps=substeps, segment_s=segment,
+                                     **({} if transient is None else {"transient_s": transient}))
         kw = dict(input_speed_rpm=input_speed, output_speed_deg_s=output_speed, load_Nm=load,
-                  duration_s=duration, fs=fs, noise_snr_db=noise_snr, seed=seed, settings=settings,
+                  duration_s=duration, fs=fs, noise_snr_db=snr_db, seed=seed, settings=settings,
                   workers=workers)
-        if quiet:
-            res = simulate(p, None if fault.is_healthy else fault, **kw)
-        else:
-            from rich.console import Console
-            from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+        with opt.option_names(SIMULATE_OPTION_NAMES):
+            if quiet:
+                res = simulate(p, None if fault.is_healthy else fault, **kw)
+            else:
+                from rich.progress import Progress, TextColumn, TimeRemainingColumn
 
-            with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
-                          TimeRemainingColumn(), transient=True, console=Console(stderr=True)) as bar:
-                task = bar.add_task("sim", total=None)
+                from rvdiag.cli._progress import bar_columns, stderr_console
 
-                def progress(done: int, total: int) -> None:
-                    bar.update(task, completed=done, total=total)
+                with Progress(*bar_columns()[:2], TextColumn("{task.percentage:>3.0f}%"), TextColumn("ETA"),
+                              TimeRemainingColumn(), transient=True, console=stderr_console()) as bar:
+                    task = bar.add_task("simulating", total=None)
 
-                res = simulate(p, None if fault.is_healthy else fault, progress=progress, **kw)
+                    def progress(done: int, total: int) -> None:
+                        bar.update(task, completed=done, total=total)
+
+                    res = simulate(p, None if fault.is_healthy else fault, progress=progress, **kw)
         res.settings["state"] = state.upper()
         res.settings["severities_SI"] = severities
         res.settings["params_file"] = str(params) if params is not None else None

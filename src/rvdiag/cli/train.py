@@ -1,11 +1,14 @@
 """``rvdiag train``: train a CNN or a classical model on a sample store and save it as a model directory.
 
-    rvdiag train DATA.zarr --model cnn1d|cnn1d-lean|mcsa-cnn|svm|kelm|kelm-mpa|kelm-ga|kelm-pso
-                 [--features time|spectrum|logspec|wpd|eemd|none|cnn] --out MODEL_DIR [--epochs N]
+    rvdiag train DATA.zarr -o MODEL_DIR [--model cnn1d|cnn1d-lean|mcsa-cnn|svm|kelm|kelm-mpa|kelm-ga|kelm-pso]
+                 [--features time|spectrum|logspec|wpd|eemd|none|cnn] [--epochs N]
                  [--device auto|cpu|cuda] [--seed N] [--repeat N]
 
-Trains on the store's ``train`` split, scores the ``test`` split (when present) into the model card, and
-with ``--repeat N`` trains N seeds (seed, seed+1, ...) and prints best / mean accuracy per class.
+With no options it trains the setup docs/results.md recommends (:data:`rvdiag.registry.RECOMMENDED_TRAINING`:
+``mcsa-cnn`` on ``--representation logspec``, 40 epochs, lr 3e-3, patience 6).  The model names are those of
+:mod:`rvdiag.registry`.  Trains on the store's ``train`` split, scores the ``test`` split (when present) into
+the model card, and with ``--repeat N`` trains N seeds (seed, seed+1, ...) and prints best / mean accuracy per
+class.
 """
 
 from __future__ import annotations
@@ -17,10 +20,16 @@ from pathlib import Path
 import numpy as np
 import typer
 
+from rvdiag.cli import _options as opt
+from rvdiag.cli._progress import bar_columns, progress_bars, stderr_console
 from rvdiag.errors import ParameterError, StoreError
+from rvdiag.registry import CLASSICAL_MODELS, CNN_MODELS, RECOMMENDED_TRAINING
 
-CNN_MODELS = ("cnn1d", "cnn1d-lean", "mcsa-cnn")
-CLASSICAL_MODELS = ("svm", "kelm", "kelm-mpa", "kelm-ga", "kelm-pso")
+#: Python parameters of :class:`rvdiag.models.torch_estimator.CNNClassifier` -> the options that set them.
+CNN_OPTION_NAMES = {"max_epochs": "--epochs", "batch_size": "--batch-size", "n_iter_no_change": "--patience",
+                    "validation_fraction": "--validation-fraction", "learning_rate": "--lr",
+                    "input_length": "--input-length", "normalize": "--normalize",
+                    "representation": "--representation", "architecture": "--model"}
 
 
 def _content_hash(store) -> str:
@@ -83,14 +92,13 @@ def build_estimator(model: str, features: str | None, *, epochs: int, device: st
 
 
 def _fit(est, X, y, quiet: bool, label: str, groups=None):
-    """Fit with a rich progress bar per epoch (CNN) or a spinner (classical)."""
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+    """Fit with a rich progress bar per epoch (CNN), or the bars of the stages a classical fit reports (EEMD
+    features, MPA / GA / PSO tuning; :mod:`rvdiag.cli._progress`), each with an ETA, on stderr."""
+    from rich.progress import Progress, TextColumn
 
-    console = Console(stderr=True)
+    console = stderr_console()
     if hasattr(est, "embed"):
-        cols = [TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[info]}"),
-                TimeElapsedColumn()]
+        cols = [*bar_columns(), TextColumn("{task.fields[info]}")]
         with Progress(*cols, console=console, disable=quiet, transient=False) as prog:
             task = prog.add_task(f"{label} epochs", total=est.max_epochs, info="")
 
@@ -107,53 +115,51 @@ def _fit(est, X, y, quiet: bool, label: str, groups=None):
             prog.update(task, total=est.n_epochs_, completed=est.n_epochs_,
                         info=f"stopped after {est.n_epochs_} epochs, kept epoch {est.best_epoch_}")
     else:
-        with console.status(f"{label}: fitting", spinner="dots") if not quiet else _Null():
+        if not quiet:
+            console.print(f"{label}: fitting", soft_wrap=True)
+        with progress_bars(quiet):
             est.fit(X, y)
     return est
-
-
-class _Null:
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *a):
-        return False
 
 
 def register(app: typer.Typer) -> None:
     @app.command("train")
     def train(
         data: Path = typer.Argument(..., help="Sample store (.zarr) from 'rvdiag library build' or 'rvdiag dataset'."),
-        model: str = typer.Option("cnn1d-lean", "--model", "-m",
-                                  help="cnn1d | cnn1d-lean | mcsa-cnn | svm | kelm | kelm-mpa | kelm-ga | kelm-pso"),
+        model: str = typer.Option(RECOMMENDED_TRAINING["model"], "--model", "-m",
+                                  help=" | ".join(CNN_MODELS + CLASSICAL_MODELS) + " (default: the recommended "
+                                       "setup of docs/results.md)"),
         features: str = typer.Option(None, "--features", "-f",
                                      help="Classical models: time | spectrum | logspec | wpd | eemd | none | cnn (default wpd)."),
-        out: Path = typer.Option(..., "--out", "-o", help="Model directory to write."),
-        epochs: int = typer.Option(30, "--epochs", help="CNN: maximum epochs (early stopping may end sooner)."),
+        out: Path = opt.out("Model directory to write."),
+        epochs: int = typer.Option(RECOMMENDED_TRAINING["epochs"], "--epochs",
+                                   help="CNN: maximum epochs (early stopping may end sooner)."),
         device: str = typer.Option("auto", "--device", help="auto | cpu | cuda"),
-        seed: int = typer.Option(0, "--seed", help="Random seed (weights, validation split, batch order)."),
+        seed: int = opt.seed("Random seed (weights, validation split, batch order)."),
         repeat: int = typer.Option(1, "--repeat", help="Train N seeds (seed .. seed+N-1); report best/mean per class."),
         batch_size: int = typer.Option(32, "--batch-size", help="CNN mini-batch size."),
-        lr: float = typer.Option(1e-3, "--lr", help="CNN Adam learning rate."),
+        lr: float = typer.Option(RECOMMENDED_TRAINING["lr"], "--lr", help="CNN Adam learning rate."),
         input_length: int = typer.Option(None, "--input-length",
                                          help="CNN input in points (default: 6400 cnn1d, 4096 mcsa-cnn, sample length for cnn1d-lean)."),
-        patience: int = typer.Option(5, "--patience", help="CNN early-stopping patience (epochs)."),
+        patience: int = typer.Option(RECOMMENDED_TRAINING["patience"], "--patience",
+                                     help="CNN early-stopping patience (epochs)."),
         validation_fraction: float = typer.Option(0.2, "--validation-fraction",
                                                   help="Share of training samples held out for early stopping."),
         normalize: str = typer.Option("window", "--normalize",
                                       help="CNN input normalisation: window (z-score each window) | global "
                                            "(training mean/std, keeps amplitude) | none."),
-        representation: str = typer.Option("waveform", "--representation",
-                                           help="CNN input: waveform (the time window, as in the paper) | logspec "
-                                                "(log-magnitude spectrum of each window; docs/models.md)."),
-        snr_db: float = typer.Option(None, "--snr-db",
-                                     help="Add white Gaussian noise at this SNR (dB, per sample) to the training and "
-                                          "test samples before training, seeded by --seed: one point of an "
-                                          "accuracy-against-SNR curve from a clean library (docs/results.md)."),
-        json_out: bool = typer.Option(False, "--json", help="Print the test metrics (and repeat summary) as JSON."),
-        quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+        representation: str = typer.Option(RECOMMENDED_TRAINING["representation"], "--representation",
+                                           help="CNN input: logspec (log-magnitude spectrum of each window; "
+                                                "docs/models.md) | waveform (the time window, as in the paper)."),
+        snr_db: float = opt.snr_db("Add white Gaussian noise at this SNR (dB, per sample) to the training and "
+                                   "test samples before training, seeded by --seed: one point of an "
+                                   "accuracy-against-SNR curve from a clean library (docs/results.md)."),
+        json_out: bool = opt.json_flag("Print the test metrics (and repeat summary) as JSON."),
+        quiet: bool = opt.quiet(),
     ) -> None:
-        """Train a classifier on the train split of a store and save it as a model directory."""
+        """Train a classifier on the train split of a store and save it as a model directory.
+
+        With no options: the recommended setup of docs/results.md (mcsa-cnn on the log spectrum)."""
         from rvdiag.datasets import SampleStore
         from rvdiag.evaluation.metrics import classification_metrics, repeat_summary
         from rvdiag.models.persistence import save_model
@@ -169,7 +175,8 @@ def register(app: typer.Typer) -> None:
                                           batch_size=batch_size, lr=lr, input_length=input_length,
                                           patience=patience, validation_fraction=validation_fraction,
                                           normalize=normalize, representation=representation)
-        probe = new_estimator(seed=seed)  # checks --model/--features before any work
+        with opt.option_names(CNN_OPTION_NAMES):
+            probe = new_estimator(seed=seed)  # checks --model/--features before any work
         if features is not None and model in CLASSICAL_MODELS:
             from rvdiag.models.pipelines import feature_names
 
@@ -183,7 +190,8 @@ def register(app: typer.Typer) -> None:
         if "train" not in store.splits():
             raise StoreError(f"{data} has no 'train' split (splits: {', '.join(store.splits())})")
         if model in CNN_MODELS:
-            probe._check_params(store.length)  # the samples must be at least one network input long
+            with opt.option_names(CNN_OPTION_NAMES):  # the samples must be at least one network input long
+                probe.network_input_length(store.length)
         tr = store.load("train")
         te = store.load("test") if "test" in store.splits() else None
         if snr_db is not None:
@@ -200,7 +208,7 @@ def register(app: typer.Typer) -> None:
             s = seed + r
             est = new_estimator(seed=s)
             if r == 0 and model in CNN_MODELS:
-                W = est._check_params(store.length)
+                W = est.network_input_length(store.length)
                 starts = window_starts(store.length, W, est.long_input)
                 if W != store.length:
                     echo(f"note: samples have {store.length} points and the {model} input is {W}: each sample is cut "

@@ -8,6 +8,7 @@ from typing import Optional
 
 import typer
 
+from rvdiag.cli import _options as opt
 from rvdiag.cli._options import fault_severities, mm_to_m
 from rvdiag.errors import ParameterError
 
@@ -19,7 +20,7 @@ def register(app: typer.Typer) -> None:
 
     @app.command("tvms")
     def tvms(
-        params: Optional[Path] = typer.Option(None, "--params", help="Reducer parameter TOML (default: built-in RV-20E)."),
+        params: Optional[Path] = opt.params(),
         pair: str = typer.Option("sun-planet", "--pair", help="Gear pair of the parameter set: sun-planet."),
         z1: Optional[int] = typer.Option(None, "--z1", help="Driver teeth (custom pair; needs --z2 and --module)."),
         z2: Optional[int] = typer.Option(None, "--z2", help="Driven teeth (custom pair)."),
@@ -37,7 +38,7 @@ def register(app: typer.Typer) -> None:
         broken_fraction: Optional[float] = typer.Option(None, "--broken-fraction", help="Lost fraction of the tooth height, (0, 1]."),
         cycles: int = typer.Option(0, "--cycles", help="Mesh cycles (default: Z1, one driver revolution)."),
         points: int = typer.Option(360, "--points", help="Points per mesh cycle."),
-        as_json: bool = typer.Option(False, "--json", help="Print one JSON object instead of a summary."),
+        as_json: bool = opt.json_flag("Print one JSON object instead of a summary."),
         plot: Optional[Path] = typer.Option(None, "--plot", help="Write a PNG figure of the stiffness."),
     ) -> None:
         """Time-varying mesh stiffness (potential-energy method) of a spur gear pair."""

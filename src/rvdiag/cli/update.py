@@ -9,7 +9,13 @@ from typing import Optional
 
 import typer
 
+from rvdiag.cli import _options as opt
 from rvdiag.errors import ConfigError, ParameterError
+
+
+#: Python parameters of :func:`rvdiag.updating.update_parameters` -> the options that set them.
+UPDATE_OPTION_NAMES = {"output_speed_deg_s": "--output-speed", "load_Nm": "--load", "duration_s": "--duration",
+                       "max_evals": "--max-evals", "objective": "--objective"}
 
 
 def _check_positive(option: str, value: float) -> None:
@@ -23,14 +29,14 @@ def register(app: typer.Typer) -> None:
     @app.command("update")
     def update_cmd(
         measured_file: Path = typer.Argument(..., help="Measured healthy record (CSV, MAT, NPY/NPZ, WAV, TDMS)."),
-        channel: Optional[str] = typer.Option(None, "--channel", help="Regular expression naming the channel "
-                                              "(may be left out when the file holds one)."),
-        fs: Optional[float] = typer.Option(None, "--fs", help="Sampling rate, Hz (default: the one the file states)."),
+        channel: Optional[str] = opt.channel(),
+        fs: Optional[float] = opt.fs("Sampling rate, Hz (default: the one the file states)."),
         output_speed: float = typer.Option(..., "--output-speed", help="Output (carrier) speed of the record, deg/s."),
         load: float = typer.Option(..., "--load", help="Output load torque of the record, N m."),
-        params: Optional[Path] = typer.Option(None, "--params", help="Base parameter TOML (default: built-in RV-20E)."),
-        out: Path = typer.Option(..., "--out", help="Updated parameter TOML to write."),
-        force: bool = typer.Option(False, "--force", help="Overwrite an existing --out file."),
+        params: Optional[Path] = opt.params("Base parameter TOML (default: built-in RV-20E)."),
+        out: Path = opt.out("Updated parameter TOML to write."),
+        overwrite: bool = opt.overwrite("Overwrite an existing --out file."),
+        force: bool = opt.deprecated("--force", flag=True),
         objective: str = typer.Option("logspec", "--objective", help="logspec (PCC of log power spectra, default), "
                                       "envelope (PCC of envelope spectra) or time (PCC of the records; only for "
                                       "records phase-locked to the simulation)."),
@@ -43,10 +49,10 @@ def register(app: typer.Typer) -> None:
                                        "run-in); the measured record must be at least this long."),
         max_evals: int = typer.Option(150, "--max-evals", help="Simulations allowed in all (~0.4 s of CPU each "
                                       "for 0.5 s at 48 kHz)."),
-        seed: int = typer.Option(0, "--seed", help="Seed of the search; the result depends on nothing else."),
+        seed: int = opt.seed("Seed of the search; the result depends on nothing else."),
         plot: Optional[Path] = typer.Option(None, "--plot", help="Write a before/after figure of the spectra (PNG)."),
-        as_json: bool = typer.Option(False, "--json", help="Print the result as JSON on stdout."),
-        quiet: bool = typer.Option(False, "-q", "--quiet", help="No progress bar."),
+        as_json: bool = opt.json_flag("Print the result as JSON on stdout."),
+        quiet: bool = opt.quiet(),
     ) -> None:
         """Tune stiffnesses, damping and mounting of the model so that its healthy signal matches a measured one
         (Pearson correlation of log spectra by default); write the base parameters with the updated values,
@@ -56,6 +62,7 @@ def register(app: typer.Typer) -> None:
         from rvdiag.updating import OBJECTIVES, update_parameters
         from rvdiag.updating.annotate import annotated_toml, base_text
 
+        overwrite = opt.resolve(overwrite, force, "--force", default=False)
         if objective not in OBJECTIVES:
             raise ParameterError(f"--objective must be one of {', '.join(OBJECTIVES)}, got {objective!r}")
         if direction not in ("x", "y"):
@@ -72,8 +79,8 @@ def register(app: typer.Typer) -> None:
             raise ParameterError(f"--out must name a .toml file, got {out}")
         if params is not None and out.resolve() == params.resolve():
             raise ParameterError(f"--out {out} is the base parameter file; write the update to another file")
-        if out.exists() and not force:
-            raise ConfigError(f"{out} exists; use --force to overwrite")
+        if out.exists() and not overwrite:
+            raise ConfigError(f"{out} exists; use --overwrite to replace it")
         if not out.parent.exists():
             raise ParameterError(f"--out directory does not exist: {out.parent}")
         if plot is not None and plot.suffix.lower() != ".png":
@@ -96,7 +103,8 @@ def register(app: typer.Typer) -> None:
         kw = dict(output_speed_deg_s=output_speed, load_Nm=load, objective=objective, names=names,
                   duration_s=duration, channel=0 if direction == "x" else 1, max_evals=max_evals, seed=seed)
         if quiet:
-            result = update_parameters(base, sig.data, sig.fs, **kw)
+            with opt.option_names(UPDATE_OPTION_NAMES):
+                result = update_parameters(base, sig.data, sig.fs, **kw)
         else:
             from rich.console import Console
             from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
@@ -109,7 +117,8 @@ def register(app: typer.Typer) -> None:
                 def progress(done: int, total: int, best: float) -> None:
                     bar.update(task, completed=done, total=total, best=f"{best:.4f}")
 
-                result = update_parameters(base, sig.data, sig.fs, progress=progress, **kw)
+                with opt.option_names(UPDATE_OPTION_NAMES):
+                    result = update_parameters(base, sig.data, sig.fs, progress=progress, **kw)
 
         comment = (f"updated by rvdiag update from {measured_file.name}: was {{was}}, {objective} PCC before/after "
                    f"{result.pcc_before:.4f}/{result.pcc_after:.4f}")

@@ -8,7 +8,10 @@ simulated library (:mod:`rvdiag.datasets.store`, ``kind="measured"``), so ``trai
 
 Metadata columns of every sample:
 
-``split``    ``train`` (all samples), unless ``test_fraction`` asks for a seeded split stratified by label
+``split``    ``train`` (all samples), unless ``test_fraction`` asks for a seeded split stratified by label: by
+             file (``split_by="unit"``, the default: every window of a file lands on the same side) or, with
+             a :class:`SplitLeakWarning`, by window (``split_by="window"``: neighbouring, possibly overlapping
+             windows of one recording land on both sides, so the test score is optimistic)
 ``unit``     index of the source file (sorted by name)
 ``source``   the source file name
 ``channel``  the channel read
@@ -27,6 +30,7 @@ from __future__ import annotations
 
 import math
 import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping
@@ -34,8 +38,11 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from rvdiag.datasets.store import write_store
-from rvdiag.errors import DataFileError, ParameterError, StoreError
+from rvdiag.errors import DataFileError, ParameterError, SplitLeakWarning, StoreError
 from rvdiag.io import SUPPORTED_SUFFIXES, read_signal, window, window_starts
+
+#: The ways ``build_from_files`` can split (``--split-by``): by file (the default) or by window.
+SPLIT_BY = ("unit", "window")
 
 
 @dataclass
@@ -138,6 +145,7 @@ def build_from_files(
     include: str | None = None,
     test_fraction: float | None = None,
     seed: int = 0,
+    split_by: str = "unit",
     scalars: Mapping[str, str] | None = None,
     overwrite: bool = False,
     progress: Callable[[int, int, str], None] | None = None,
@@ -156,7 +164,11 @@ def build_from_files(
         Sampling rate in Hz, for files that do not state it (and overriding those that do).  Every file
         must end up with the same fs (or none at all).
     test_fraction : float in (0, 1), optional
-        Fraction of each class's windows put in split ``test`` (seeded by ``seed``).
+        Fraction of each class put in split ``test`` (seeded by ``seed``): of its files, or of its windows.
+    split_by : ``"unit"`` (default) or ``"window"``
+        ``"unit"``: whole files go to ``test`` (``round(test_fraction * files of the class)``, at least one, and
+        at least one file stays in ``train``; a class needs two files).  ``"window"``: windows are drawn
+        one by one, which leaks (neighbouring windows of one recording on both sides) and warns.
     scalars : mapping name -> regex, optional
         Scalars of each file to record as metadata columns (e.g. ``{"rpm": "RPM"}``).
     overwrite : bool
@@ -173,6 +185,8 @@ def build_from_files(
         raise StoreError(f"{out} already exists (remove it, choose another --out, or pass --overwrite)")
     if test_fraction is not None and not (0.0 < float(test_fraction) < 1.0):
         raise ParameterError(f"--test-fraction must be between 0 and 1 (exclusive), got {test_fraction}")
+    if split_by not in SPLIT_BY:
+        raise ParameterError(f"--split-by must be one of {'|'.join(SPLIT_BY)}, got {split_by!r}")
     if not isinstance(window_length, (int, np.integer)) or window_length < 2:
         raise ParameterError(f"--window must be an integer of at least 2, got {window_length!r}")
     if hop is not None and (not isinstance(hop, (int, np.integer)) or hop < 1):
@@ -183,6 +197,8 @@ def build_from_files(
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", k):
             raise ParameterError(f"scalar column name {k!r} must be an identifier")
     entries, skipped = select_files(folder, label_regex, meta_regex, include)
+    if test_fraction is not None and split_by == "unit":
+        _check_files_per_class(entries)
 
     blocks: list[np.ndarray] = []
     labels: list[str] = []
@@ -239,7 +255,14 @@ def build_from_files(
         if k in meta or k == "split":
             raise ParameterError(f"scalar column name {k!r} is reserved or used twice")
         meta[k] = np.asarray(v, dtype=np.float64)
-    meta["split"] = _split(y, test_fraction, seed)
+    if split_by == "unit":
+        meta["split"] = _split_by_unit(y, meta["unit"], test_fraction, seed)
+    else:
+        meta["split"] = _split(y, test_fraction, seed)
+        if test_fraction is not None:
+            warnings.warn("--split-by window puts neighbouring windows of one recording in both train and test: "
+                          "the test accuracy is optimistic (the default --split-by unit holds out whole files)",
+                          SplitLeakWarning, stacklevel=2)
 
     config = {
         "source": "files",
@@ -254,6 +277,7 @@ def build_from_files(
         "fs": fs,
         "test_fraction": test_fraction,
         "seed": int(seed),
+        "split_by": split_by,
         "scalars": dict(scalar_pats),
     }
     file_fs = None if fs_seen == "unset" else fs_seen
@@ -280,6 +304,30 @@ def _same_fs(a: float | None, b: float | None) -> bool:
     return math.isclose(a, b, rel_tol=1e-9)
 
 
+def _check_files_per_class(entries: list[FileEntry]) -> None:
+    """A split by file needs two files of every class (one to test, one to train)."""
+    for label in sorted({e.label for e in entries}):
+        names = [e.path.name for e in entries if e.label == label]
+        if len(names) < 2:
+            raise ParameterError(
+                f"--test-fraction: class {label!r} has one file ({names[0]}); a split by file needs at least two "
+                "per class (add files, or --split-by window, which leaks neighbouring windows into the test)")
+
+
+def _split_by_unit(y: np.ndarray, unit: np.ndarray, test_fraction: float | None, seed: int) -> np.ndarray:
+    """``train`` everywhere, or a seeded split of whole files: ``round(f * k_c)`` of the ``k_c`` files of each
+    class ``c`` go to ``test`` (at least one, at most ``k_c - 1``), so no file has windows on both sides."""
+    split = np.full(y.shape[0], "train", dtype=object)
+    if test_fraction is None:
+        return split
+    rng = np.random.default_rng(seed)
+    for c in sorted(set(y.tolist())):
+        files = np.unique(unit[y == c])  # >= 2: checked by _check_files_per_class before reading
+        n_test = min(max(int(round(float(test_fraction) * files.size)), 1), files.size - 1)
+        split[np.isin(unit, rng.permutation(files)[:n_test])] = "test"
+    return split
+
+
 def _split(y: np.ndarray, test_fraction: float | None, seed: int) -> np.ndarray:
     """``train`` everywhere, or a seeded split with ``round(f * n_c)`` test windows per class ``c``."""
     split = np.full(y.shape[0], "train", dtype=object)
@@ -297,4 +345,4 @@ def _split(y: np.ndarray, test_fraction: float | None, seed: int) -> np.ndarray:
     return split
 
 
-__all__ = ["FileEntry", "build_from_files", "select_files", "SUPPORTED_SUFFIXES"]
+__all__ = ["SPLIT_BY", "FileEntry", "build_from_files", "select_files", "SUPPORTED_SUFFIXES"]

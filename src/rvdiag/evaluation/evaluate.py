@@ -9,6 +9,7 @@ import numpy as np
 
 from rvdiag.errors import ModelFileError
 from rvdiag.evaluation.metrics import classification_metrics
+from rvdiag.progress import report
 
 
 @dataclass
@@ -52,6 +53,17 @@ def check_store_matches(card: dict, store) -> list[str]:
     return warnings
 
 
+def predict_in_chunks(estimator, X: np.ndarray, chunk: int = 512) -> np.ndarray:
+    """``estimator.predict(X)``, ``chunk`` samples at a time, each chunk reported to :mod:`rvdiag.progress`
+    (stage ``scoring``).  The same predictions: every model here predicts each sample on its own."""
+    n = len(X)
+    parts = []
+    for i in range(0, n, chunk):
+        parts.append(np.asarray(estimator.predict(X[i:i + chunk])))
+        report("scoring", min(i + chunk, n), n)
+    return np.concatenate(parts) if parts else np.asarray(estimator.predict(X))
+
+
 def evaluate_on_store(loaded, store, split: str = "test") -> Evaluation:
     """Predict every sample of ``split`` and score it.
 
@@ -65,7 +77,7 @@ def evaluate_on_store(loaded, store, split: str = "test") -> Evaluation:
     s = store.load(split)
     if len(s.y) == 0:
         raise ModelFileError(f"the split {split!r} of {store.path} is empty")
-    y_pred = np.asarray(loaded.estimator.predict(s.X)).astype(str)
+    y_pred = predict_in_chunks(loaded.estimator, s.X).astype(str)
     y_true = np.asarray(s.y).astype(str)
     m = classification_metrics(y_true, y_pred, labels=[str(c) for c in loaded.card["classes"]])
     return Evaluation(m, y_true, y_pred, s.X, s.meta, split, warnings)
@@ -80,7 +92,7 @@ def accuracy_against_snr(loaded, ev: Evaluation, snr_db: list[float], seed: int 
     ``-10 log10(10^(-s/10) + 10^(-s0/10) (1 + 10^(-s/10)))`` against the clean signal, within 0.05 dB of
     ``s`` for ``s <= 20`` dB and ``s0 >= 40`` dB; the store's own SNR column, when present, is reported as
     ``store_snr_db`` so the reader can check.  Every level scores the same samples, so the curve is
-    one of noise alone: unlike ``--by noise_snr_db`` on a library whose simulations each drew an SNR, the
+    one of noise alone (each level done is reported to :mod:`rvdiag.progress`): unlike ``--by noise_snr_db`` on a library whose simulations each drew an SNR, the
     states do not mix differently from one level to the next.
 
     Returns one dict per level: ``snr_db, accuracy, f1_macro, kappa, n``.
@@ -91,11 +103,12 @@ def accuracy_against_snr(loaded, ev: Evaluation, snr_db: list[float], seed: int 
     out = []
     for i, level in enumerate(snr_db):
         noisy = add_awgn(ev.X, float(level), np.random.default_rng([int(seed), i])).astype(np.float32)
-        pred = np.asarray(loaded.estimator.predict(noisy)).astype(str)
+        pred = predict_in_chunks(loaded.estimator, noisy).astype(str)
         m = classification_metrics(ev.y_true, pred, labels=labels)
         out.append({"snr_db": float(level), "accuracy": m["accuracy"], "f1_macro": m["f1_macro"],
                     "kappa": m["kappa"], "n": int(len(pred)), "per_class_recall":
                     {c: v["recall"] for c, v in m["per_class"].items()}})
+        report("SNR levels", i + 1, len(snr_db))
     store_snr = ev.meta.get("noise_snr_db")
     if store_snr is not None and len(out):
         vals = np.asarray(store_snr, dtype=float)

@@ -38,6 +38,7 @@ from joblib import effective_n_jobs
 
 from rvdiag.errors import ParameterError
 from rvdiag.features._base import SignalTransformer
+from rvdiag.progress import report
 
 _NBSYM = 2
 
@@ -378,6 +379,12 @@ def eemd(x, n_imfs: int = 6, ensemble_size: int = 100, noise_width: float = 0.2,
     return imfs, x - imfs.sum(axis=0)
 
 
+def _reported(i: int, n: int, row):
+    """``row``, after telling :mod:`rvdiag.progress` that window ``i`` of ``n`` is done."""
+    report("EEMD features", i + 1, n)
+    return row
+
+
 class EEMDFeatures(SignalTransformer):
     """scikit-learn transformer: mean |IMF| of the first ``n_imfs`` EEMD IMFs of each window.
 
@@ -433,10 +440,10 @@ class EEMDFeatures(SignalTransformer):
 
         n_jobs = min(effective_n_jobs(self.n_jobs), len(X))
         if n_jobs <= 1:
-            F = np.array([one(x) for x in X])
+            F = np.array([_reported(i, len(X), one(x)) for i, x in enumerate(X)])
         else:
             with ThreadPoolExecutor(n_jobs) as ex:
-                F = np.array(list(ex.map(one, X)))
+                F = np.array([_reported(i, len(X), f) for i, f in enumerate(ex.map(one, X))])
         if self.relative:
             m = np.mean(np.abs(X), axis=1, keepdims=True)
             F = np.divide(F, m, out=np.zeros_like(F), where=m > 0)

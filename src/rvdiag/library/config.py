@@ -48,6 +48,11 @@ from rvdiag.errors import ConfigError, ParameterError
 from rvdiag.library.states import SEVERITY_PARAMETERS, STATES
 from rvdiag.tomlfile import read_toml
 
+#: ``[signal] transient_s`` when a config leaves it out: the model's run-in (``ModelSettings.transient_s``,
+#: docs/model.md section 7), the default of ``rvdiag simulate --transient`` too (tests/test_library_config.py
+#: checks that all three agree).  Configs used to default to 0 s (docs/library.md).
+DEFAULT_TRANSIENT_S = 0.1
+
 
 def _configs_dir() -> Path:
     from importlib.resources import files
@@ -326,7 +331,7 @@ class LibraryConfig:
                 raise ConfigError(f"{w} {key}: missing")
         fs = _positive(sig["fs"], f"{w} fs")
         duration_s = _positive(sig["duration_s"], f"{w} duration_s")
-        transient_s = _number(sig.get("transient_s", 0.0), f"{w} transient_s")
+        transient_s = _number(sig.get("transient_s", DEFAULT_TRANSIENT_S), f"{w} transient_s")
         if transient_s < 0:
             raise ConfigError(f"{w} transient_s: must be >= 0, got {transient_s:g}")
         segment_length = _int(sig["segment_length"], f"{w} segment_length", 16)

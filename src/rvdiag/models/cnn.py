@@ -38,8 +38,9 @@ import torch
 from torch import nn
 
 from rvdiag.errors import ParameterError
+from rvdiag.registry import CNN_MODELS
 
-ARCHITECTURES = ("cnn1d", "cnn1d-lean", "mcsa-cnn")
+ARCHITECTURES = CNN_MODELS  # the names are registered below every layer (rvdiag.registry)
 
 #: Native input length of each architecture (points per window).  ``None``: any length.
 DEFAULT_INPUT_LENGTH = {"cnn1d": 6400, "cnn1d-lean": None, "mcsa-cnn": 4096}

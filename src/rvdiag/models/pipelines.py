@@ -44,9 +44,10 @@ from rvdiag.models.card import atomic_write, card_text, read_card, write_card
 from rvdiag.models.cnn_features import CNNFeatures
 from rvdiag.models.kelm import KELMClassifier
 from rvdiag.models.tuning import OPTIMIZERS, TunedKELM
+from rvdiag.registry import CLASSICAL_MODELS
 from rvdiag.registry import TRUSTED_TYPES, register_trusted_type  # noqa: F401  (public names, re-exported)
 
-MODEL_NAMES = ("svm", "kelm", "kelm-mpa", "kelm-ga", "kelm-pso")
+MODEL_NAMES = CLASSICAL_MODELS  # the names are registered below every layer (rvdiag.registry)
 
 #: Feature sets of the models layer, on top of :func:`rvdiag.features.feature_names`.
 MODEL_FEATURE_SETS = {"cnn": CNNFeatures}

@@ -218,6 +218,14 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
                 )
         return W
 
+    def network_input_length(self, n_points: int) -> int:
+        """Check the settings and return the network input (points) for samples of ``n_points``: the
+        ``input_length`` (or the architecture's default), cut to the sample for ``cnn1d-lean``.
+
+        Raises :class:`rvdiag.errors.ParameterError` for a bad setting or a sample shorter than the input.
+        """
+        return self._check_params(int(n_points))
+
     # ------------------------------------------------------------------ preprocessing
     def _windows(self, X: np.ndarray) -> np.ndarray:
         """(n, L) -> (n * k, W) windows, sample-major."""

@@ -30,6 +30,7 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from rvdiag.errors import ParameterError
 from rvdiag.models.kelm import KELMClassifier, one_hot_pm1, solve_output_weights, sq_distances
+from rvdiag.progress import report
 
 #: optimiser name -> (mealpy module, class); the names of ``rvdiag train --model kelm-<name>``
 OPTIMIZERS = {
@@ -69,10 +70,14 @@ def _run(func, lb, ub, optimizer, epoch, pop_size, seed, minmax) -> OptimizeResu
     if len(lb) != len(ub) or not all(a < b for a, b in zip(lb, ub)):
         raise ParameterError(f"bounds must satisfy lb < ub elementwise, got {lb}, {ub}")
     count = [0]
+    # mealpy evaluates the initial population, then pop_size points per epoch (checked for mpa, ga, pso)
+    total = int(pop_size) * (int(epoch) + 1)
 
     def f(x):
         count[0] += 1
-        return float(func(np.asarray(x, dtype=float)))
+        value = float(func(np.asarray(x, dtype=float)))
+        report(f"{optimizer.upper()} tuning", count[0], max(total, count[0]))  # rvdiag.progress
+        return value
 
     model = _optimizer(optimizer, epoch, pop_size)
     problem = {"obj_func": f, "bounds": FloatVar(lb=lb, ub=ub), "minmax": minmax, "log_to": None}
