@@ -115,7 +115,11 @@ def _metadata_values(loaded, sig, items: list[str]) -> dict[str, float]:
     sources = loaded.card.get("metadata_sources") or {}
     for column in loaded.metadata_columns:
         if column not in given and column in sources:
-            given[column] = float(sig.scalar(sources[column]))
+            try:
+                given[column] = float(sig.scalar(sources[column]))
+            except DataFileError as exc:
+                raise DataFileError(f"the model reads {column!r} per window from the file's scalar "
+                                    f"{sources[column]!r}: {exc}; pass --meta {column}=VALUE") from None
     missing = [c for c in loaded.metadata_columns if c not in given]
     if missing:
         raise ParameterError(f"the model reads metadata {missing} per window, which {sig.path} does not give: "

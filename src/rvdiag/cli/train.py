@@ -223,13 +223,6 @@ def register(app: typer.Typer) -> None:
         te = store.load("test") if "test" in store.splits() else None
         if snr_db is not None:
             tr, te = _with_noise(tr, snr_db, [seed, 0]), (None if te is None else _with_noise(te, snr_db, [seed, 1]))
-        labels = [c for c in store.classes if c in set(tr.y.tolist())]
-        if len(labels) < 2:
-            raise StoreError(f"{data}: the train split holds fewer than 2 classes")
-        echo = (lambda *a, **k: None) if json_out else (lambda msg: typer.echo(msg, err=True))
-        echo(f"{data}: {len(tr.y)} training samples of {store.length} points, {len(labels)} classes"
-             + (f", {len(te.y)} test samples" if te is not None else ", no test split"))
-
         from rvdiag.features.combine import input_metadata, with_metadata
 
         meta_cols = input_metadata(probe)
@@ -238,6 +231,13 @@ def register(app: typer.Typer) -> None:
                              "defect lines: rebuild it with 'rvdiag dataset from-files --fs HZ'")
         Xtr = with_metadata(tr.X, tr.meta, meta_cols, where=f"the store {data}")
         Xte = None if te is None else with_metadata(te.X, te.meta, meta_cols, where=f"the store {data}")
+        labels = [c for c in store.classes if c in set(tr.y.tolist())]
+        if len(labels) < 2:
+            raise StoreError(f"{data}: the train split holds fewer than 2 classes")
+        echo = (lambda *a, **k: None) if json_out else (lambda msg: typer.echo(msg, err=True))
+        echo(f"{data}: {len(tr.y)} training samples of {store.length} points, {len(labels)} classes"
+             + (f", {len(te.y)} test samples" if te is not None else ", no test split"))
+
         runs, first = [], None
         for r in range(repeat):
             s = seed + r
