@@ -17,20 +17,11 @@ from rvdiag.datasets.from_files import split_by_name
 from rvdiag.features.bearing import BearingEnvelopeFeatures
 
 from conftest import DATA, REPO, needs_real_data
+from test_cli_train import run  # main(args) -> (exit code, stdout, stderr)
 
 FS = 12000.0
 L = 2048
 GEOMETRY = "9,7.94,39.04,0"  # the CWRU 6205 in mm
-
-
-def run(args, capsys):
-    try:
-        main([str(a) for a in args])
-        code = 0
-    except SystemExit as exc:
-        code = exc.code
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 def _window(label: str, rpm: float, rng) -> np.ndarray:
@@ -166,3 +157,23 @@ def test_cwru_four_classes_cross_condition_through_the_cli(tmp_path, capsys):
     assert code == 0, err
     res = json.loads(out)
     assert res["diagnosis"] == "IR" and res["metadata"]["rpm"] == pytest.approx(1797.0)
+
+
+def test_combined_features_give_each_part_its_columns():
+    from rvdiag.errors import ParameterError
+    from rvdiag.features import SpectrumFeatures, input_metadata
+    from rvdiag.models.pipelines import make_feature_set
+
+    X = np.random.default_rng(4).standard_normal((4, L))
+    A = np.column_stack([X, [1797.0, 1797.0, 1750.0, 1750.0]])
+    c = make_feature_set("spectrum-abs+bearing-envelope", **{"bearing-envelope": {"fs": FS, "speed_column": "rpm"}})
+    assert input_metadata(c) == ("rpm",)
+    F = c.fit(A).transform(A)
+    np.testing.assert_array_equal(F[:, :64], SpectrumFeatures(relative=False).fit(X).transform(X))
+    np.testing.assert_array_equal(F[:, 64:], BearingEnvelopeFeatures(fs=FS, speed_column="rpm").fit(A).transform(A))
+    names = c.get_feature_names_out()
+    assert names[0] == "spectrum-abs__fft_band0" and names[-1] == "bearing-envelope__bsf2_contrast"
+    with pytest.raises(ParameterError, match="distinct"):
+        make_feature_set("spectrum+spectrum")
+    with pytest.raises(ParameterError, match="not parts"):
+        make_feature_set("spectrum+time", wpd={})

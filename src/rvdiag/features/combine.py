@@ -17,10 +17,10 @@ from __future__ import annotations
 from typing import Mapping
 
 import numpy as np
-from sklearn.base import BaseEstimator, TransformerMixin, clone
+from sklearn.base import clone
 
 from rvdiag.errors import ParameterError, StoreError
-from rvdiag.features._base import as_signal_matrix
+from rvdiag.features._base import SignalTransformer, as_signal_matrix
 
 
 def input_metadata(estimator) -> tuple[str, ...]:
@@ -62,7 +62,7 @@ def with_metadata(X, meta: Mapping[str, np.ndarray] | None, columns, where: str 
     return np.column_stack([np.asarray(X, dtype=np.float64), *cols])
 
 
-class CombinedFeatures(TransformerMixin, BaseEstimator):
+class CombinedFeatures(SignalTransformer):
     """Several feature transformers side by side, their features concatenated (as ``FeatureUnion``).
 
     Parameters
@@ -117,31 +117,13 @@ class CombinedFeatures(TransformerMixin, BaseEstimator):
         self.n_features_in_ = A.shape[1]
         return self
 
-    def transform(self, X):
-        """The parts' features side by side, shape (n_samples, sum of the parts' features)."""
-        from sklearn.utils.validation import check_is_fitted
-
-        check_is_fitted(self, "transformers_")
-        A = as_signal_matrix(X, 1)
-        if A.shape[1] != self.n_features_in_:
-            raise ParameterError(f"X has {A.shape[1]} features, but {type(self).__name__} is expecting "
-                                 f"{self.n_features_in_} features as input")
+    def _features(self, A):
         fitted = dict(self.transformers_)
         return np.hstack([np.asarray(fitted[name].transform(part), dtype=np.float64)
                           for name, _, part in self._inputs(A)])
 
-    def get_feature_names_out(self, input_features=None):
-        """``"<part>__<feature>"`` for every output column."""
-        from sklearn.utils.validation import check_is_fitted
-
-        check_is_fitted(self, "transformers_")
-        return np.asarray([f"{name}__{f}" for name, t in self.transformers_ for f in t.get_feature_names_out()],
-                          dtype=object)
-
-    def __sklearn_tags__(self):
-        tags = super().__sklearn_tags__()
-        tags.requires_fit = True
-        return tags
+    def _feature_names(self):
+        return [f"{name}__{f}" for name, t in self.transformers_ for f in t.get_feature_names_out()]
 
 
 __all__ = ["CombinedFeatures", "input_metadata", "with_metadata"]
