@@ -68,7 +68,8 @@ def make_feature_set(name: str, **kw):
     if "+" in name:
         parts = [p.strip() for p in name.split("+")]
         if any(not p for p in parts) or len(set(parts)) != len(parts):
-            raise ParameterError(f"feature set {name!r}: join distinct names with '+', e.g. spectrum-abs+bearing-envelope")
+            raise ParameterError(f"feature set {name!r}: join distinct names with '+', "
+                                 "e.g. spectrum-abs+bearing-envelope")
         unknown = sorted(set(kw) - set(parts))
         if unknown:
             raise ParameterError(f"options for {unknown}, which are not parts of the feature set {name!r}")
