@@ -60,16 +60,10 @@ from sklearn.preprocessing import StandardScaler  # noqa: E402
 import rvdiag  # noqa: E402
 from rvdiag.datasets import SampleStore  # noqa: E402
 from rvdiag.datasets.from_files import build_from_files  # noqa: E402
-from rvdiag.features import (  # noqa: E402
-    EEMDFeatures,
-    EnvelopeSpectrumFeatures,
-    SpectrumFeatures,
-    TimeDomainFeatures,
-    WaveletPacketEnergy,
-)
-from rvdiag.features.bearing import BEARING_6205, bearing_envelope_features  # noqa: E402
+from rvdiag.features import input_metadata, with_metadata  # noqa: E402
+from rvdiag.features.bearing import geometry_from_mm  # noqa: E402
 from rvdiag.models.kelm import KELMClassifier  # noqa: E402
-from rvdiag.models.pipelines import make_classical_model  # noqa: E402
+from rvdiag.models.pipelines import make_classical_model, make_feature_set  # noqa: E402
 from rvdiag.models.tuning import TunedKELM  # noqa: E402
 
 # the data folder: --data, else RVDIAG_DATA_DIR, else a data/ folder beside the repository's parent (the layout the
@@ -152,25 +146,34 @@ def fingerprint(ds: dict) -> str:
     return h.hexdigest()[:12]
 
 
+#: the CWRU drive-end 6205 bearing, as ``rvdiag train --bearing-geometry`` takes it (d = 0.3126 in, D = 1.537 in)
+CWRU_GEOMETRY = "9,7.94,39.04,0"
+
+
+def _features(name: str, X, meta=None, **kw):
+    """The features of ``rvdiag train --features NAME`` (the same transformers, through the same factory)."""
+    t = make_feature_set(name, **kw)
+    A = with_metadata(X, meta, input_metadata(t))
+    return t.fit(A).transform(A)
+
+
 def feature_specs(ds: dict, eemd_ensemble: int) -> dict:
-    """name -> (description, function X -> F); only the sets that apply to this dataset."""
+    """name -> (description, function X -> F); only the sets that apply to this dataset.  Each is the
+    ``rvdiag train --features`` set of the same name (spectrum_abs: ``spectrum-abs``, raw: ``none``)."""
     specs = {
-        "time": ("10 time-domain statistics", lambda X: TimeDomainFeatures().fit(X).transform(X)),
-        "spectrum": ("64 log relative FFT band powers",
-                     lambda X: SpectrumFeatures(n_bands=64, relative=True).fit(X).transform(X)),
-        "spectrum_abs": ("64 log absolute FFT band powers",
-                         lambda X: SpectrumFeatures(n_bands=64, relative=False).fit(X).transform(X)),
-        "envelope": ("squared-envelope spectrum, 40 bands to 0.05 cycles/sample",
-                     lambda X: EnvelopeSpectrumFeatures().fit(X).transform(X)),
-        "wpd": ("level-4 wavelet-packet energies (db4)", lambda X: WaveletPacketEnergy().fit(X).transform(X)),
+        "time": ("10 time-domain statistics", lambda X: _features("time", X)),
+        "spectrum": ("64 log relative FFT band powers", lambda X: _features("spectrum", X)),
+        "spectrum_abs": ("64 log absolute FFT band powers", lambda X: _features("spectrum-abs", X)),
+        "envelope": ("squared-envelope spectrum, 40 bands to 0.05 cycles/sample", lambda X: _features("envelope", X)),
+        "wpd": ("level-4 wavelet-packet energies (db4)", lambda X: _features("wpd", X)),
         "eemd": (f"EEMD, 6 IMFs, ensemble {eemd_ensemble}, noise 0.2, mean abs(IMF)",
-                 lambda X: EEMDFeatures(ensemble_size=eemd_ensemble, n_jobs=2).fit(X).transform(X)),
+                 lambda X: _features("eemd", X, ensemble_size=eemd_ensemble, n_jobs=2)),
     }
     if "rpm" in ds["meta"] and ds["fs"]:
-        rpm = ds["meta"]["rpm"]
         specs["bearing"] = (
-            "bearing envelope lines (BPFO, BPFI, 2 BSF of a 6205 at the file's RPM)",
-            lambda X: bearing_envelope_features(X, rpm / 60.0, fs=ds["fs"], **BEARING_6205),
+            f"bearing envelope lines (BPFO, BPFI, 2 BSF of a 6205, {CWRU_GEOMETRY}, at the file's RPM)",
+            lambda X: _features("bearing-envelope", X, ds["meta"], **geometry_from_mm(CWRU_GEOMETRY),
+                                fs=ds["fs"], speed_column="rpm"),
         )
     return specs
 
@@ -324,6 +327,115 @@ def run_row(ds, feats, row, protocol: str, n_runs: int, opts) -> dict | None:
     return out
 
 
+# ----------------------------------------------------------------------------- the same through the CLI
+CLI_HEADING = "## Reproduce through the CLI"
+
+
+def cli_folds(data: Path, workdir: Path) -> dict:
+    """dataset -> list of (fold label, [rvdiag argument lists]): the cross-condition protocol of the best
+    pipelines above, with the ``rvdiag`` command only (``tests/test_cli_bearing_envelope.py`` runs the same)."""
+    out = {"cwru": [(f"test load {T}", cwru_fold_commands(data, T, workdir)) for T in (0, 1, 2)]}
+    sq, m = workdir / "sq.zarr", workdir / "m-sq"
+    out["spectraquest"] = [("train load 0, test loads 10-60", [
+        ["dataset", "from-files", str(data / "spectraquest-gearbox"), "--label-regex", "^(?P<label>[hb])30hz",
+         "--channel", "a1", "--window", str(WINDOW), "--test-include", "hz[1-9]", "--out", str(sq)],
+        ["train", str(sq), "--model", "svm", "--features", "spectrum", "--out", str(m), "--quiet"],
+        ["evaluate", str(m), str(sq), "--json"],
+    ])]
+    return out
+
+
+def cwru_fold_commands(data: Path, load: int, workdir: Path) -> list[list[str]]:
+    """The commands of one CWRU cross-condition fold (test load ``load``): train on sizes 007/014 at the other
+    loads and on two thirds of ``normal_0`` (in time), test on every size at ``load`` and the remaining third."""
+    zarr, model = workdir / f"cwru-load{load}.zarr", workdir / f"m-load{load}"
+    return [
+        ["dataset", "from-files", str(data / "cwru-bearing"), "--label-regex", "^(?P<label>normal|B|IR|OR)",
+         "--channel", "DE_time", "--window", str(WINDOW), "--fs", "12000", "--scalar", "rpm=RPM",
+         "--include", rf"normal|_{load}\.mat$|0(07|14)", "--test-include", rf"_{load}\.mat$",
+         "--test-block", f"normal={load + 1}/3", "--out", str(zarr)],
+        ["train", str(zarr), "--model", "svm", "--features", "spectrum-abs+bearing-envelope",
+         "--bearing-geometry", CWRU_GEOMETRY, "--out", str(model), "--quiet"],
+        ["evaluate", str(model), str(zarr), "--json"],
+    ]
+
+
+def run_cli(data: Path) -> dict:
+    """Run :func:`cli_folds` as subprocesses of ``python -m rvdiag``; the figures of ``evaluate --json``."""
+    import subprocess
+
+    env = {**os.environ, "PYTHONPATH": str(REPO / "src")}
+    res: dict = {}
+    with tempfile.TemporaryDirectory(prefix="rvdiag-cli-") as tmp:
+        for ds_name, folds in cli_folds(data, Path(tmp)).items():
+            res[ds_name] = []
+            for label, commands in folds:
+                t0 = time.perf_counter()
+                for args in commands:
+                    p = subprocess.run([sys.executable, "-m", "rvdiag", *args], capture_output=True, text=True,
+                                       env=env)
+                    if p.returncode != 0:
+                        raise RuntimeError(f"rvdiag {' '.join(args)} failed: {p.stderr.strip()}")
+                m = json.loads(p.stdout)
+                res[ds_name].append({"fold": label, "accuracy": m["accuracy"], "f1_macro": m["f1_macro"],
+                                     "kappa": m["kappa"], "n": m["n_samples"], "seconds": time.perf_counter() - t0})
+                print(f"  cli {ds_name} {label}: {100 * m['accuracy']:.2f} %", flush=True)
+    return res
+
+
+def cli_section(cli: dict, date: str) -> str:
+    """The page's section on the CLI commands and the figures they gave."""
+    L = [CLI_HEADING + "\n",
+         f"*Figures from `bench/real_data_table.py` (or `--cli-only`, which rewrites this section alone) on {date}: "
+         "it runs these commands as they stand, with `DATA` the data folder.*\n",
+         "**CWRU 4-class, cross-condition** (the best row above, SVM absolute spectrum + bearing envelope lines). "
+         "One store per fold, test load T = 0, 1, 2: `--include` keeps every file at load T and the fault sizes "
+         "007 and 014 at every load (021 only at load T), `--test-include` puts load T in the test split, and "
+         "`--test-block normal=K/3` cuts the one normal recording in time into 3 contiguous blocks of windows "
+         "and puts block K = T + 1 in the test split, the other two in training. `--scalar rpm=RPM` records each "
+         "file's shaft speed (its `X###RPM` variable) as the metadata column `rpm`; the `bearing-envelope` "
+         "features read each window's speed from it (`--rpm-column`, default `rpm`), so one model serves every "
+         "load's speed, and the model card keeps the column's name: `evaluate` reads it from the store and "
+         "`diagnose` from the file's `RPM` variable (or `--meta rpm=VALUE`). `--bearing-geometry` is the 6205: "
+         "9 balls, d = 7.94 mm (0.3126 in), D = 39.04 mm (1.537 in), contact angle 0.\n",
+         "```bash\nfor T in 0 1 2; do\n"
+         "  rvdiag dataset from-files DATA/cwru-bearing --label-regex '^(?P<label>normal|B|IR|OR)' \\\n"
+         "      --channel DE_time --window 2048 --fs 12000 --scalar rpm=RPM \\\n"
+         "      --include \"normal|_${T}\\.mat\\$|0(07|14)\" --test-include \"_${T}\\.mat\\$\" \\\n"
+         "      --test-block \"normal=$((T + 1))/3\" --out cwru-load$T.zarr\n"
+         f"  rvdiag train cwru-load$T.zarr --model svm --features spectrum-abs+bearing-envelope \\\n"
+         f"      --bearing-geometry {CWRU_GEOMETRY} --out m-load$T\n"
+         "  rvdiag evaluate m-load$T cwru-load$T.zarr\n"
+         "done\n```\n"]
+    L.append("**SpectraQuest, cross-condition** (the best row above, SVM spectrum, 64 log relative bands): train "
+             "on load 0 %, test on loads 10-60 % (`--test-include 'hz[1-9]'`).\n")
+    L.append("```bash\nrvdiag dataset from-files DATA/spectraquest-gearbox --label-regex '^(?P<label>[hb])30hz' \\\n"
+             "    --channel a1 --window 2048 --test-include 'hz[1-9]' --out sq.zarr\n"
+             "rvdiag train sq.zarr --model svm --features spectrum --out m-sq\n"
+             "rvdiag evaluate m-sq sq.zarr\n```\n")
+    L.append("| data set | fold | test windows | accuracy % | macro F1 % | Cohen's kappa |\n|---|---|---|---|---|---|")
+    for ds_name, title in (("cwru", "CWRU 4-class"), ("spectraquest", "SpectraQuest")):
+        rows = cli.get(ds_name) or []
+        for r in rows:
+            L.append(f"| {title} | {r['fold']} | {r['n']} | {100 * r['accuracy']:.2f} | {100 * r['f1_macro']:.2f} | "
+                     f"{r['kappa']:.3f} |")
+        if len(rows) > 1:
+            acc = np.array([r["accuracy"] for r in rows])
+            L.append(f"| {title} | mean ± std over the folds | | **{ms(acc)}** | "
+                     f"{ms([r['f1_macro'] for r in rows])} | {ms([r['kappa'] for r in rows], pct=False, digits=3)} |")
+    L.append("")
+    return "\n".join(L)
+
+
+def replace_cli_section(path: Path, section: str) -> None:
+    """Write ``section`` into the page at ``path`` in place of its CLI section (before "## Reproduce")."""
+    text = path.read_text()
+    end = text.index("\n## Reproduce\n") + 1
+    start = text.find(CLI_HEADING)
+    start = end if start < 0 or start > end else start
+    path.write_text(text[:start] + section + "\n" + text[end:])
+
+
 # ----------------------------------------------------------------------------- report
 def ms(values, pct=True, digits=2) -> str:
     v = np.asarray(values, dtype=float)
@@ -472,6 +584,8 @@ def write_doc(path: Path, report: dict) -> None:
         L.append("")
     L.append("## Reading the figures\n")
     L.append(report["discussion"] + "\n")
+    if report.get("cli"):
+        L.append(cli_section(report["cli"], report["date"]))
     L.append("## Reproduce\n")
     L.append("```\n.venv/bin/python bench/real_data_table.py            # this page\n"
              ".venv/bin/python bench/real_data_table.py --quick    # smoke run, fewer runs\n```\n"
@@ -569,6 +683,8 @@ def main(argv=None) -> int:
     ap.add_argument("--tune-samples", type=int, default=None)
     ap.add_argument("--tune-epoch", type=int, default=None)
     ap.add_argument("--tune-pop", type=int, default=None)
+    ap.add_argument("--cli-only", action="store_true",
+                    help="only run the rvdiag commands of the CLI section and rewrite that section of --out")
     opts = ap.parse_args(argv)
     q = opts.quick
     defaults = {"runs_random": 3 if q else 10, "runs_eemd": 5 if q else 30, "eemd_ensemble": 10 if q else 20,
@@ -579,6 +695,10 @@ def main(argv=None) -> int:
     if not opts.data.is_dir():
         print(f"error: no data folder {opts.data}", file=sys.stderr)
         return 2
+    if opts.cli_only:
+        replace_cli_section(opts.out, cli_section(run_cli(opts.data), _dt.date.today().isoformat()))
+        print(f"wrote the CLI section of {opts.out}")
+        return 0
     t_start = time.perf_counter()
     report = {
         "date": _dt.date.today().isoformat(), "rvdiag_version": rvdiag.__version__,
@@ -622,6 +742,7 @@ def main(argv=None) -> int:
                 "counts": {str(c): int(n) for c, n in zip(classes, counts)},
                 "feature_cost": cost, "results": results,
             }
+    report["cli"] = run_cli(opts.data)
     report["total_s"] = time.perf_counter() - t_start
     report["discussion"] = discussion(report)
     write_doc(opts.out, report)

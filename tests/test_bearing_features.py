@@ -11,7 +11,7 @@ from rvdiag.errors import ParameterError
 from rvdiag.features.bearing import (
     BEARING_6205,
     BearingEnvelopeFeatures,
-    bearing_envelope_features,
+    geometry_from_mm,
     kurtogram_bands,
     spectral_kurtosis,
 )
@@ -73,7 +73,9 @@ def test_per_window_speed_matches_single_speed_transformers():
     rng = np.random.default_rng(2)
     X = rng.standard_normal((4, 2048))
     speeds = np.array([29.95, 29.95, 28.8, 28.8])
-    F = bearing_envelope_features(X, speeds, fs=FS, **BEARING_6205)
+    t = BearingEnvelopeFeatures(fs=FS, speed_column="rpm", **BEARING_6205)
+    assert t.input_metadata() == ("rpm",)
+    F = t.fit(np.column_stack([X, 60 * speeds])).transform(np.column_stack([X, 60 * speeds]))
     for s in (29.95, 28.8):
         rows = speeds == s
         G = BearingEnvelopeFeatures(shaft_frequency=s, fs=FS).fit(X[rows]).transform(X[rows])
@@ -81,6 +83,49 @@ def test_per_window_speed_matches_single_speed_transformers():
     # cycles per sample without fs gives the same features
     H = BearingEnvelopeFeatures(shaft_frequency=29.95 / FS, fs=None).fit(X[:2]).transform(X[:2])
     np.testing.assert_allclose(F[:2], H)
+
+
+@pytest.mark.parametrize("line", ["bpfo", "bpfi", "bsf2"])
+def test_am_signal_at_a_defect_frequency_gives_its_envelope_line(line):
+    """A 3 kHz carrier amplitude-modulated at the defect frequency of ``line`` (at each window's own speed)
+    has a squared envelope with a line there: that line's contrast is the largest, at both speeds."""
+    t = np.arange(N) / FS
+    rows, rpms = [], []
+    for rpm in (1797.0, 1730.0):
+        f = BearingEnvelopeFeatures(shaft_frequency=rpm / 60, fs=FS).defect_frequencies_cps()[line] * FS
+        rows.append((1 + 0.5 * np.cos(2 * np.pi * f * t)) * np.sin(2 * np.pi * 3000.0 * t))
+        rpms.append(rpm)
+    X = np.column_stack([np.vstack(rows), rpms])
+    feats = BearingEnvelopeFeatures(fs=FS, speed_column="rpm").fit(X)
+    F = feats.transform(X)
+    k = ("bpfo", "bpfi", "bsf2").index(line)
+    assert np.all(np.argmax(F[:, 3:], axis=1) == k)
+    # the line holds a large share of the envelope's energy: 10^feature > 0.3 (a pure tone's share is 1/2)
+    assert np.all(F[:, k] > np.log10(0.3))
+    # read at the wrong speed (10 % off), the line is lost
+    wrong = X.copy()
+    wrong[:, -1] *= 1.1
+    assert np.all(feats.transform(wrong)[:, k] < F[:, k] - 0.5)
+
+
+def test_speed_column_errors():
+    X = np.random.default_rng(0).standard_normal((2, 2049))
+    with pytest.raises(ParameterError, match="fs"):
+        BearingEnvelopeFeatures(fs=None, speed_column="rpm").fit(X)
+    X[:, -1] = [1797.0, -5.0]
+    with pytest.raises(ParameterError, match="<= 0"):
+        BearingEnvelopeFeatures(speed_column="rpm").fit(X).transform(X)
+
+
+def test_geometry_in_mm():
+    g = geometry_from_mm("9,7.94,39.04,0")
+    assert g["n_balls"] == 9 and g["contact_angle_rad"] == 0.0
+    np.testing.assert_allclose(g["ball_diameter"] / g["pitch_diameter"],
+                               BEARING_6205["ball_diameter"] / BEARING_6205["pitch_diameter"], rtol=2e-5)
+    assert geometry_from_mm("8,10,50,15")["contact_angle_rad"] == pytest.approx(np.deg2rad(15))
+    for bad in ("9,7.94,39.04", "9,40,39.04,0", "x,1,2,0", "9,7.94,39.04,95"):
+        with pytest.raises(ParameterError, match="bearing-geometry"):
+            geometry_from_mm(bad)
 
 
 def test_kurtogram_bands_and_spectral_kurtosis():

@@ -13,7 +13,10 @@ from sklearn.utils.estimator_checks import parametrize_with_checks
 
 from rvdiag.features import (
     CharacteristicBandEnergy,
+    CombinedFeatures,
     EnvelopeSpectrumFeatures,
+    SpectrumFeatures,
+    TimeDomainFeatures,
     feature_names as signal_feature_names,
     make_features,
 )
@@ -33,7 +36,9 @@ TINY = {
 
 def _estimators():
     ests = [make_feature_set(name, **TINY.get(name, {})) for name in feature_names()]
-    ests += [CharacteristicBandEnergy(), EnvelopeSpectrumFeatures(centers=(0.1,)), BearingEnvelopeFeatures()]
+    ests += [CharacteristicBandEnergy(), EnvelopeSpectrumFeatures(centers=(0.1,)), BearingEnvelopeFeatures(),
+             BearingEnvelopeFeatures(speed_column="rpm"),
+             CombinedFeatures([("time", TimeDomainFeatures()), ("spectrum", SpectrumFeatures(n_bands=2))])]
     ests += [KELMClassifier(), TunedKELM(epoch=1, pop_size=10, cv=2),
              CNNClassifier(max_epochs=1, batch_size=64, validation_fraction=0.0, device="cpu")]
     return ests

@@ -187,14 +187,25 @@ def test_update_is_deterministic_for_a_seed(measured):
 
 @pytest.mark.slow
 def test_full_recovery_all_eight_parameters():
-    """All 8 parameters from the default set, 150 simulations.  Asserted: PCC and the identifiable three."""
+    """All 8 parameters from the default set, 150 simulations.  Asserted: PCC and the identifiable three: the
+    path resonance, the sun support, and the housing mode sqrt(k_rh / (m_ring + m_added)); the housing mass and
+    the housing stiffness trade against each other along that mode (measured since the extended tooth contact:
+    PCC 0.804 -> 0.996; sun support 1.98e8 (2e8), path resonance 4121 Hz (4000), housing mass 24.1 kg (14) with
+    the housing stiffness 8.04e9 N/m (5e9): the same mode to 1 %)."""
+    from rvdiag.params import body_properties
+
     meas = measured_record(HIDDEN, 1.0)
-    res = update_parameters(ReducerParams.default(), meas, FS, output_speed_deg_s=SPEED, load_Nm=LOAD,
-                            max_evals=150, seed=0)
+    base = ReducerParams.default()
+    res = update_parameters(base, meas, FS, output_speed_deg_s=SPEED, load_Nm=LOAD, max_evals=150, seed=0)
     assert res.pcc_after >= 0.95 and res.pcc_after > res.pcc_before
     got = {k: a for k, (_, a) in res.values.items()}
     assert got["path_resonance_hz"] == pytest.approx(HIDDEN["path_resonance_hz"], rel=0.10)
-    assert got["housing_added_mass"] == pytest.approx(HIDDEN["housing_added_mass"], rel=0.50)
+    assert got["sun_support"] == pytest.approx(HIDDEN["sun_support"], rel=0.10)
+    ring = body_properties(base).pin_wheel.mass
+    k_rh = got.get("pin_wheel_housing", base.bearings.pin_wheel_housing)
+    mode = (k_rh / (ring + got["housing_added_mass"])) ** 0.5
+    hidden_mode = (base.bearings.pin_wheel_housing / (ring + HIDDEN["housing_added_mass"])) ** 0.5
+    assert mode == pytest.approx(hidden_mode, rel=0.05)
 
 
 # ----------------------------------------------------------------------------- the command

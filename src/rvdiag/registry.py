@@ -37,6 +37,7 @@ _BUILTIN: frozenset[str] = frozenset({
     "rvdiag.features.spectrum.EnvelopeSpectrumFeatures",
     "rvdiag.features.wavelet.WaveletPacketEnergy",
     "rvdiag.features.bearing.BearingEnvelopeFeatures",
+    "rvdiag.features.combine.CombinedFeatures",
     "rvdiag.features.eemd.EEMDFeatures",
     "rvdiag.models.cnn_features.CNNFeatures",
     "rvdiag.models.kelm.KELMClassifier",

@@ -47,6 +47,12 @@ def register(app: typer.Typer) -> None:
                                           "| window: draws windows, so neighbouring windows of one recording land "
                                           "on both sides (optimistic; warns)."),
         seed: int = opt.seed("Seed of the --test-fraction split."),
+        test_include: Optional[str] = typer.Option(None, "--test-include",
+                                                   help="Put the windows of the files whose names match this regex "
+                                                        "in split 'test' (e.g. one load: '_0\\.mat$')."),
+        test_block: Optional[str] = typer.Option(None, "--test-block",
+                                                 help="REGEX=K/N: cut each matching file in time into N blocks of "
+                                                      "windows; block K goes to 'test', the others to 'train'."),
         scalar: List[str] = typer.Option([], "--scalar",
                                          help="NAME=REGEX: record the file's scalar matching REGEX as column NAME (e.g. rpm=RPM)."),
         out: Path = opt.out("Store to write (PATH.zarr)."),
@@ -73,7 +79,8 @@ def register(app: typer.Typer) -> None:
             summary = build_from_files(
                 folder, out, label_regex=label_regex, channel=channel, window_length=window, hop=hop, fs=fs,
                 meta_regex=meta_regex, include=include, test_fraction=test_fraction, seed=seed, split_by=split_by,
-                scalars=scalars, overwrite=overwrite, progress=progress,
+                scalars=scalars, overwrite=overwrite, progress=progress, test_include=test_include,
+                test_block=test_block,
             )
         if as_json:
             typer.echo(json.dumps(summary))

@@ -5,24 +5,33 @@ windows of the model's input length (the training samples' length); the tail sho
 not used (a warning says how many points).  Each window gets class probabilities; the overall
 probabilities are their mean, and the diagnosis is the most probable class overall.  A WARNING is
 printed when the file's sampling rate differs from the training rate, or is unknown.
+
+A model that reads per-sample metadata (card ``metadata_columns``, e.g. the shaft speed ``rpm`` of
+bearing-envelope features) gets it from ``--meta NAME=VALUE``, else from the file's scalar that the training
+store read into that column (card ``metadata_sources``, e.g. CWRU's ``X105RPM`` for ``--scalar rpm=RPM``).
 """
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import List
 
 import numpy as np
 import typer
 
 from rvdiag.cli import _options as opt
-from rvdiag.errors import DataFileError
+from rvdiag.errors import DataFileError, ParameterError
 
 MAX_ROWS = 40
 
 
-def diagnose_signal(loaded, x: np.ndarray, fs: float | None) -> dict:
-    """Window ``x`` to the model input, predict each window; returns the result dict of ``--json``."""
+def diagnose_signal(loaded, x: np.ndarray, fs: float | None, meta: dict[str, float] | None = None) -> dict:
+    """Window ``x`` to the model input, predict each window; returns the result dict of ``--json``.
+
+    ``meta``: the value of each metadata column the model reads (:attr:`LoadedModel.metadata_columns`),
+    the same for every window.
+    """
     L = loaded.input_length
     n = int(x.size)
     warnings = []
@@ -42,6 +51,8 @@ def diagnose_signal(loaded, x: np.ndarray, fs: float | None) -> dict:
         warnings.append(f"WARNING: {n} points is not a multiple of the model's {L}-point window: "
                         f"the last {rest} points are not used")
     X = x[: k * L].reshape(k, L)
+    columns = {c: np.full(k, v, dtype=np.float64) for c, v in (meta or {}).items()}
+    X = loaded.inputs(X, columns, where="the signal (give the value with --meta NAME=VALUE)")
     P = np.asarray(loaded.estimator.predict_proba(X), dtype=float)
     classes = [str(c) for c in loaded.estimator.classes_]
     overall = P.mean(axis=0)
@@ -52,6 +63,7 @@ def diagnose_signal(loaded, x: np.ndarray, fs: float | None) -> dict:
         "window_length": L,
         "fs": fs,
         "training_fs": train_fs,
+        "metadata": {c: float(v) for c, v in (meta or {}).items() if c in loaded.metadata_columns},
         "windows": [{"start": i * L, "prediction": classes[int(P[i].argmax())],
                      "probabilities": {c: float(p) for c, p in zip(classes, P[i])}} for i in range(k)],
         "warnings": warnings,
@@ -66,6 +78,9 @@ def register(app: typer.Typer) -> None:
         channel: str = opt.channel(),
         fs: float = opt.fs("Sampling rate in Hz (overrides the file's)."),
         json_out: bool = opt.json_flag("Print the result as JSON."),
+        meta: List[str] = typer.Option([], "--meta",
+                                       help="NAME=VALUE: a metadata value the model reads, e.g. rpm=1797 (default: "
+                                            "the file's scalar the training store read, e.g. X105RPM)."),
     ) -> None:
         """Diagnose the state of a reducer from one signal file."""
         from rvdiag.io import read_signal
@@ -73,7 +88,8 @@ def register(app: typer.Typer) -> None:
 
         loaded = load_model(model_dir)
         sig = read_signal(file, channel_regex=channel, fs=fs)
-        res = diagnose_signal(loaded, np.asarray(sig.data, dtype=np.float64), sig.fs)
+        values = _metadata_values(loaded, sig, meta)
+        res = diagnose_signal(loaded, np.asarray(sig.data, dtype=np.float64), sig.fs, values)
         res.update({"file": str(file), "channel": sig.channel, "model": str(model_dir)})
         for w in res["warnings"]:
             typer.echo(w, err=True)
@@ -81,6 +97,35 @@ def register(app: typer.Typer) -> None:
             typer.echo(json.dumps(res, indent=2))
             return
         _print(res)
+
+
+def _metadata_values(loaded, sig, items: list[str]) -> dict[str, float]:
+    """The model's metadata for one file: ``--meta NAME=VALUE``, else the file's scalar named in the card."""
+    import math
+
+    given: dict[str, float] = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not sep or not name.strip() or not math.isfinite(value):
+            raise ParameterError(f"--meta {item!r}: expected NAME=NUMBER, e.g. rpm=1797")
+        given[name.strip()] = value
+    sources = loaded.card.get("metadata_sources") or {}
+    for column in loaded.metadata_columns:
+        if column not in given and column in sources:
+            try:
+                given[column] = float(sig.scalar(sources[column]))
+            except DataFileError as exc:
+                raise DataFileError(f"the model reads {column!r} per window from the file's scalar "
+                                    f"{sources[column]!r}: {exc}; pass --meta {column}=VALUE") from None
+    missing = [c for c in loaded.metadata_columns if c not in given]
+    if missing:
+        raise ParameterError(f"the model reads metadata {missing} per window, which {sig.path} does not give: "
+                             f"pass --meta {missing[0]}=VALUE (e.g. the shaft speed in rev/min)")
+    return given
 
 
 def _print(res: dict) -> None:

@@ -1,8 +1,13 @@
 """``rvdiag train``: train a CNN or a classical model on a sample store and save it as a model directory.
 
     rvdiag train DATA.zarr -o MODEL_DIR [--model cnn1d|cnn1d-lean|mcsa-cnn|svm|kelm|kelm-mpa|kelm-ga|kelm-pso]
-                 [--features time|spectrum|logspec|wpd|eemd|none|cnn] [--epochs N]
-                 [--device auto|cpu|cuda] [--seed N] [--repeat N]
+                 [--features time|spectrum|spectrum-abs|logspec|envelope|bearing-envelope|wpd|eemd|none|cnn]
+                 [--epochs N] [--device auto|cpu|cuda] [--seed N] [--repeat N]
+                 [--bearing-geometry N_BALLS,D_BALL_MM,D_PITCH_MM,CONTACT_DEG] [--rpm-column NAME]
+
+Feature sets join with '+' (``--features spectrum-abs+bearing-envelope``).  ``bearing-envelope`` needs the
+bearing's geometry and reads each sample's shaft speed (rev/min) from the store's metadata column
+``--rpm-column``; the model card records the column, and ``evaluate`` / ``diagnose`` supply it.
 
 With no options it trains the setup docs/results.md recommends (:data:`rvdiag.registry.RECOMMENDED_TRAINING`:
 ``mcsa-cnn`` on ``--representation logspec``, 40 epochs, lr 3e-3, patience 6).  The model names are those of
@@ -65,10 +70,37 @@ def validation_groups(store, samples):
     return units
 
 
+def features_kw(features: str, *, epochs: int, device: str, seed: int, lr: float, batch_size: int,
+                bearing_geometry: str | None, rpm_column: str, fs: float | None) -> dict:
+    """Arguments of each part of a ``--features`` value (a dict per part name for names joined by '+')."""
+    from rvdiag.features.bearing import geometry_from_mm
+    from rvdiag.models.pipelines import feature_names
+
+    parts = features.split("+")
+    for name in parts:
+        if name not in feature_names():
+            raise ParameterError(f"unknown feature set {name!r}; use one of {'|'.join(feature_names())} "
+                                 "(or several joined by '+')")
+    if bearing_geometry is not None and "bearing-envelope" not in parts:
+        raise ParameterError("--bearing-geometry applies to --features bearing-envelope only")
+    kw: dict[str, dict] = {}
+    for name in parts:
+        if name == "cnn":
+            kw[name] = {"max_epochs": epochs, "device": device, "random_state": seed, "learning_rate": lr,
+                        "batch_size": batch_size}
+        elif name == "bearing-envelope":
+            if bearing_geometry is None:
+                raise ParameterError("--features bearing-envelope needs --bearing-geometry "
+                                     "N_BALLS,D_BALL_MM,D_PITCH_MM,CONTACT_DEG (e.g. 9,7.94,39.04,0 for a 6205)")
+            kw[name] = {**geometry_from_mm(bearing_geometry), "fs": fs, "speed_column": rpm_column}
+    return kw if len(parts) > 1 else kw.get(features, {})
+
+
 def build_estimator(model: str, features: str | None, *, epochs: int, device: str, seed: int,
                     batch_size: int, lr: float, input_length: int | None, patience: int,
-                    validation_fraction: float, normalize: str = "window", representation: str = "waveform"):
-    """A fresh, unfitted estimator for a ``--model`` name."""
+                    validation_fraction: float, normalize: str = "window", representation: str = "waveform",
+                    bearing_geometry: str | None = None, rpm_column: str = "rpm", fs: float | None = None):
+    """A fresh, unfitted estimator for a ``--model`` name (``fs``: the store's, for bearing-envelope)."""
     if model in CNN_MODELS:
         if features is not None:
             raise ParameterError(f"--features does not apply to the CNN model {model!r} (it learns its features); "
@@ -83,10 +115,8 @@ def build_estimator(model: str, features: str | None, *, epochs: int, device: st
         from rvdiag.models.pipelines import make_classical_model
 
         feats = features or "wpd"
-        kw = {}
-        if feats == "cnn":
-            kw = {"max_epochs": epochs, "device": device, "random_state": seed, "learning_rate": lr,
-                  "batch_size": batch_size}
+        kw = features_kw(feats, epochs=epochs, device=device, seed=seed, lr=lr, batch_size=batch_size,
+                         bearing_geometry=bearing_geometry, rpm_column=rpm_column, fs=fs)
         return make_classical_model(model, feats, seed=seed, features_kw=kw)
     raise ParameterError(f"unknown model {model!r}; use one of {'|'.join(CNN_MODELS + CLASSICAL_MODELS)}")
 
@@ -130,7 +160,9 @@ def register(app: typer.Typer) -> None:
                                   help=" | ".join(CNN_MODELS + CLASSICAL_MODELS) + " (default: the recommended "
                                        "setup of docs/results.md)"),
         features: str = typer.Option(None, "--features", "-f",
-                                     help="Classical models: time | spectrum | logspec | wpd | eemd | none | cnn (default wpd)."),
+                                     help="Classical models: time | spectrum | spectrum-abs | logspec | envelope | "
+                                          "bearing-envelope | wpd | eemd | none | cnn, or several joined by '+' "
+                                          "(default wpd)."),
         out: Path = opt.out("Model directory to write."),
         epochs: int = typer.Option(RECOMMENDED_TRAINING["epochs"], "--epochs",
                                    help="CNN: maximum epochs (early stopping may end sooner)."),
@@ -156,6 +188,13 @@ def register(app: typer.Typer) -> None:
                                    "accuracy-against-SNR curve from a clean library (docs/results.md)."),
         json_out: bool = opt.json_flag("Print the test metrics (and repeat summary) as JSON."),
         quiet: bool = opt.quiet(),
+        bearing_geometry: str = typer.Option(None, "--bearing-geometry",
+                                             help="bearing-envelope features: N_BALLS,D_BALL_MM,D_PITCH_MM,"
+                                                  "CONTACT_DEG of the bearing (e.g. 9,7.94,39.04,0: a 6205)."),
+        rpm_column: str = typer.Option("rpm", "--rpm-column",
+                                       help="bearing-envelope features: the store's metadata column holding each "
+                                            "sample's shaft speed in rev/min (e.g. from dataset from-files "
+                                            "--scalar rpm=RPM)."),
     ) -> None:
         """Train a classifier on the train split of a store and save it as a model directory.
 
@@ -174,15 +213,11 @@ def register(app: typer.Typer) -> None:
         new_estimator = functools.partial(build_estimator, model, features, epochs=epochs, device=device,
                                           batch_size=batch_size, lr=lr, input_length=input_length,
                                           patience=patience, validation_fraction=validation_fraction,
-                                          normalize=normalize, representation=representation)
+                                          normalize=normalize, representation=representation,
+                                          bearing_geometry=bearing_geometry, rpm_column=rpm_column)
         with opt.option_names(CNN_OPTION_NAMES):
             probe = new_estimator(seed=seed)  # checks --model/--features before any work
-        if features is not None and model in CLASSICAL_MODELS:
-            from rvdiag.models.pipelines import feature_names
-
-            if features not in feature_names():
-                raise ParameterError(f"unknown feature set {features!r}; use one of {'|'.join(feature_names())}")
-        if model in CNN_MODELS or features == "cnn":
+        if model in CNN_MODELS or "cnn" in (features or "").split("+"):
             from rvdiag.models.torch_estimator import resolve_device
 
             resolve_device(device)  # 'cuda' without a GPU fails now, not after loading the data
@@ -196,6 +231,14 @@ def register(app: typer.Typer) -> None:
         te = store.load("test") if "test" in store.splits() else None
         if snr_db is not None:
             tr, te = _with_noise(tr, snr_db, [seed, 0]), (None if te is None else _with_noise(te, snr_db, [seed, 1]))
+        from rvdiag.features.combine import input_metadata, with_metadata
+
+        meta_cols = input_metadata(probe)
+        if meta_cols and not store.fs:
+            raise StoreError(f"{data} states no sampling rate, which bearing-envelope features need to place the "
+                             "defect lines: rebuild it with 'rvdiag dataset from-files --fs HZ'")
+        Xtr = with_metadata(tr.X, tr.meta, meta_cols, where=f"the store {data}")
+        Xte = None if te is None else with_metadata(te.X, te.meta, meta_cols, where=f"the store {data}")
         labels = [c for c in store.classes if c in set(tr.y.tolist())]
         if len(labels) < 2:
             raise StoreError(f"{data}: the train split holds fewer than 2 classes")
@@ -206,7 +249,7 @@ def register(app: typer.Typer) -> None:
         runs, first = [], None
         for r in range(repeat):
             s = seed + r
-            est = new_estimator(seed=s)
+            est = new_estimator(seed=s, fs=store.fs)
             if r == 0 and model in CNN_MODELS:
                 W = est.network_input_length(store.length)
                 starts = window_starts(store.length, W, est.long_input)
@@ -214,10 +257,10 @@ def register(app: typer.Typer) -> None:
                     echo(f"note: samples have {store.length} points and the {model} input is {W}: each sample is cut "
                          f"into {len(starts)} window(s) starting at {starts.tolist()}; training uses every window, "
                          "predictions average them (docs/models.md)")
-            _fit(est, tr.X, tr.y, quiet or json_out, f"seed {s}", groups=validation_groups(store, tr))
+            _fit(est, Xtr, tr.y, quiet or json_out, f"seed {s}", groups=validation_groups(store, tr))
             metrics = None
             if te is not None and len(te.y):
-                metrics = classification_metrics(te.y, est.predict(te.X), labels=[str(c) for c in est.classes_])
+                metrics = classification_metrics(te.y, est.predict(Xte), labels=[str(c) for c in est.classes_])
                 runs.append(metrics)
                 echo(f"seed {s}: test accuracy {100 * metrics['accuracy']:.2f} %  kappa {metrics['kappa']:.4f}")
             if r == 0:
@@ -228,6 +271,9 @@ def register(app: typer.Typer) -> None:
                       "kind": store.attrs.get("kind"), "n_train": int(len(tr.y))}
         extra = {} if snr_db is None else {"added_noise": {"snr_db": float(snr_db), "seed": [seed, 0],
                                                            "applies_to": "train and test splits"}}
+        scalars = (store.attrs.get("config") or {}).get("scalars") or {}
+        if meta_cols:  # where diagnose finds each column in a measured file (the store's --scalar regex)
+            extra["metadata_sources"] = {c: scalars[c] for c in meta_cols if c in scalars}
         summary = None
         if repeat > 1 and runs:
             summary = repeat_summary(runs)

@@ -11,7 +11,8 @@ Metadata columns of every sample:
 ``split``    ``train`` (all samples), unless ``test_fraction`` asks for a seeded split stratified by label: by
              file (``split_by="unit"``, the default: every window of a file lands on the same side) or, with
              a :class:`SplitLeakWarning`, by window (``split_by="window"``: neighbouring, possibly overlapping
-             windows of one recording land on both sides, so the test score is optimistic)
+             windows of one recording land on both sides, so the test score is optimistic);
+             or ``test_include`` / ``test_block`` name the test windows (:func:`split_by_name`)
 ``unit``     index of the source file (sorted by name)
 ``source``   the source file name
 ``channel``  the channel read
@@ -149,6 +150,8 @@ def build_from_files(
     scalars: Mapping[str, str] | None = None,
     overwrite: bool = False,
     progress: Callable[[int, int, str], None] | None = None,
+    test_include: str | None = None,
+    test_block: str | None = None,
 ) -> dict[str, Any]:
     """Read, window and label every selected file of ``folder``; write the store ``out``.
 
@@ -171,6 +174,8 @@ def build_from_files(
         one by one, which leaks (neighbouring windows of one recording on both sides) and warns.
     scalars : mapping name -> regex, optional
         Scalars of each file to record as metadata columns (e.g. ``{"rpm": "RPM"}``).
+    test_include, test_block : str, optional
+        A split chosen by the user instead of ``test_fraction`` (:func:`split_by_name`).
     overwrite : bool
         Replace an existing store at ``out``.
     progress : callable(done, total, file name), optional
@@ -183,6 +188,11 @@ def build_from_files(
     out = Path(out)
     if out.exists() and not overwrite:
         raise StoreError(f"{out} already exists (remove it, choose another --out, or pass --overwrite)")
+    if test_fraction is not None and (test_include is not None or test_block is not None):
+        raise ParameterError("--test-fraction and --test-include/--test-block choose the test split in two ways: "
+                             "give one")
+    block = _parse_block(test_block)
+    test_pat = _compile(test_include, "--test-include")
     if test_fraction is not None and not (0.0 < float(test_fraction) < 1.0):
         raise ParameterError(f"--test-fraction must be between 0 and 1 (exclusive), got {test_fraction}")
     if split_by not in SPLIT_BY:
@@ -255,7 +265,9 @@ def build_from_files(
         if k in meta or k == "split":
             raise ParameterError(f"scalar column name {k!r} is reserved or used twice")
         meta[k] = np.asarray(v, dtype=np.float64)
-    if split_by == "unit":
+    if test_pat is not None or block is not None:
+        meta["split"] = split_by_name(meta["source"], test_pat, block)
+    elif split_by == "unit":
         meta["split"] = _split_by_unit(y, meta["unit"], test_fraction, seed)
     else:
         meta["split"] = _split(y, test_fraction, seed)
@@ -279,6 +291,8 @@ def build_from_files(
         "seed": int(seed),
         "split_by": split_by,
         "scalars": dict(scalar_pats),
+        "test_include": test_include,
+        "test_block": test_block,
     }
     file_fs = None if fs_seen == "unset" else fs_seen
     write_store(out, X, y.tolist(), meta, kind="measured", fs=file_fs, config=config,
@@ -345,4 +359,42 @@ def _split(y: np.ndarray, test_fraction: float | None, seed: int) -> np.ndarray:
     return split
 
 
-__all__ = ["SPLIT_BY", "FileEntry", "build_from_files", "select_files", "SUPPORTED_SUFFIXES"]
+def _parse_block(text: str | None) -> tuple[re.Pattern, int, int] | None:
+    """``"REGEX=K/N"`` -> (pattern, K, N); None stays None."""
+    if text is None:
+        return None
+    regex, sep, frac = text.rpartition("=")
+    k, slash, n = frac.partition("/")
+    try:
+        k_i, n_i = int(k), int(n)
+    except ValueError:
+        k_i = n_i = 0
+    if not sep or not regex or not slash or not 1 <= k_i <= n_i or n_i < 2:
+        raise ParameterError(f"--test-block {text!r}: expected REGEX=K/N with 1 <= K <= N and N >= 2, "
+                             "e.g. normal=1/3")
+    return _compile(regex, "--test-block regex"), k_i, n_i
+
+
+def split_by_name(source: np.ndarray, test_include: re.Pattern | None,
+                  block: tuple[re.Pattern, int, int] | None) -> np.ndarray:
+    """The ``split`` column of a split chosen by file name (``dataset from-files --test-include/--test-block``).
+
+    A window is ``test`` when its file's name matches ``test_include`` (``re.search``), else ``train``.  A
+    file whose name matches the ``block`` regex (``REGEX=K/N``) is cut in time instead: its windows, in
+    order, form N contiguous blocks (window i of n in block floor(i N / n) + 1), block K is ``test`` and the
+    others ``train``; so one recording can serve both sides without a test window overlapping a training
+    window (with no overlap between windows, ``--hop`` = ``--window``).
+    """
+    source = np.asarray(source).astype(str)
+    split = np.full(source.shape[0], "train", dtype=object)
+    for name in dict.fromkeys(source.tolist()):
+        rows = np.flatnonzero(source == name)
+        if block is not None and block[0].search(name):
+            _, k, n = block
+            split[rows[np.arange(rows.size) * n // rows.size == k - 1]] = "test"
+        elif test_include is not None and test_include.search(name):
+            split[rows] = "test"
+    return split
+
+
+__all__ = ["SPLIT_BY", "split_by_name", "FileEntry", "build_from_files", "select_files", "SUPPORTED_SUFFIXES"]

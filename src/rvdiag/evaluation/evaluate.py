@@ -77,7 +77,8 @@ def evaluate_on_store(loaded, store, split: str = "test") -> Evaluation:
     s = store.load(split)
     if len(s.y) == 0:
         raise ModelFileError(f"the split {split!r} of {store.path} is empty")
-    y_pred = predict_in_chunks(loaded.estimator, s.X).astype(str)
+    X = loaded.inputs(s.X, s.meta, where=f"the store {store.path}")
+    y_pred = predict_in_chunks(loaded.estimator, X).astype(str)
     y_true = np.asarray(s.y).astype(str)
     m = classification_metrics(y_true, y_pred, labels=[str(c) for c in loaded.card["classes"]])
     return Evaluation(m, y_true, y_pred, s.X, s.meta, split, warnings)
@@ -103,7 +104,7 @@ def accuracy_against_snr(loaded, ev: Evaluation, snr_db: list[float], seed: int 
     out = []
     for i, level in enumerate(snr_db):
         noisy = add_awgn(ev.X, float(level), np.random.default_rng([int(seed), i])).astype(np.float32)
-        pred = predict_in_chunks(loaded.estimator, noisy).astype(str)
+        pred = predict_in_chunks(loaded.estimator, loaded.inputs(noisy, ev.meta)).astype(str)
         m = classification_metrics(ev.y_true, pred, labels=labels)
         out.append({"snr_db": float(level), "accuracy": m["accuracy"], "f1_macro": m["f1_macro"],
                     "kappa": m["kappa"], "n": int(len(pred)), "per_class_recall":
@@ -136,7 +137,8 @@ def report_html(loaded, store, ev: Evaluation, max_tsne: int = 600, seed: int = 
     pick = np.sort(rng.choice(n, size=min(n, max_tsne), replace=False))
     emb = None
     if len(pick) >= 5:
-        emb = tsne_embedding(learned_features(loaded.estimator, ev.X[pick]), random_state=seed)
+        X = loaded.inputs(ev.X[pick], {k: np.asarray(v)[pick] for k, v in ev.meta.items()})
+        emb = tsne_embedding(learned_features(loaded.estimator, X), random_state=seed)
     examples = {}
     first_idx = []
     for c in loaded.card["classes"]:

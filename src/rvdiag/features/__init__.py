@@ -1,20 +1,28 @@
 """Feature extractors: scikit-learn transformers from signal windows (n_samples, n_points) to features.
 
-=========  ==========================================  ===================================
-name       transformer                                 source
-=========  ==========================================  ===================================
-time       :class:`TimeDomainFeatures` (10 statistics)  Li, Zhao et al. 2024
-spectrum   :class:`SpectrumFeatures` (FFT band powers)
-logspec    :class:`SpectrumFeatures` (every FFT bin, log    the input of the ``logspec`` CNNs
-           of the relative magnitude)
-wpd        :class:`WaveletPacketEnergy` (16 bands)      Li, Zhao et al. 2024
-eemd       :class:`EEMDFeatures` (mean |IMF| x 6)        Tu et al. 2023
-none       :class:`RawSignal` (the samples themselves)
-=========  ==========================================  ===================================
+================  ==========================================  ===================================
+name              transformer                                 source
+================  ==========================================  ===================================
+time              :class:`TimeDomainFeatures` (10 statistics)  Li, Zhao et al. 2024
+spectrum          :class:`SpectrumFeatures` (64 log relative
+                  FFT band powers)
+spectrum-abs      :class:`SpectrumFeatures` (64 log absolute
+                  FFT band powers: keeps the level)
+logspec           :class:`SpectrumFeatures` (every FFT bin, log  the input of the ``logspec`` CNNs
+                  of the relative magnitude)
+envelope          :class:`EnvelopeSpectrumFeatures` (squared-     Randall & Antoni 2011
+                  envelope spectrum, 40 bands)
+bearing-envelope  :class:`~rvdiag.features.bearing.BearingEnvelopeFeatures`   Randall & Antoni 2011
+                  (envelope lines at BPFO, BPFI, 2 BSF)
+wpd               :class:`WaveletPacketEnergy` (16 bands)      Li, Zhao et al. 2024
+eemd              :class:`EEMDFeatures` (mean |IMF| x 6)        Tu et al. 2023
+none              :class:`RawSignal` (the samples themselves)
+================  ==========================================  ===================================
 
-Also :class:`CharacteristicBandEnergy` (bands at the reducer's characteristic frequencies) and
-:class:`EnvelopeSpectrumFeatures` (squared-envelope spectrum, the bearing tool).  Extensions add names with
-:func:`register_features`.  The learned ``cnn`` feature set trains a network, so it lives in the models layer
+Names joined by ``+`` (``spectrum-abs+bearing-envelope``) put feature sets side by side
+(:class:`~rvdiag.features.combine.CombinedFeatures`, built by :func:`rvdiag.models.pipelines.make_feature_set`).
+Also :class:`CharacteristicBandEnergy` (bands at the reducer's characteristic frequencies).  Extensions add
+names with :func:`register_features`.  The learned ``cnn`` feature set trains a network, so it lives in the models layer
 (:class:`rvdiag.models.cnn_features.CNNFeatures`, named by :func:`rvdiag.models.pipelines.feature_names`);
 this package never imports torch.
 """
@@ -25,6 +33,8 @@ from typing import Callable
 
 from rvdiag.errors import ParameterError
 from rvdiag.features._base import SignalTransformer, as_signal_matrix
+from rvdiag.features.bearing import BearingEnvelopeFeatures
+from rvdiag.features.combine import CombinedFeatures, input_metadata, with_metadata
 from rvdiag.features.eemd import EEMDFeatures, eemd, emd
 from rvdiag.features.spectrum import (
     CharacteristicBandEnergy,
@@ -52,10 +62,19 @@ def log_spectrum_features(**kw) -> SpectrumFeatures:
     return SpectrumFeatures(**{"n_bands": None, "log": True, "relative": True, **kw})
 
 
+def absolute_spectrum_features(**kw) -> SpectrumFeatures:
+    """64 log10 band powers of the spectrum, not divided by the window's total: the level is kept (on the CWRU
+    bearings, the severity and the load change it; docs/real-data.md)."""
+    return SpectrumFeatures(**{"relative": False, **kw})
+
+
 _REGISTRY: dict[str, Callable[..., object]] = {
     "time": TimeDomainFeatures,
     "spectrum": SpectrumFeatures,
+    "spectrum-abs": absolute_spectrum_features,
     "logspec": log_spectrum_features,
+    "envelope": EnvelopeSpectrumFeatures,
+    "bearing-envelope": BearingEnvelopeFeatures,
     "wpd": WaveletPacketEnergy,
     "eemd": EEMDFeatures,
     "none": RawSignal,
@@ -73,7 +92,7 @@ def feature_names() -> list[str]:
 
 
 def make_features(name: str, **kw):
-    """A new, unfitted feature transformer by name (``time|spectrum|logspec|wpd|eemd|none``).
+    """A new, unfitted feature transformer by name (:func:`feature_names`).
 
     Keyword arguments go to the transformer's constructor.
     """
@@ -87,8 +106,9 @@ def make_features(name: str, **kw):
 
 
 __all__ = [
-    "CharacteristicBandEnergy", "EEMDFeatures", "EnvelopeSpectrumFeatures", "RawSignal", "SignalTransformer",
-    "SpectrumFeatures", "TIME_FEATURE_NAMES", "TimeDomainFeatures", "WaveletPacketEnergy",
-    "as_signal_matrix", "bearing_defect_frequencies", "eemd", "emd", "feature_names", "make_features",
-    "register_features", "time_features",
+    "BearingEnvelopeFeatures", "CharacteristicBandEnergy", "CombinedFeatures", "EEMDFeatures",
+    "EnvelopeSpectrumFeatures", "RawSignal", "SignalTransformer", "SpectrumFeatures", "TIME_FEATURE_NAMES",
+    "TimeDomainFeatures", "WaveletPacketEnergy", "absolute_spectrum_features", "as_signal_matrix",
+    "bearing_defect_frequencies", "eemd", "emd", "feature_names", "input_metadata", "log_spectrum_features",
+    "make_features", "register_features", "time_features", "with_metadata",
 ]

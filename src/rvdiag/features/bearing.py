@@ -25,6 +25,11 @@ whatever its size (:class:`BearingEnvelopeFeatures`).  The lines are evaluated e
 rather than on the FFT grid: with 2048-point windows at 12 kHz the grid step (5.9 Hz) is as wide as the
 gap between BPFO and the second lower sideband BPFI - 2 f_r of an inner-race defect.
 
+Speed per window: with ``speed_column`` set (``rvdiag train --features bearing-envelope`` sets it to the
+``--rpm-column`` metadata column), the last input column holds each window's shaft speed in rev/min and the
+defect frequencies follow it window by window (f_r = RPM / 60), so one model serves several speeds; the
+model card records the column's name (:func:`rvdiag.features.combine.input_metadata`).
+
 The defaults describe the CWRU drive-end bearing, a 6205-2RS JEM SKF deep-groove ball bearing: 9 balls,
 d = 0.3126 in, D = 1.537 in (CWRU Bearing Data Center, "Bearing information" page); the data centre lists
 defect frequencies as multiples of shaft speed BPFI 5.4152, BPFO 3.5848, FTF 0.39828, BSF 2.357.
@@ -79,15 +84,19 @@ class BearingEnvelopeFeatures(SignalTransformer):
     Six features: ``bpfo``, ``bpfi``, ``bsf2`` and the same minus their mean (``*_contrast``: which line
     dominates, the location of the defect, whatever its severity).
 
+    The defect frequencies are those of Randall & Antoni 2011, Eqs. (1)-(4) (module doc): BPFO =
+    n f_r/2 (1 - d/D cos phi), BPFI = n f_r/2 (1 + d/D cos phi), 2 BSF = D/d f_r (1 - (d/D cos phi)^2).
+
     Parameters
     ----------
     shaft_frequency : float
         Shaft (inner-race) rotation frequency: in Hz when ``fs`` is given, else in cycles per sample.
-        (CWRU: RPM / 60 Hz with fs = 12 kHz.)
+        (CWRU: RPM / 60 Hz with fs = 12 kHz.)  Not used when ``speed_column`` is set.
     fs : float or None
         Sampling rate in Hz.
     n_balls, ball_diameter, pitch_diameter, contact_angle_rad
-        Bearing geometry (defaults: the 6205 of the CWRU drive end, :data:`BEARING_6205`).
+        Bearing geometry (defaults: the 6205 of the CWRU drive end, :data:`BEARING_6205`); the diameters in
+        any one unit (only d/D matters).
     harmonics : int
         Harmonics of each defect line.
     slip : float
@@ -96,6 +105,10 @@ class BearingEnvelopeFeatures(SignalTransformer):
         Grid points over [-slip, slip].
     levels : int
         Kurtogram levels whose bands are demodulated (1..5).
+    speed_column : str or None
+        Name of the metadata column that holds each window's shaft speed in rev/min.  When set, ``X`` is
+        ``(n_windows, n_points + 1)``: the window's points, then its speed (``fs`` is then required).
+        Windows of equal speed are transformed together.
     """
 
     _min_points = 64
@@ -103,7 +116,7 @@ class BearingEnvelopeFeatures(SignalTransformer):
     def __init__(self, shaft_frequency: float = 1797 / 60, fs: float | None = 12000.0,
                  n_balls: int = 9, ball_diameter: float = 0.3126, pitch_diameter: float = 1.537,
                  contact_angle_rad: float = 0.0, harmonics: int = 3, slip: float = 0.02, n_slip: int = 5,
-                 levels: int = 2):
+                 levels: int = 2, speed_column: str | None = None):
         self.shaft_frequency = shaft_frequency
         self.fs = fs
         self.n_balls = n_balls
@@ -114,29 +127,41 @@ class BearingEnvelopeFeatures(SignalTransformer):
         self.slip = slip
         self.n_slip = n_slip
         self.levels = levels
+        self.speed_column = speed_column
 
     # ------------------------------------------------------------------ parameters
-    def _shaft_cps(self) -> float:
-        f = float(self.shaft_frequency)
+    def input_metadata(self) -> tuple[str, ...]:
+        """Metadata columns appended to each window of ``X``: ``(speed_column,)`` or none."""
+        return () if self.speed_column is None else (str(self.speed_column),)
+
+    def _shaft_cps(self, shaft_frequency: float | None = None) -> float:
+        f = float(self.shaft_frequency if shaft_frequency is None else shaft_frequency)
         if self.fs is not None:
             if not float(self.fs) > 0:
                 raise ParameterError(f"fs must be > 0 Hz, got {self.fs}")
             f = f / float(self.fs)
         if not 0 < f < 0.5:
+            shown = self.shaft_frequency if shaft_frequency is None else shaft_frequency
             raise ParameterError(
-                f"shaft frequency must lie between 0 and Nyquist, got {self.shaft_frequency} (fs {self.fs})"
+                f"shaft frequency must lie between 0 and Nyquist, got {shown} (fs {self.fs})"
             )
         return f
 
-    def defect_frequencies_cps(self) -> dict[str, float]:
-        """Shaft ``fr``, FTF, BPFO, BPFI and 2 BSF in cycles per sample."""
-        fr = self._shaft_cps()
+    def defect_frequencies_cps(self, shaft_frequency: float | None = None) -> dict[str, float]:
+        """Shaft ``fr``, FTF, BPFO, BPFI and 2 BSF in cycles per sample (at ``shaft_frequency``, in the unit of
+        the parameter of that name, else at the parameter)."""
+        fr = self._shaft_cps(shaft_frequency)
         f = bearing_defect_frequencies(fr, int(self.n_balls), float(self.ball_diameter),
                                        float(self.pitch_diameter), float(self.contact_angle_rad))
         return {"fr": fr, "ftf": f["ftf"], "bpfo": f["bpfo"], "bpfi": f["bpfi"], "bsf2": 2.0 * f["bsf"]}
 
-    def _check_params(self, n_points):
-        f = self.defect_frequencies_cps()
+    def _check_params(self, n_points, shaft_frequency: float | None = None):
+        if self.speed_column is not None:
+            if not (isinstance(self.speed_column, str) and self.speed_column):
+                raise ParameterError(f"speed_column must be a metadata column name, got {self.speed_column!r}")
+            if self.fs is None:
+                raise ParameterError("a shaft speed in rev/min per window (speed_column) needs the sampling rate fs")
+            n_points -= 1
         if not (isinstance(self.harmonics, (int, np.integer)) and self.harmonics >= 1):
             raise ParameterError(f"harmonics must be a positive integer, got {self.harmonics!r}")
         if not 0 <= self.slip < 0.25:
@@ -145,6 +170,9 @@ class BearingEnvelopeFeatures(SignalTransformer):
             raise ParameterError(f"n_slip must be a positive integer, got {self.n_slip!r}")
         if not (isinstance(self.levels, (int, np.integer)) and 1 <= self.levels <= 5):
             raise ParameterError(f"levels must be an integer in 1..5, got {self.levels!r}")
+        if self.speed_column is not None and shaft_frequency is None:
+            return  # the lines are checked at each window's own speed in transform
+        f = self.defect_frequencies_cps(shaft_frequency)
         top = max(f[k] for k in _LINES) * self.harmonics * (1 + self.slip)
         if top >= 0.5:
             raise ParameterError("defect-line harmonics above Nyquist: lower `harmonics` or check fs and speed")
@@ -154,9 +182,26 @@ class BearingEnvelopeFeatures(SignalTransformer):
 
     # ------------------------------------------------------------------ features
     def _features(self, X):
-        self._check_params(X.shape[1])
+        if self.speed_column is None:
+            return self._lines(X, None)
+        W, rpm = X[:, :-1], X[:, -1]
+        if W.shape[1] < self._min_points:
+            raise ParameterError(f"signal windows need at least {self._min_points} points, got {W.shape[1]} "
+                                 f"(plus the {self.speed_column!r} column)")
+        if not np.all(rpm > 0):
+            raise ParameterError(f"the shaft speed column {self.speed_column!r} holds values <= 0 rev/min "
+                                 f"(e.g. {rpm[~(rpm > 0)][0]:g})")
+        out = np.empty((X.shape[0], 2 * len(_LINES)))
+        for value in np.unique(rpm):
+            rows = rpm == value
+            out[rows] = self._lines(np.ascontiguousarray(W[rows]), float(value) / 60.0)
+        return out
+
+    def _lines(self, X, shaft_frequency):
+        """The features of windows ``X`` (points only) at one shaft frequency (None: the parameter)."""
+        self._check_params(X.shape[1] + (self.speed_column is not None), shaft_frequency)
         n = X.shape[1]
-        f = self.defect_frequencies_cps()
+        f = self.defect_frequencies_cps(shaft_frequency)
         t = np.arange(n)
         w = np.hanning(n)
         slips = np.linspace(-self.slip, self.slip, int(self.n_slip)) if self.n_slip > 1 else np.zeros(1)
@@ -179,27 +224,21 @@ class BearingEnvelopeFeatures(SignalTransformer):
         return list(_LINES) + [f"{name}_contrast" for name in _LINES]
 
 
-def bearing_envelope_features(X, shaft_frequency, **kw) -> np.ndarray:
-    """:class:`BearingEnvelopeFeatures` with a shaft frequency per window (e.g. each file's RPM).
+def geometry_from_mm(text: str) -> dict:
+    """``"N_BALLS,D_BALL_MM,D_PITCH_MM,CONTACT_DEG"`` (``rvdiag train --bearing-geometry``) -> the geometry
+    parameters of :class:`BearingEnvelopeFeatures` (diameters in mm, contact angle in radians).
 
-    Parameters
-    ----------
-    X : array (n_windows, n_points)
-    shaft_frequency : float or array (n_windows,)
-        Shaft frequency of each window, in the unit of :class:`BearingEnvelopeFeatures` (Hz with ``fs``).
-    **kw
-        Other parameters of :class:`BearingEnvelopeFeatures`.
-
-    Windows of equal speed are transformed together.
+    E.g. the CWRU 6205: ``"9,7.94,39.04,0"`` (d = 0.3126 in, D = 1.537 in).
     """
-    X = np.asarray(X, dtype=np.float64)
-    fr = np.broadcast_to(np.asarray(shaft_frequency, dtype=np.float64), (X.shape[0],))
-    out = None
-    for value in np.unique(fr):
-        rows = fr == value
-        t = BearingEnvelopeFeatures(shaft_frequency=float(value), **kw).fit(X[rows])
-        F = t.transform(X[rows])
-        if out is None:
-            out = np.empty((X.shape[0], F.shape[1]))
-        out[rows] = F
-    return out
+    parts = [p.strip() for p in str(text).split(",")]
+    try:
+        if len(parts) != 4:
+            raise ValueError
+        n, d, D, phi = int(parts[0]), float(parts[1]), float(parts[2]), float(parts[3])
+    except ValueError:
+        raise ParameterError(f"--bearing-geometry {text!r}: expected N_BALLS,D_BALL_MM,D_PITCH_MM,CONTACT_DEG, "
+                             "e.g. 9,7.94,39.04,0") from None
+    if n < 3 or not (np.isfinite(d) and np.isfinite(D) and 0 < d < D) or not (np.isfinite(phi) and 0 <= phi < 90):
+        raise ParameterError(f"--bearing-geometry {text!r}: need at least 3 balls, 0 < ball diameter < pitch "
+                             "diameter (mm) and a contact angle in [0, 90) degrees")
+    return {"n_balls": n, "ball_diameter": d, "pitch_diameter": D, "contact_angle_rad": float(np.deg2rad(phi))}

@@ -17,7 +17,9 @@ below at the top level) and ONE reader, :func:`rvdiag.models.card.read_card`.
 Card fields (both kinds, returned by :func:`load_model` as ``card``):
 
 ``kind`` ("cnn" | "classical"), ``model`` (the ``--model`` name), ``features`` (classical), ``classes``,
-``input_length`` (points per sample the model's ``predict`` takes = the training samples' length),
+``input_length`` (points per sample = the training samples' length), ``metadata_columns`` (the
+metadata a classical model reads after each sample's points, e.g. ``["rpm"]`` for bearing-envelope features:
+its ``predict`` takes ``input_length + len(metadata_columns)`` columns, built by :meth:`LoadedModel.inputs`),
 ``fs`` (Hz or None), ``preprocessing`` (normalisation, network input length, window starts, policy for
 long samples), ``training_store`` (``path``, ``config_hash``, ``kind``, ``n_train``), ``metrics`` (on the
 held-out test split), ``seed``, ``rvdiag_version``, ``created`` (UTC ISO time); CNN cards also hold
@@ -80,17 +82,34 @@ class LoadedModel:
         fs = self.card.get("fs")
         return None if fs is None else float(fs)
 
+    @property
+    def metadata_columns(self) -> list[str]:
+        """Metadata the model reads after each sample's points (card ``metadata_columns``; usually none)."""
+        return [str(c) for c in self.card.get("metadata_columns") or []]
+
+    def inputs(self, X, meta: dict | None = None, where: str = "the data") -> np.ndarray:
+        """The estimator's input for samples ``X``: ``X`` itself, or ``X`` with the model's metadata columns
+        from ``meta`` appended (:func:`rvdiag.features.combine.with_metadata`; StoreError names ``where`` when
+        a column is missing)."""
+        from rvdiag.features.combine import with_metadata
+
+        return with_metadata(X, meta, self.metadata_columns, where)
+
 
 def base_card(estimator, *, model: str, features: str | None = None, fs: float | None = None,
               training_store: dict | None = None, metrics: dict | None = None, seed: int | None = None,
               extra: dict | None = None) -> dict:
     """The card fields common to both kinds (see module docstring)."""
+    from rvdiag.features.combine import input_metadata
+
     classes = [str(c) for c in getattr(estimator, "classes_", [])]
+    meta_cols = list(input_metadata(estimator))
     card = {
         "model": model,
         "features": features,
         "classes": classes,
-        "input_length": int(estimator.n_features_in_),
+        "input_length": int(estimator.n_features_in_) - len(meta_cols),
+        "metadata_columns": meta_cols,
         "fs": None if fs is None else float(fs),
         "training_store": training_store or {},
         "metrics": metrics or {},

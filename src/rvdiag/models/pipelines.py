@@ -19,7 +19,8 @@ kelm-pso   ... with particle swarm optimisation   (Tu et al. 2023, EEMD-MPA-KELM
 =========  =====================================================================================
 
 and the feature-set names of :func:`feature_names`: those of :func:`rvdiag.features.make_features`
-(``time|spectrum|logspec|wpd|eemd|none``) plus ``cnn`` (:class:`rvdiag.models.cnn_features.CNNFeatures`).
+(``time|spectrum|spectrum-abs|logspec|envelope|bearing-envelope|wpd|eemd|none``) plus ``cnn``
+(:class:`rvdiag.models.cnn_features.CNNFeatures`), or several joined by ``+``.
 
 Persistence: :func:`save_classical` writes ``model.skops`` (``skops.io``) and ``card.json`` (the one model-card
 format of :mod:`rvdiag.models.card`, ``kind = "classical"``);
@@ -59,7 +60,21 @@ def feature_names() -> list[str]:
 
 
 def make_feature_set(name: str, **kw):
-    """A new, unfitted feature transformer by name (:func:`feature_names`); ``kw`` go to its constructor."""
+    """A new, unfitted feature transformer by name (:func:`feature_names`); ``kw`` go to its constructor.
+
+    Names joined by ``+`` (``"spectrum-abs+bearing-envelope"``) give a
+    :class:`~rvdiag.features.combine.CombinedFeatures` of those sets; ``kw`` then maps a part's name to the
+    arguments of that part (``{"bearing-envelope": {"fs": 12000.0, "speed_column": "rpm"}}``).
+    """
+    if "+" in name:
+        parts = [p.strip() for p in name.split("+")]
+        if any(not p for p in parts) or len(set(parts)) != len(parts):
+            raise ParameterError(f"feature set {name!r}: join distinct names with '+', "
+                                 "e.g. spectrum-abs+bearing-envelope")
+        unknown = sorted(set(kw) - set(parts))
+        if unknown:
+            raise ParameterError(f"options for {unknown}, which are not parts of the feature set {name!r}")
+        return _features.CombinedFeatures([(p, make_feature_set(p, **dict(kw.get(p) or {}))) for p in parts])
     if name not in MODEL_FEATURE_SETS:
         if name not in _features.feature_names():
             raise ParameterError(f"unknown feature set {name!r}; use one of {'|'.join(feature_names())}")
@@ -94,9 +109,10 @@ def make_classical_model(model: str, features: str, *, features_kw: dict | None 
     Parameters
     ----------
     model : {'svm', 'kelm', 'kelm-mpa', 'kelm-ga', 'kelm-pso'}
-    features : {'time', 'spectrum', 'wpd', 'eemd', 'none', 'cnn'}
+    features : a name of :func:`feature_names`, or names joined by '+' (:func:`make_feature_set`)
     features_kw : dict
-        Arguments of the feature transformer (e.g. ``{"ensemble_size": 50}`` for eemd).
+        Arguments of the feature transformer (e.g. ``{"ensemble_size": 50}`` for eemd; for names joined by
+        '+', a dict of arguments per part name).
     model_kw : dict
         Arguments of the classifier (SVC, KELMClassifier or TunedKELM, e.g. ``{"epoch": 30}``).
     seed : int
