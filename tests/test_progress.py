@@ -62,8 +62,9 @@ def test_accuracy_against_snr_reports_scoring_and_levels():
     ev = Evaluation({}, np.array(["a"] * 700), np.array(["a"] * 700), X, {}, "test")
     seen, listener = _collect()
     with reporting(listener):
-        curve = accuracy_against_snr(SimpleNamespace(estimator=Constant(), card={"classes": ["a", "b"]}), ev,
-                                     [0.0, 10.0])
+        loaded = SimpleNamespace(estimator=Constant(), card={"classes": ["a", "b"]},
+                                 inputs=lambda X, meta=None, where="": X)  # a model that reads no metadata
+        curve = accuracy_against_snr(loaded, ev, [0.0, 10.0])
     assert [r["accuracy"] for r in curve] == [1.0, 1.0]
     scoring = [("scoring", 512, 700), ("scoring", 700, 700)]
     assert seen == scoring + [("SNR levels", 1, 2)] + scoring + [("SNR levels", 2, 2)]
