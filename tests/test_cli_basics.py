@@ -8,14 +8,7 @@ import pytest
 
 from rvdiag import __version__
 from rvdiag.cli import main
-
-
-def run(args, capsys):
-    with pytest.raises(SystemExit) as exc:
-        main(args)
-        raise SystemExit(0)
-    out = capsys.readouterr()
-    return exc.value.code, out.out, out.err
+from conftest import run_cli as run
 
 
 def test_version(capsys):

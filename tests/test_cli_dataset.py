@@ -12,16 +12,10 @@ from rvdiag.cli import main
 from rvdiag.datasets import SampleStore
 
 from conftest import DATA, needs_real_data
+from conftest import run_cli as run
 
 SQ_FILES = tuple(f"spectraquest-gearbox/{c}30hz{load}.csv.gz" for c in "hb" for load in (0, 60))
 CWRU_FILES = ("cwru-bearing/normal_0.mat", "cwru-bearing/IR007_0.mat", "cwru-bearing/OR021@6_0.mat")
-
-
-def run(args, capsys):
-    with pytest.raises(SystemExit) as e:
-        main(args)
-    cap = capsys.readouterr()
-    return e.value.code, cap.out, cap.err
 
 
 def run_ok(args, capsys):

@@ -7,18 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from rvdiag.cli import main
 from rvdiag.dynamics import ModelSettings, SimulationResult, simulate
 from rvdiag.kinematics import FREQUENCY_KEYS
 from rvdiag.params import ReducerParams
-
-
-def run(argv, capsys):
-    with pytest.raises(SystemExit) as exc:
-        main(argv)
-        raise SystemExit(0)
-    out = capsys.readouterr()
-    return exc.value.code, out.out, out.err
+from conftest import run_cli as run
 
 
 def test_freqs_json_keys_and_values(capsys):

@@ -9,19 +9,10 @@ import pytest
 
 from rvdiag.cli import main
 from rvdiag.datasets import write_store
+from conftest import run_cli as run
 
 FS = 1000.0
 L = 256
-
-
-def run(args, capsys):
-    try:
-        main([str(a) for a in args])
-        code = 0
-    except SystemExit as exc:
-        code = exc.code
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 def _signal(c: int, n: int, rng) -> np.ndarray:

@@ -5,15 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from rvdiag.cli import main
-
-
-def run(args, capsys):
-    with pytest.raises(SystemExit) as exc:
-        main(args)
-        raise SystemExit(0)
-    out = capsys.readouterr()
-    return exc.value.code, out.out, out.err
+from conftest import run_cli as run
 
 
 def test_json_healthy_default_pair(capsys):

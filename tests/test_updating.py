@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from scipy import signal as sps
 
-from rvdiag.cli import main
 from rvdiag.dynamics import simulate
 from rvdiag.params import ReducerParams
 from rvdiag.updating import Objective, apply_values, bounds_for, pcc, update_parameters
 from rvdiag.updating.annotate import annotated_toml, base_text
+from conftest import run_cli as run
 
 FS = 48000.0
 SPEED, LOAD = 30.0, 100.0
@@ -209,13 +209,6 @@ def test_full_recovery_all_eight_parameters():
 
 
 # ----------------------------------------------------------------------------- the command
-def run(argv, capsys):
-    with pytest.raises(SystemExit) as exc:
-        main(argv)
-        raise SystemExit(0)
-    out = capsys.readouterr()
-    return exc.value.code, out.out, out.err
-
 
 @pytest.fixture(scope="module")
 def csv_file(tmp_path_factory):
