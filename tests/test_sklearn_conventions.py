@@ -59,7 +59,9 @@ SHORT_DATA_CHECKS = (
 )
 _MIN_POINTS = {"EEMDFeatures": "EEMD needs windows of >= 8 points",
                "WaveletPacketEnergy": "a level-4 wavelet packet needs windows of >= 16 points",
-               "BearingEnvelopeFeatures": "the kurtogram bands need windows of >= 64 points"}
+               "BearingEnvelopeFeatures": "the kurtogram bands need windows of >= 64 points",
+               "TSAIndicatorFeatures": "a TSA needs windows of at least one shaft revolution",
+               "OrderSpectrumFeatures": "an order spectrum needs windows of at least one shaft revolution"}
 #: short-data checks that pass all the same (they use >= 8 columns, or only test the error)
 _PASS_ANYWAY = {("EEMDFeatures", "check_dtype_object"), ("EEMDFeatures", "check_fit2d_1sample")}
 EXPECTED: dict[str, dict[str, str]] = {

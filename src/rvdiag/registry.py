@@ -39,6 +39,8 @@ _BUILTIN: frozenset[str] = frozenset({
     "rvdiag.features.bearing.BearingEnvelopeFeatures",
     "rvdiag.features.combine.CombinedFeatures",
     "rvdiag.features.eemd.EEMDFeatures",
+    "rvdiag.features.tsa.TSAIndicatorFeatures",
+    "rvdiag.features.tsa.OrderSpectrumFeatures",
     "rvdiag.models.cnn_features.CNNFeatures",
     "rvdiag.models.kelm.KELMClassifier",
     "rvdiag.models.tuning.TunedKELM",

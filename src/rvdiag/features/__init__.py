@@ -16,6 +16,10 @@ bearing-envelope  :class:`~rvdiag.features.bearing.BearingEnvelopeFeatures`   Ra
                   (envelope lines at BPFO, BPFI, 2 BSF)
 wpd               :class:`WaveletPacketEnergy` (16 bands)      Li, Zhao et al. 2024
 eemd              :class:`EEMDFeatures` (mean |IMF| x 6)        Tu et al. 2023
+tsa-ci            :class:`~rvdiag.features.tsa.TSAIndicatorFeatures`   Decker 2002; Lebold et al. 2000
+                  (FM0, FM4, NA4, NB4, M6A, M8A... of the TSA)
+orders            :class:`~rvdiag.features.tsa.OrderSpectrumFeatures`  Fyfe & Munck 1997 (computed order
+                  (order-spectrum bands, envelope fault orders) tracking); docs/orders.md
 none              :class:`RawSignal` (the samples themselves)
 ================  ==========================================  ===================================
 
@@ -42,6 +46,7 @@ from rvdiag.features.spectrum import (
     SpectrumFeatures,
     bearing_defect_frequencies,
 )
+from rvdiag.features.tsa import OrderSpectrumFeatures, TSAIndicatorFeatures
 from rvdiag.features.timedomain import TIME_FEATURE_NAMES, TimeDomainFeatures, time_features
 from rvdiag.features.wavelet import WaveletPacketEnergy
 
@@ -78,6 +83,8 @@ _REGISTRY: dict[str, Callable[..., object]] = {
     "wpd": WaveletPacketEnergy,
     "eemd": EEMDFeatures,
     "none": RawSignal,
+    "tsa-ci": TSAIndicatorFeatures,
+    "orders": OrderSpectrumFeatures,
 }
 
 
@@ -107,8 +114,8 @@ def make_features(name: str, **kw):
 
 __all__ = [
     "BearingEnvelopeFeatures", "CharacteristicBandEnergy", "CombinedFeatures", "EEMDFeatures",
-    "EnvelopeSpectrumFeatures", "RawSignal", "SignalTransformer", "SpectrumFeatures", "TIME_FEATURE_NAMES",
-    "TimeDomainFeatures", "WaveletPacketEnergy", "absolute_spectrum_features", "as_signal_matrix",
+    "EnvelopeSpectrumFeatures", "OrderSpectrumFeatures", "RawSignal", "SignalTransformer", "SpectrumFeatures", "TIME_FEATURE_NAMES",
+    "TSAIndicatorFeatures", "TimeDomainFeatures", "WaveletPacketEnergy", "absolute_spectrum_features", "as_signal_matrix",
     "bearing_defect_frequencies", "eemd", "emd", "feature_names", "input_metadata", "log_spectrum_features",
     "make_features", "register_features", "time_features", "with_metadata",
 ]

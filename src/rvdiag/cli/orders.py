@@ -1,0 +1,179 @@
+"""``rvdiag orders FILE --shaft sun|crank|output``: order spectrum, envelope order spectrum, TSA and gear condition
+indicators of one channel (:mod:`rvdiag.features.orders`; docs/orders.md).
+
+The angle comes from the first of: ``--angle-channel`` (the input shaft's angle, rad), ``--tacho-channel`` with
+``--ppr`` (pulses per input revolution), ``--rpm`` (the analysed shaft itself, rev/min), ``--input-speed`` (rpm),
+``--output-speed`` (deg/s), the speed a simulated record states (``rvdiag simulate``'s ``sun_speed_hz``), and
+failing those the stage-1 mesh peak of the spectrum (:func:`rvdiag.features.orders.estimate_shaft_speed`, output
+speeds 1-200 deg/s).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+import typer
+
+from rvdiag.cli import _options as opt
+from rvdiag.errors import ParameterError
+
+
+def _angle(sig, shaft, p, *, output_speed, input_speed, rpm, tacho_channel, ppr, angle_channel, fs):
+    """(revolutions of ``shaft`` per sample, how the angle was found)."""
+    from rvdiag.features import orders as o
+    from rvdiag.io import read_signal
+
+    n, x = sig.data.size, sig.data
+    ratio = o.shaft_ratio(shaft, p)  # analysed shaft per input revolution
+    given = [v is not None for v in (output_speed, input_speed, rpm, tacho_channel, angle_channel)]
+    if sum(given) > 1:
+        raise ParameterError("give one angle source: --output-speed, --input-speed, --rpm, --tacho-channel or "
+                             "--angle-channel")
+    if ppr is not None and tacho_channel is None:
+        raise ParameterError("--ppr applies to --tacho-channel only")
+    if angle_channel is not None or tacho_channel is not None:
+        other = read_signal(sig.path, angle_channel or tacho_channel, fs)
+        if other.data.size != n:
+            raise ParameterError(f"channel {other.channel!r} has {other.data.size} samples, the signal {n}")
+        if angle_channel is not None:
+            return o.angle_from_encoder(other.data, sig.fs, ratio), f"angle channel {other.channel}"
+        times = o.tacho_pulse_times(other.data, sig.fs)
+        return (o.angle_from_tacho(times, n, sig.fs, int(ppr or 1), ratio),
+                f"tachometer {other.channel}, {int(ppr or 1)} pulses/rev")
+    if rpm is not None:
+        return o.angle_from_speed(n, sig.fs, rpm / 60.0), f"{rpm:g} rev/min of the {shaft} shaft"
+    if input_speed is not None or output_speed is not None:
+        f = o.shaft_frequency(shaft, p, input_speed_rpm=input_speed, output_speed_deg_s=output_speed)
+        what = f"input {input_speed:g} rpm" if input_speed is not None else f"output {output_speed:g} deg/s"
+        return o.angle_from_speed(n, sig.fs, f), what
+    settings = sig.attrs.get("settings")
+    if isinstance(settings, str):
+        try:
+            settings = json.loads(settings)
+        except ValueError:
+            settings = None
+    if isinstance(settings, dict) and settings.get("sun_speed_hz"):
+        f = o.shaft_frequency(shaft, p, sun_speed_hz=float(settings["sun_speed_hz"]))
+        return o.angle_from_speed(n, sig.fs, f), "the simulated record's speed"
+    m1 = p.stage1.sun_teeth
+    f_sun = o.shaft_frequency("sun", p, output_speed_deg_s=1.0)  # per deg/s of output speed
+    f_rel = o.estimate_shaft_speed(x, sig.fs, m1, (1.0 * f_sun, 200.0 * f_sun))
+    f = f_rel / o.shaft_ratio("sun", p) * ratio
+    return (o.angle_from_speed(n, sig.fs, f),
+            f"estimated from the stage-1 mesh peak (order {m1} of the sun; {f_rel / f_sun:.4g} deg/s output)")
+
+
+def _plot(res, path: Path, title: str, top: float) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(3, 1, figsize=(9, 8.5))
+    marks = {k: v for k, v in res["fault_orders"].items() if k.startswith("f_") and v <= top}
+    for ax, (o_, a_), what, lim in (
+            (axes[0], (res["orders"], res["amplitude"]), "order spectrum", top),
+            (axes[1], (res["envelope_orders"], res["envelope_amplitude"]), "envelope order spectrum",
+             min(top, 4 * max(marks.values(), default=top / 4) + 1))):
+        keep = o_ <= lim
+        ax.plot(o_[keep], a_[keep], lw=0.7)
+        for k, v in marks.items():
+            if v <= lim:
+                ax.axvline(v, color="r", ls="--", lw=0.6)
+                ax.text(v, ax.get_ylim()[1] * 0.9, k, rotation=90, fontsize=7, color="r", va="top")
+        ax.axvline(res["mesh_order"], color="g", ls=":", lw=0.8)
+        ax.set_xlabel("order (cycles per revolution)")
+        ax.set_title(what)
+    t = res["tsa"]
+    axes[2].plot(np.arange(t.size) * 360.0 / t.size, t, lw=0.7)
+    axes[2].set_xlabel("shaft angle (deg)")
+    axes[2].set_title(f"TSA over {res['n_revolutions']} revolutions")
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def register(app: typer.Typer) -> None:
+    """Add the ``orders`` command to ``app``."""
+
+    @app.command("orders")
+    def orders(
+        file: Path = typer.Argument(..., help="Signal file: CSV/CSV.gz, MAT, NPY, NPZ, WAV, TDMS."),
+        shaft: str = typer.Option("sun", "--shaft", help="sun (relative to the carrier: stage-1 mesh) | crank "
+                                  "(relative to the carrier: stage-2 mesh) | output (the carrier)."),
+        output_speed: Optional[float] = typer.Option(None, "--output-speed", help="Output (carrier) speed, deg/s."),
+        input_speed: Optional[float] = typer.Option(None, "--input-speed", help="Motor (sun) speed, rpm."),
+        rpm: Optional[float] = typer.Option(None, "--rpm", help="Speed of the analysed shaft itself, rev/min."),
+        tacho_channel: Optional[str] = typer.Option(None, "--tacho-channel",
+                                                    help="Regex of a tachometer pulse channel on the input shaft."),
+        ppr: Optional[int] = typer.Option(None, "--ppr", help="Tachometer pulses per input revolution (default 1)."),
+        angle_channel: Optional[str] = typer.Option(None, "--angle-channel",
+                                                    help="Regex of an input-shaft angle channel (rad)."),
+        channel: str = opt.channel(),
+        fs: float = opt.fs("Sampling rate in Hz (overrides the file's)."),
+        params: Optional[Path] = opt.params(),
+        samples_per_rev: Optional[int] = typer.Option(None, "--samples-per-rev",
+                                                      help="Angular samples per revolution (default: automatic)."),
+        plot: Optional[Path] = typer.Option(None, "--plot", help="Write a PNG: spectra with fault orders, TSA."),
+        as_json: bool = opt.json_flag("Print shaft, orders, amplitude, indicators (and more) as JSON."),
+    ) -> None:
+        """Order spectrum, envelope order spectrum, TSA and gear condition indicators (FM0, FM4, NA4...)."""
+        from rvdiag.features import orders as o
+        from rvdiag.io import read_signal
+        from rvdiag.params import ReducerParams
+
+        o._check_shaft(shaft)
+        if plot is not None and plot.suffix.lower() != ".png":
+            raise ParameterError(f"--plot must name a .png file, got {plot}")
+        p = ReducerParams.load(params)
+        sig = read_signal(file, channel, fs)
+        if sig.fs is None:
+            raise ParameterError(f"{file} states no sampling rate: give --fs")
+        revs, source = _angle(sig, shaft, p, output_speed=output_speed, input_speed=input_speed, rpm=rpm,
+                              tacho_channel=tacho_channel, ppr=ppr, angle_channel=angle_channel, fs=fs)
+        res = o.analyse(sig.data, sig.fs, revs, shaft, p, samples_per_rev)
+        top = min(4.5 * res["mesh_order"], res["samples_per_rev"] * 0.45)
+        keep = res["orders"] <= top
+        title = f"{file.name} [{sig.channel}], {shaft} shaft {res['shaft_hz']:.4g} Hz ({source})"
+        if plot is not None:
+            _plot(res, plot, title, top)
+        if as_json:
+            ekeep = res["envelope_orders"] <= top
+            typer.echo(json.dumps({
+                "shaft": shaft, "shaft_hz": res["shaft_hz"], "angle_source": source,
+                "samples_per_rev": res["samples_per_rev"], "n_revolutions": res["n_revolutions"],
+                "mesh_order": res["mesh_order"], "fault_orders": res["fault_orders"],
+                "orders": res["orders"][keep].tolist(), "amplitude": res["amplitude"][keep].tolist(),
+                "envelope_orders": res["envelope_orders"][ekeep].tolist(),
+                "envelope_amplitude": res["envelope_amplitude"][ekeep].tolist(),
+                "tsa": res["tsa"].tolist(), "indicators": res["indicators"]}))
+            return
+        from rich.console import Console
+        from rich.table import Table
+
+        from rvdiag.features.orders import INDICATORS
+
+        con = Console(width=110)
+        con.print(title)
+        con.print(f"{res['n_revolutions']} revolutions x {res['samples_per_rev']} samples; mesh order "
+                  f"{res['mesh_order']}")
+        fo = Table(title="fault orders")
+        fo.add_column("key")
+        fo.add_column("order", justify="right")
+        fo.add_column("envelope amplitude", justify="right")
+        for k, v in res["fault_orders"].items():
+            fo.add_row(k, f"{v:.4g}", f"{np.interp(v, res['envelope_orders'], res['envelope_amplitude']):.3g}")
+        con.print(fo)
+        table = Table(title="condition indicators")
+        table.add_column("indicator")
+        table.add_column("value", justify="right")
+        table.add_column("signal")
+        for k, v in res["indicators"].items():
+            table.add_row(k, f"{v:.4g}", INDICATORS[k])
+        con.print(table)
+        if plot is not None:
+            con.print(f"wrote {plot}")
