@@ -266,3 +266,24 @@ def test_classical_fit_shows_the_tuning_progress_unless_quiet(store, tmp_path, c
     assert "PSO tuning: 420/420" in stages and "seed 0: fitting" in err
     code, out, err = run(args[:-1] + ["-o", tmp_path / "c", "-q"], capsys)
     assert code == 0 and "PSO tuning" not in err
+
+
+def test_angle_domain_features_take_the_stores_rate_and_each_windows_speed(store, tmp_path, capsys):
+    """``--features tsa-ci`` reads the store's sampling rate (1 kHz here, not the transformer's 48 kHz default) and
+    each window's speed from the library's ``output_speed_deg_s`` column (recorded in the card, supplied again by
+    ``evaluate``); a store without the column is refused with one line."""
+    from rvdiag.models.persistence import load_model
+
+    out = tmp_path / "m"
+    code, _, err = run(["train", store, "--model", "svm", "--features", "tsa-ci", "--out", out, "-q"], capsys)
+    assert code == 0, err
+    loaded = load_model(out)
+    assert loaded.card["metadata_columns"] == ["output_speed_deg_s"]
+    feats = loaded.estimator.steps[0][1] if hasattr(loaded.estimator, "steps") else None
+    assert feats is not None and feats.fs == FS and feats.speed_column == "output_speed_deg_s"
+    code, out_json, err = run(["evaluate", out, store, "--json", "-q"], capsys)
+    assert code == 0, err
+    assert json.loads(out_json)["n_samples"] == 12
+    code, _, err = run(["train", store, "--model", "svm", "--features", "tsa-ci", "--speed-column", "rpm_x",
+                        "--out", tmp_path / "m2", "-q"], capsys)
+    assert code == 2 and err.count("\n") == 1 and "rpm_x" in err, err

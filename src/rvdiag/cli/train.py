@@ -71,7 +71,8 @@ def validation_groups(store, samples):
 
 
 def features_kw(features: str, *, epochs: int, device: str, seed: int, lr: float, batch_size: int,
-                bearing_geometry: str | None, rpm_column: str, fs: float | None) -> dict:
+                bearing_geometry: str | None, rpm_column: str, fs: float | None,
+                speed_column: str = "output_speed_deg_s") -> dict:
     """Arguments of each part of a ``--features`` value (a dict per part name for names joined by '+')."""
     from rvdiag.features.bearing import geometry_from_mm
     from rvdiag.models.pipelines import feature_names
@@ -93,13 +94,16 @@ def features_kw(features: str, *, epochs: int, device: str, seed: int, lr: float
                 raise ParameterError("--features bearing-envelope needs --bearing-geometry "
                                      "N_BALLS,D_BALL_MM,D_PITCH_MM,CONTACT_DEG (e.g. 9,7.94,39.04,0 for a 6205)")
             kw[name] = {**geometry_from_mm(bearing_geometry), "fs": fs, "speed_column": rpm_column}
+        elif name in ("tsa-ci", "orders"):  # angle-domain features: the store's rate and each window's speed
+            kw[name] = {"fs": fs, "speed_column": speed_column}
     return kw if len(parts) > 1 else kw.get(features, {})
 
 
 def build_estimator(model: str, features: str | None, *, epochs: int, device: str, seed: int,
                     batch_size: int, lr: float, input_length: int | None, patience: int,
                     validation_fraction: float, normalize: str = "window", representation: str = "waveform",
-                    bearing_geometry: str | None = None, rpm_column: str = "rpm", fs: float | None = None):
+                    bearing_geometry: str | None = None, rpm_column: str = "rpm", fs: float | None = None,
+                    speed_column: str = "output_speed_deg_s"):
     """A fresh, unfitted estimator for a ``--model`` name (``fs``: the store's, for bearing-envelope)."""
     if model in CNN_MODELS:
         if features is not None:
@@ -116,7 +120,8 @@ def build_estimator(model: str, features: str | None, *, epochs: int, device: st
 
         feats = features or "wpd"
         kw = features_kw(feats, epochs=epochs, device=device, seed=seed, lr=lr, batch_size=batch_size,
-                         bearing_geometry=bearing_geometry, rpm_column=rpm_column, fs=fs)
+                         bearing_geometry=bearing_geometry, rpm_column=rpm_column, fs=fs,
+                         speed_column=speed_column)
         return make_classical_model(model, feats, seed=seed, features_kw=kw)
     raise ParameterError(f"unknown model {model!r}; use one of {'|'.join(CNN_MODELS + CLASSICAL_MODELS)}")
 
@@ -195,6 +200,10 @@ def register(app: typer.Typer) -> None:
                                        help="bearing-envelope features: the store's metadata column holding each "
                                             "sample's shaft speed in rev/min (e.g. from dataset from-files "
                                             "--scalar rpm=RPM)."),
+        speed_column: str = typer.Option("output_speed_deg_s", "--speed-column",
+                                         help="tsa-ci / orders features: the store's metadata column holding each "
+                                              "sample's speed, output deg/s (name ending in _deg_s, as a library "
+                                              "writes) or input rev/min (ending in _rpm)."),
     ) -> None:
         """Train a classifier on the train split of a store and save it as a model directory.
 
@@ -214,7 +223,8 @@ def register(app: typer.Typer) -> None:
                                           batch_size=batch_size, lr=lr, input_length=input_length,
                                           patience=patience, validation_fraction=validation_fraction,
                                           normalize=normalize, representation=representation,
-                                          bearing_geometry=bearing_geometry, rpm_column=rpm_column)
+                                          bearing_geometry=bearing_geometry, rpm_column=rpm_column,
+                                          speed_column=speed_column)
         with opt.option_names(CNN_OPTION_NAMES):
             probe = new_estimator(seed=seed)  # checks --model/--features before any work
         if model in CNN_MODELS or "cnn" in (features or "").split("+"):
