@@ -9,11 +9,11 @@ a stiffness ramp: 6.0e-4 instead of 8.6e-4 against scipy at 9 sub-steps, and the
 to 4500 rpm instead of ~2500 (bench/HISTORY.md 2026-11-23).
 
 What depends on time only is computed once per distinct stage time and shared by the stages: the mesh
-stiffness and profile deviation of each sun-planet mesh (:func:`rvdiag.dynamics.model.mesh_terms`), the
+stiffness and profile deviation of each sun-planet mesh (:func:`rvdiag.dynamics.kernels.mesh_terms`), the
 frame rotations (rotated by half-step increments from exact values at each sample's start;
 by angle addition) and the cycloid-pin geometry.  RK4 takes the geometry exactly at each sample's
 start, middle and end and interpolates it quadratically at the inner stage times
-(:func:`rvdiag.dynamics.model.interpolate_geometry`; output change 1e-8 to 2e-7 relative against the
+(:func:`rvdiag.dynamics.kernels.interpolate_geometry`; output change 1e-8 to 2e-7 relative against the
 exact geometry at every stage); the 3/8 rule evaluates it exactly at every stage time.
 
 The sensor output at sample ``k`` is the housing acceleration at ``t_k``, read from the first RK4
@@ -21,7 +21,7 @@ stage of the step that starts there (no extra right-hand-side evaluation).  Only
 and the output chunk live in memory: memory stays flat for any signal length.
 
 The force kernels (``generalized_forces``, ``accelerations``) are slice-free and inlined into one
-compiled right-hand side, :func:`rvdiag.dynamics.model.rhs_with_terms` (bench/HISTORY.md 2026-11-23,
+compiled right-hand side, :func:`rvdiag.dynamics.kernels.rhs_with_terms` (bench/HISTORY.md 2026-11-23,
 "speed at the same accuracy" and "slice-free force kernels": 368 -> 271 -> 173 ns per evaluation).
 
 Instability (a non-finite state, or a vibratory displacement beyond ``max_displacement_m``, or a
@@ -38,15 +38,16 @@ from collections.abc import Callable
 import numba
 import numpy as np
 
+from rvdiag.dynamics import kernels as kn
 from rvdiag.dynamics import model as mdl
-from rvdiag.dynamics.numba_cache import drop_stale_cache
+from rvdiag.dynamics.numba_cache import guard_kernel_module
 from rvdiag.errors import SimulationError
 
-# the kernels below inline model.py's force kernels: recompile them when model.py changes
-drop_stale_cache(__file__, [mdl.__file__])
+# the kernels below inline kernels.py's force kernels and read its indices: recompile them when a kernel file changes
+guard_kernel_module(__file__)
 
 OK, NONFINITE, UNBOUNDED = 0, 1, 2
-FASTMATH = mdl.FASTMATH
+FASTMATH = kn.FASTMATH
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
@@ -109,9 +110,9 @@ def step_grid(t0, t_end, substeps, hnom, breaks, nb, grid):
 def _time_rates(P):
     """``(f_rel, rate_b, rate_w)``: relative sun revolutions per second (the mesh table's period) and the
     rates of the frame angles b_0 = beta_0 - Zp Omega t and W = Omega t; all zero for a frozen model."""
-    if P[mdl.I_TFROZEN] >= 0.0:
+    if P[kn.I_TFROZEN] >= 0.0:
         return 0.0, 0.0, 0.0
-    return P[mdl.I_WREL] / (2.0 * math.pi), -P[mdl.I_ZP] * P[mdl.I_OMEGA], P[mdl.I_OMEGA]
+    return P[kn.I_WREL] / (2.0 * math.pi), -P[kn.I_ZP] * P[kn.I_OMEGA], P[kn.I_OMEGA]
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
@@ -151,11 +152,11 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tv
     n = n2 // 2
     dts = 1.0 / fs
     hnom = dts / substeps
-    iR = 6 + 6 * int(P[mdl.I_NPL]) + 3 * int(P[mdl.I_NDISC])  # the pin wheel's first coordinate
-    sx = P[mdl.I_SENSX]
-    sy = P[mdl.I_SENSY]
-    lim = P[mdl.I_DISPLIM]
-    limr = P[mdl.I_ROTLIM]
+    iR = 6 + 6 * int(P[kn.I_NPL]) + 3 * int(P[kn.I_NDISC])  # the pin wheel's first coordinate
+    sx = P[kn.I_SENSX]
+    sy = P[kn.I_SENSY]
+    lim = P[kn.I_DISPLIM]
+    limr = P[kn.I_ROTLIM]
     tol = 1e-6 * hnom
     # frame angles b_0 = beta_0 - Zp Omega t and W = Omega t advance linearly: within a sample their
     # cos/sin are rotated by half-step increments (angle addition) from the exact
@@ -169,18 +170,18 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tv
     gS, rS, gE, rE, gH, rH, gT, rT, gM, rM = geo0, rot0, geo1, rot1, geo2, rot2, geo3, rot3, geo4, rot4
     ma, mb, mc = mt0, mt1, mt2
     t0 = k_start * dts
-    cS = mdl.frame_angles(t0, P)
-    mdl.pin_geometry_cs(cS[0], cS[1], cS[2], cS[3], P, cosk, sink, gS, rS)
-    mdl.mesh_terms(t0, P, tvms, ma)
+    cS = kn.frame_angles(t0, P)
+    kn.pin_geometry_cs(cS[0], cS[1], cS[2], cS[3], P, cosk, sink, gS, rS)
+    kn.mesh_terms(t0, P, tvms, ma)
     ks = k3  # running sum k1 + 2 k2 + 2 k3 (same order of additions as the textbook formula)
     for s in range(n_samples):
         kk = k_start + s
         t0 = kk * dts
         t_end = (kk + 1) * dts
-        cE = mdl.frame_angles(t_end, P)
-        mdl.pin_geometry_cs(cE[0], cE[1], cE[2], cE[3], P, cosk, sink, gE, rE)
-        cb, sb, cw, sw = mdl.frame_angles(t0 + 0.5 * dts, P)
-        mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gM, rM)
+        cE = kn.frame_angles(t_end, P)
+        kn.pin_geometry_cs(cE[0], cE[1], cE[2], cE[3], P, cosk, sink, gE, rE)
+        cb, sb, cw, sw = kn.frame_angles(t0 + 0.5 * dts, P)
+        kn.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gM, rM)
         nb = sample_breaks(t0, dts, f_rel, events, tol, breaks)
         M = step_grid(t0, t_end, substeps, hnom, breaks, nb, grid)
         cb, sb, cw, sw = cS
@@ -194,34 +195,34 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tv
             if nb > 0:  # unequal steps in this sample: their own increments
                 cdb, sdb, cdw, sdw = _rotation_increments(rate_b * hh, rate_w * hh)
             if j == 0:
-                mdl.rhs_with_terms(y, P, inv_mass, planet, ma, gS, rS, Q, k1)
+                kn.rhs_with_terms(y, P, inv_mass, planet, ma, gS, rS, Q, k1)
                 if record:
                     _record_sensor(k1, n, iR, sx, sy, sensor, out, s)
             else:
-                mdl.rhs_with_terms(y, P, inv_mass, planet, ma, gT, rT, Q, k1)
+                kn.rhs_with_terms(y, P, inv_mass, planet, ma, gT, rT, Q, k1)
             cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
-            mdl.frame_rotations(cb, sb, cw, sw, P, rH)
-            mdl.interpolate_geometry(gS, gM, gE, (th - t0) * fs, P, gH)
-            mdl.mesh_terms(th, P, tvms, mb)
+            kn.frame_rotations(cb, sb, cw, sw, P, rH)
+            kn.interpolate_geometry(gS, gM, gE, (th - t0) * fs, P, gH)
+            kn.mesh_terms(th, P, tvms, mb)
             for i in range(n2):
                 ytmp[i] = y[i] + hh * k1[i]
                 ks[i] = k1[i]
-            mdl.rhs_with_terms(ytmp, P, inv_mass, planet, mb, gH, rH, Q, k2)
+            kn.rhs_with_terms(ytmp, P, inv_mass, planet, mb, gH, rH, Q, k2)
             for i in range(n2):
                 ytmp[i] = y[i] + hh * k2[i]
                 ks[i] += 2.0 * k2[i]
-            mdl.rhs_with_terms(ytmp, P, inv_mass, planet, mb, gH, rH, Q, k2)
-            mdl.mesh_terms(t1, P, tvms, mc)
+            kn.rhs_with_terms(ytmp, P, inv_mass, planet, mb, gH, rH, Q, k2)
+            kn.mesh_terms(t1, P, tvms, mc)
             for i in range(n2):
                 ytmp[i] = y[i] + h * k2[i]
                 ks[i] += 2.0 * k2[i]
             cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
             if j == M - 1:
-                mdl.rhs_with_terms(ytmp, P, inv_mass, planet, mc, gE, rE, Q, k2)
+                kn.rhs_with_terms(ytmp, P, inv_mass, planet, mc, gE, rE, Q, k2)
             else:
-                mdl.frame_rotations(cb, sb, cw, sw, P, rT)
-                mdl.interpolate_geometry(gS, gM, gE, (t1 - t0) * fs, P, gT)
-                mdl.rhs_with_terms(ytmp, P, inv_mass, planet, mc, gT, rT, Q, k2)
+                kn.frame_rotations(cb, sb, cw, sw, P, rT)
+                kn.interpolate_geometry(gS, gM, gE, (t1 - t0) * fs, P, gT)
+                kn.rhs_with_terms(ytmp, P, inv_mass, planet, mc, gT, rT, Q, k2)
             h6 = h / 6.0
             for i in range(n2):
                 y[i] += h6 * (ks[i] + k2[i])
@@ -250,19 +251,19 @@ def rk38_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, t
     n = n2 // 2
     dts = 1.0 / fs
     hnom = dts / substeps
-    iR = 6 + 6 * int(P[mdl.I_NPL]) + 3 * int(P[mdl.I_NDISC])  # the pin wheel's first coordinate
-    sx = P[mdl.I_SENSX]
-    sy = P[mdl.I_SENSY]
-    lim = P[mdl.I_DISPLIM]
-    limr = P[mdl.I_ROTLIM]
+    iR = 6 + 6 * int(P[kn.I_NPL]) + 3 * int(P[kn.I_NDISC])  # the pin wheel's first coordinate
+    sx = P[kn.I_SENSX]
+    sy = P[kn.I_SENSY]
+    lim = P[kn.I_DISPLIM]
+    limr = P[kn.I_ROTLIM]
     ga, ra, ma, gb, rb, mb, gc, rc, mc, gd, rd, md = (geo0, rot0, mt0, geo1, rot1, mt1, geo2, rot2, mt2,
                                                       geo3, rot3, mt3)
     tol = 1e-6 * hnom
     f_rel, rate_b, rate_w = _time_rates(P)
     cdb0, sdb0, cdw0, sdw0 = _rotation_increments(rate_b * hnom / 3.0, rate_w * hnom / 3.0)
-    cb, sb, cw, sw = mdl.frame_angles(k_start * dts, P)
-    mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, ga, ra)
-    mdl.mesh_terms(k_start * dts, P, tvms, ma)
+    cb, sb, cw, sw = kn.frame_angles(k_start * dts, P)
+    kn.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, ga, ra)
+    kn.mesh_terms(k_start * dts, P, tvms, ma)
     for s in range(n_samples):
         kk = k_start + s
         t0 = kk * dts
@@ -278,30 +279,30 @@ def rk38_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, t
             tb = grid[j] + 2.0 * h3
             if nb > 0:  # unequal steps in this sample: their own increments
                 cdb, sdb, cdw, sdw = _rotation_increments(rate_b * h3, rate_w * h3)
-            mdl.rhs_with_terms(y, P, inv_mass, planet, ma, ga, ra, Q, k1)
+            kn.rhs_with_terms(y, P, inv_mass, planet, ma, ga, ra, Q, k1)
             if j == 0 and record:
                 _record_sensor(k1, n, iR, sx, sy, sensor, out, s)
             cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
-            mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gb, rb)
-            mdl.mesh_terms(ta, P, tvms, mb)
+            kn.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gb, rb)
+            kn.mesh_terms(ta, P, tvms, mb)
             for i in range(n2):
                 ytmp[i] = y[i] + h3 * k1[i]
-            mdl.rhs_with_terms(ytmp, P, inv_mass, planet, mb, gb, rb, Q, k2)
+            kn.rhs_with_terms(ytmp, P, inv_mass, planet, mb, gb, rb, Q, k2)
             cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
-            mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gc, rc)
-            mdl.mesh_terms(tb, P, tvms, mc)
+            kn.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gc, rc)
+            kn.mesh_terms(tb, P, tvms, mc)
             for i in range(n2):
                 ytmp[i] = y[i] + h * (k2[i] - k1[i] / 3.0)
-            mdl.rhs_with_terms(ytmp, P, inv_mass, planet, mc, gc, rc, Q, k3)
+            kn.rhs_with_terms(ytmp, P, inv_mass, planet, mc, gc, rc, Q, k3)
             if j == M - 1:  # re-anchored exactly at every sample's end
-                cb, sb, cw, sw = mdl.frame_angles(t_end, P)
+                cb, sb, cw, sw = kn.frame_angles(t_end, P)
             else:
                 cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
-            mdl.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gd, rd)
-            mdl.mesh_terms(t1, P, tvms, md)
+            kn.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gd, rd)
+            kn.mesh_terms(t1, P, tvms, md)
             for i in range(n2):
                 ytmp[i] = y[i] + h * (k1[i] - k2[i] + k3[i])
-            mdl.rhs_with_terms(ytmp, P, inv_mass, planet, md, gd, rd, Q, k4)
+            kn.rhs_with_terms(ytmp, P, inv_mass, planet, md, gd, rd, Q, k4)
             h8 = h / 8.0
             for i in range(n2):
                 y[i] += h8 * (k1[i] + 3.0 * (k2[i] + k3[i]) + k4[i])
@@ -389,7 +390,7 @@ def integrate(
     mts = [mdl.mesh_array(model) for _ in range(4 if rk38 else 3)]
     work = [np.zeros(n)] + [np.zeros(2 * n) for _ in range(5 if rk38 else 4)]  # Q, k1..k3 (k4), ytmp
     # table events inside one sample (at most all of them, once per relative revolution it spans)
-    f_rel = abs(model.P[mdl.I_WREL]) / (2.0 * math.pi)
+    f_rel = abs(model.P[kn.I_WREL]) / (2.0 * math.pi)
     breaks = np.zeros(model.events.size * (int(f_rel / fs) + 2) + 1)
     grid = np.zeros(S + breaks.size + 2)  # step boundaries of one sample
     out = np.zeros((model.sensor.shape[0], n_samples))

@@ -43,7 +43,7 @@ def trace(model: mdl.Model, y0: np.ndarray, fs: float, n_samples: int, n_transie
 def mesh_forces(model: mdl.Model, t: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Force of every tooth-pair slot of every sun-planet mesh, shape (samples, planets, slots), N.
 
-    The contact law of :func:`rvdiag.dynamics.model.generalized_forces`, evaluated in NumPy from the states:
+    The contact law of :func:`rvdiag.dynamics.kernels.generalized_forces`, evaluated in NumPy from the states:
     ``max(0, k_s (d - e_s - b) + c_s (d' - e_s'))`` on the drive flank (damper ramped in over the first
     ``MESH_DAMPING_RAMP_M``), and the back flank's nominal-TVMS force (negative) added to slot 0.
     """

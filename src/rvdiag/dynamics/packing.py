@@ -1,0 +1,243 @@
+"""Packing of the flat arrays the compiled kernels take, from a reducer's parameters at one operating point.
+
+One purpose: turn :class:`rvdiag.params.ReducerParams`, a mesh table and the operating point into numbers the
+kernels read: ``P`` (its fields are :data:`rvdiag.dynamics.kernels.P_FIELDS`), the masses, the planet and pin
+angle tables, the sensor directions (:func:`pack_model_arrays`; parameters and damping, docs/model.md sections 3
+and 4; sensor, section 6), the linearised pin stiffness (:func:`pin_contact_stiffness`, section 3) and the mesh
+table's damping rows, separation slopes and kink events that the integrator steps on (:func:`separation_slopes`,
+:func:`table_events`; section 7).  :func:`rvdiag.dynamics.model.build_model` wraps the result in a ``Model``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rvdiag.dynamics import kernels as kn
+from rvdiag.dynamics.layout import dof_layout
+from rvdiag.dynamics.mesh import MeshTable
+from rvdiag.dynamics.settings import ModelSettings
+from rvdiag.errors import ParameterError
+from rvdiag.params import ReducerParams, body_properties
+
+TWO_PI = kn.TWO_PI
+
+#: approach (m) over which a tooth pair's damper grows from nothing to its full value once the flanks touch
+#: (a penetration-dependent damper, Hunt & Crossley 1975, J. Appl. Mech. 42, in its simplest, linear-ramp form):
+#: the contact force then starts from zero as the flanks meet, instead of jumping by c * (approach rate), so a
+#: pair touching or leaving within a step costs RK4 much less accuracy (docs/model.md section 7)
+MESH_DAMPING_RAMP_M = 0.1e-6
+
+#: Pin stiffness is linearised at ``max(|T_L|, PIN_LOAD_FLOOR_FRACTION * rated torque)``: the Hertz
+#: tangent stiffness vanishes (logarithmically) at zero load, where a linearisation means nothing.
+PIN_LOAD_FLOOR_FRACTION = 0.01
+#: crank angles (over one pin pitch) averaged in :func:`pin_contact_stiffness`
+PIN_STIFFNESS_ANGLES = 8
+
+
+def pin_contact_stiffness(params: ReducerParams, load_Nm: float) -> float:
+    """Cycloid-pin contact stiffness (N/m) linearised at the operating load, one value for every pin.
+
+    The per-pin tangent stiffness is the Hertz line contact of the pin on the disc flank at its share
+    of the load (Johnson 1985, *Contact Mechanics*, sec. 5.6; load shared in proportion to the lever
+    arm, Blagojevic et al. 2011, J. Mech. Des. 133, eq. 11), as computed by
+    :func:`rvdiag.gears.cycloid.pin_contact`.  The torque one disc carries about its own centre is the
+    pin-wheel reaction ``T_L (1 - 1/i)`` (docs/model.md, sec. 5) times the arm ratio ``Zc / Zp``
+    (arms ``e Zc n_y`` about the disc, ``e Zp n_y`` about the pin wheel), shared by the ``D`` discs:
+    ``T_d = |T_L| (1 - 1/i) Zc / (Zp D)``.  The pins in contact act on the disc's rocking in parallel
+    through their arms, so the equivalent uniform stiffness is the arm-weighted mean
+    ``k = sum k_i l_i^2 / sum l_i^2`` (same disc torsional stiffness), averaged over
+    ``PIN_STIFFNESS_ANGLES`` crank angles across one pin pitch (it varies by < 0.5 %).  For the RV-20E
+    at rated torque (167 N m) this is 3.4e8 N/m, 2.3e8 at 1 N m: the Hertz stiffness of a loaded pin,
+    against the load-independent 1.78e9 of Yang & Sun's ``pi E b / (4 (1 - nu^2))``.
+    """
+    from rvdiag.gears.cycloid import pin_contact
+
+    s2 = params.stage2
+    load = max(abs(float(load_Nm)), PIN_LOAD_FLOOR_FRACTION * params.operation.rated_torque)
+    t_disc = load * (1.0 - 1.0 / params.ratio) * s2.cycloid_lobes / (s2.pins * s2.n_discs)
+    vals = []
+    for ang in np.arange(PIN_STIFFNESS_ANGLES) * (TWO_PI / s2.pins / PIN_STIFFNESS_ANGLES):
+        c = pin_contact(s2, params.material, float(ang), t_disc)
+        l2 = np.where(c.in_contact, c.arm_m, 0.0) ** 2
+        vals.append(float(np.sum(c.stiffness_N_per_m * l2) / np.sum(l2)))
+    return float(np.mean(vals))
+
+
+#: a table node is an event where the stiffness's second difference exceeds this fraction of its mean
+#: (single/double tooth contact changes: ~0.55; elsewhere below 4e-5 for every fault state) ...
+EVENT_STIFFNESS_KINK = 1e-3
+#: ... or the profile deviation's exceeds this fraction of its largest value (the load-share steps of an
+#: Archard wear profile: up to ~1; the smooth parts below 1e-3)
+EVENT_DEVIATION_KINK = 1e-2
+
+
+def table_events(tables: np.ndarray, n_planets: int) -> np.ndarray:
+    """Phases (fractions of a relative sun revolution, sorted, in [0, 1)) at which a planet's mesh passes
+    a kink of the linearly interpolated mesh table: the ends of the stiffness ramps where the number of
+    tooth pairs in contact changes, and the steps of a wear deviation.
+
+    The mesh terms depend on time only, so these instants are known before integrating; the RK4 kernel
+    cuts its steps there (a fixed step that straddles a kink loses an order of accuracy).  Planet i sees
+    table phase ``x`` at relative phase ``x + i / N``.  Choosing the nodes changes no equation, only where
+    the steps fall.
+    """
+    S = (tables.shape[0] - 2) // 4
+    ks = tables[:S]
+    kbar = max(float(np.abs(ks.sum(axis=0)).mean()), 1e-300)
+    kink = np.zeros(tables.shape[1], dtype=bool)
+    for k in ks:
+        kink |= np.abs(np.roll(k, -1) - 2.0 * k + np.roll(k, 1)) > EVENT_STIFFNESS_KINK * kbar
+    for k, e in zip(ks, tables[S:2 * S]):
+        e = np.where(k > 0, e, 0.0)
+        emax = np.abs(e).max()
+        if emax > 0.0:
+            kink |= np.abs(np.roll(e, -1) - 2.0 * e + np.roll(e, 1)) > EVENT_DEVIATION_KINK * emax
+    nodes = np.flatnonzero(kink) / tables.shape[1]
+    phases = (nodes[None, :] + np.arange(n_planets)[:, None] / n_planets) % 1.0
+    return np.unique(phases)
+
+
+def separation_slopes(pairs: np.ndarray) -> np.ndarray:
+    """Slope of each slot's separation at the table nodes, per node interval, shape ``(S, n)``.
+
+    Central differences where the pair is in contact on both sides of a node, one-sided at the ends of a
+    pair's contact, zero outside it.  The kernel interpolates these linearly, so the separation's rate in
+    the dampers is continuous in time; the rate of the linearly interpolated separation itself would jump at
+    every node (every ~17 us at 45 deg/s) and cost RK4 an order of accuracy (docs/model.md section 7).
+    """
+    k, e = pairs[:, 0, :], pairs[:, 1, :]
+    on = k > 0.0
+    on_prev, on_next = np.roll(on, 1, axis=1), np.roll(on, -1, axis=1)
+    fwd = np.roll(e, -1, axis=1) - e
+    bwd = e - np.roll(e, 1, axis=1)
+    out = np.where(on_prev & on_next, 0.5 * (fwd + bwd), np.where(on_next, fwd, np.where(on_prev, bwd, 0.0)))
+    return np.where(on, out, 0.0)
+
+
+
+def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: float, load_Nm: float,
+                      st: ModelSettings) -> dict:
+    """The keyword arguments of :class:`rvdiag.dynamics.model.Model` (all but ``settings``) at one operating
+    point; the arguments are those of :func:`rvdiag.dynamics.model.build_model`, validated here."""
+    s1, s2, br, dmp = params.stage1, params.stage2, params.bearings, params.damping
+    if s2.equidistant_modification != 0.0 or s2.offset_modification != 0.0:
+        raise ParameterError(
+            "the dynamic model supports unmodified cycloid profiles only: set "
+            "stage2.equidistant_modification and stage2.offset_modification to 0"
+        )
+    if not (math.isfinite(sun_speed_hz) and sun_speed_hz > 0):
+        raise ParameterError(f"input speed must be > 0, got {sun_speed_hz} Hz")
+    if not math.isfinite(load_Nm):
+        raise ParameterError(f"load torque must be finite, got {load_Nm}")
+    bp = body_properties(params)
+    N, D = s1.n_planets, s2.n_discs
+    Zp, Zc, Z1, Z2 = s2.pins, s2.cycloid_lobes, s1.sun_teeth, s1.planet_teeth
+    alpha = math.radians(s1.pressure_angle_deg)
+    rb1 = 0.5 * s1.module * Z1 * math.cos(alpha)
+    rb2 = 0.5 * s1.module * Z2 * math.cos(alpha)
+    omega_s = TWO_PI * sun_speed_hz
+    Omega = omega_s / params.ratio
+    a = s1.centre_distance
+
+    drive = params.drive
+    motor = drive.speed_loop_bandwidth_hz > 0.0
+    lay = dof_layout(N, D, motor)
+    n = lay["pin_wheel"] + 3 + (1 if motor else 0)
+    mass = np.empty(n)
+
+    def put(body: str, m: float, J: float) -> None:
+        i = lay[body]
+        mass[i], mass[i + 1], mass[i + 2] = m, m, J
+
+    put("sun", bp.sun.mass, bp.sun.inertia)
+    for i in range(N):
+        put(f"planet{i}", bp.planet.mass, bp.planet.inertia)
+        put(f"crank{i}", bp.crank.mass, bp.crank.inertia)
+    for j in range(D):
+        put(f"disc{j}", bp.cycloid.mass, bp.cycloid.inertia)
+    put("carrier", bp.carrier.mass, bp.carrier.inertia)
+    if motor:
+        mass[lay["motor"]] = drive.motor_inertia
+    # the pin wheel carries the housing shell and the mounting flange ([mounting] housing_added_mass, a thin
+    # ring at the outer radius)
+    m_add = params.mounting.housing_added_mass
+    put("pin_wheel", bp.pin_wheel.mass + m_add,
+        bp.pin_wheel.inertia + m_add * params.bodies.pin_wheel_outer_radius**2)
+
+    zb = dmp.bearing_damping_ratio if st.damping else 0.0
+    zm = dmp.mesh_damping_ratio if st.damping else 0.0
+    zp = dmp.pin_damping_ratio if st.damping else 0.0
+
+    def c(zeta: float, k: float, m1: float, m2: float | None = None) -> float:
+        meq = m1 if m2 is None else m1 * m2 / (m1 + m2)
+        return 2.0 * zeta * math.sqrt(k * meq)
+
+    k_pin = pin_contact_stiffness(params, load_Nm)
+    k_rt = br.pin_wheel_torsional
+    tv = mesh.resample(st.tvms_points)
+    k_mean = float(np.mean(tv))
+    J_s, J_p = bp.sun.inertia, bp.planet.inertia
+    m_mesh = J_s * J_p / (J_s * rb2**2 + J_p * rb1**2)  # Kahraman's equivalent mesh mass
+    # effective inertia of the whole train reflected to the sun (rigid kinematics), for the input coupling
+    g_pl = Z1 / Z2  # planet (and crank) speed relative to carrier per sun speed relative to carrier
+    J_eff = (J_s + N * (J_p + bp.crank.inertia) * g_pl**2
+             + (bp.carrier.inertia + D * bp.cycloid.inertia) / params.ratio**2)
+
+    P = np.zeros(kn.N_P)
+    P[kn.I_NPL], P[kn.I_NDISC], P[kn.I_ZP], P[kn.I_ZC], P[kn.I_Z1] = N, D, Zp, Zc, Z1
+    P[kn.I_OMEGA], P[kn.I_WREL], P[kn.I_A] = Omega, omega_s - Omega, a
+    P[kn.I_E], P[kn.I_RP] = s2.eccentricity, s2.pin_circle_radius
+    P[kn.I_ALPHA], P[kn.I_RB1], P[kn.I_RB2], P[kn.I_HALF_BACKLASH] = alpha, rb1, rb2, 0.5 * s1.backlash
+    P[kn.I_SINA], P[kn.I_COSA] = math.sin(alpha), math.cos(alpha)
+    P[kn.I_KSS], P[kn.I_CSS] = br.sun_support, c(zb, br.sun_support, bp.sun.mass)
+    P[kn.I_KIN], P[kn.I_CIN] = br.input_torsional, c(zb, br.input_torsional, J_eff)
+    P[kn.I_KCC], P[kn.I_CCC] = br.crank_carrier, c(zb, br.crank_carrier, bp.crank.mass, bp.carrier.mass)
+    P[kn.I_KCD], P[kn.I_CCD] = br.crank_cycloid, c(zb, br.crank_cycloid, bp.crank.mass, bp.cycloid.mass)
+    kpr = br.planet_crank_radial
+    P[kn.I_KPR], P[kn.I_CPR] = kpr, c(zb, kpr, bp.planet.mass, bp.crank.mass)
+    P[kn.I_KPT], P[kn.I_CPT] = br.planet_crank_torsional, c(zb, br.planet_crank_torsional, J_p, bp.crank.inertia)
+    P[kn.I_KHS], P[kn.I_CHS] = br.carrier_support, c(zb, br.carrier_support, bp.carrier.mass)
+    P[kn.I_KRH], P[kn.I_CRH] = br.pin_wheel_housing, c(zb, br.pin_wheel_housing, mass[lay["pin_wheel"]])
+    P[kn.I_KRT], P[kn.I_CRT] = k_rt, c(zb, k_rt, mass[lay["pin_wheel"] + 2])
+    P[kn.I_KPIN], P[kn.I_CPIN] = k_pin, c(zp, k_pin, bp.cycloid.mass, mass[lay["pin_wheel"]])
+    P[kn.I_CMESH] = c(zm, k_mean, m_mesh)
+    P[kn.I_IRAMP] = 1.0 / MESH_DAMPING_RAMP_M
+    if motor:
+        # speed PI of the servo drive on the rotor (docs/model.md section 3): a damper c = J w_c and a spring
+        # k = c w_c / 4 (PI corner at a quarter of the bandwidth), tuned on the rotor plus the train reflected to
+        # it; the steady drive torque T_L / i holds the static rotor angle at zero
+        w_c = TWO_PI * drive.speed_loop_bandwidth_hz
+        c_sl = (drive.motor_inertia + J_eff) * w_c
+        P[kn.I_MOTOR] = 1.0
+        P[kn.I_CSL] = c_sl if st.damping else 0.0
+        P[kn.I_KSL] = c_sl * w_c / 4.0
+        P[kn.I_TDRIVE] = load_Nm / params.ratio
+    P[kn.I_TLOAD] = load_Nm
+    P[kn.I_TFROZEN] = -1.0 if st.excitation else 0.0
+    P[kn.I_CORIOLIS] = 1.0 if st.coriolis else 0.0
+    P[kn.I_BETA0] = 0.0
+    P[kn.I_DISCPHASE] = math.radians(s2.disc_phase_deg)
+    P[kn.I_CPH], P[kn.I_SPH] = math.cos(P[kn.I_DISCPHASE]), math.sin(P[kn.I_DISCPHASE])
+    pitches = s2.disc_phase_deg / (360.0 / Zp)
+    P[kn.I_GSHARED] = 1.0 if abs(pitches - round(pitches)) < 1e-12 else 0.0
+    P[kn.I_NTVMS] = tv.size
+    R_out = params.bodies.pin_wheel_outer_radius
+    sp = st.sensor_point_m or (R_out, 0.0)
+    P[kn.I_SENSX], P[kn.I_SENSY] = sp
+    P[kn.I_NCH] = len(st.sensor_directions)
+    P[kn.I_DISPLIM] = st.max_displacement_m
+    P[kn.I_ROTLIM] = st.max_rotation_rad
+
+    psi = TWO_PI * np.arange(N) / N
+    planet = np.column_stack([np.cos(psi), np.sin(psi), np.sin(alpha - psi), np.cos(alpha - psi)])
+    kk = TWO_PI * np.arange(Zp) / Zp
+    sensor = np.array([np.asarray(d, float) / math.hypot(*d) for d in st.sensor_directions])
+    extra = {"k_pin_N_per_m": k_pin, "k_mesh_mean_N_per_m": k_mean, "carrier_speed_rad_s": Omega,
+             "ratio": params.ratio}
+    pk, pe = mesh.resample_pairs(st.tvms_points)
+    P[kn.I_NSLOT] = pk.shape[0]
+    return dict(P=P, mass=mass, planet=planet, tvms=tv, cosk=np.cos(kk), sink=np.sin(kk), sensor=sensor,
+                n_planets=N, n_discs=D, mesh_source=mesh.source, extra=extra,
+                tvms_error=mesh.resample_error(st.tvms_points), pairs=np.stack([pk, pe], axis=1))
