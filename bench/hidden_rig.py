@@ -119,7 +119,8 @@ def run_workflow(rig: Path, out: Path, config: str) -> dict:
     step("train", str(out / "transfer.zarr"), "--out", str(out / "model"))
     step("dataset", "from-files", str(rig), "--label-regex", r"^rig_(?P<label>T\d)_", "--channel", "acc",
          "--fs", "48000", "--window", "4096", "--out", str(out / "rig.zarr"), "--overwrite")
-    ev = json.loads(step("evaluate", str(out / "model"), str(out / "rig.zarr"), "--json", capture=True))
+    ev = json.loads(step("evaluate", str(out / "model"), str(out / "rig.zarr"), "--split", "all", "--json",
+                         capture=True))
     return {"pcc_before": upd.get("pcc_before"), "pcc_after": upd.get("pcc_after"),
             "rig_accuracy": ev.get("accuracy"), "evaluate": ev}
 
