@@ -1,5 +1,6 @@
 """Healthy TVMS: cross-check with ROSS, ISO 6336-1 single-pair stiffness, RV-20E magnitude."""
 
+import dataclasses
 import math
 import warnings
 
@@ -195,15 +196,21 @@ def test_golden_rv20e():
     import json
     from pathlib import Path
 
-    from rvdiag.gears import ToothFaults
+    from rvdiag.gears import ToothFaults, Wear
 
     gold = json.loads((Path(__file__).parent / "golden" / "tvms_rv20e.json").read_text())
     pair = GearPair.sun_planet(ReducerParams.default())
     h = mesh_stiffness(pair, cycles=1, points_per_cycle=36)
     # crack_tooth=1: the T6 layout the golden file was written with (the default moved to tooth 5 later)
-    f = mesh_stiffness(pair, ToothFaults.for_state("T6", crack_tooth=1), cycles=11, points_per_cycle=12)
+    t6 = ToothFaults.for_state("T6", crack_tooth=1)
+    f = mesh_stiffness(pair, t6, cycles=11, points_per_cycle=12)
+    # the wear profile of 2026-11-23 (fixed load shares): Wear.run_in_deflection = 0
+    fixed = mesh_stiffness(pair, dataclasses.replace(t6, wear=Wear(t6.wear.depth, 0.0)), cycles=11,
+                           points_per_cycle=12)
     np.testing.assert_allclose(h.stiffness_N_per_m, gold["healthy_1x36"], rtol=1e-7)
-    np.testing.assert_allclose(f.stiffness_N_per_m, gold["T6_11x12"], rtol=1e-7, atol=1e-3)
+    np.testing.assert_allclose(fixed.stiffness_N_per_m, gold["T6_11x12"], rtol=1e-7, atol=1e-3)
+    np.testing.assert_allclose(f.stiffness_N_per_m, gold["T6_11x12_run_in"], rtol=1e-7, atol=1e-3)
+    assert np.abs(f.stiffness_N_per_m - fixed.stiffness_N_per_m).max() > 1e3  # the two wear profiles differ
     assert pair.contact_ratio == pytest.approx(gold["contact_ratio"], rel=1e-12)
 
 

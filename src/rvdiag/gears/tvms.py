@@ -398,8 +398,9 @@ def _wear_errors(pair: GearPair, angle: np.ndarray, fault: ToothFaults,
                  in_contact: np.ndarray) -> np.ndarray | None:
     """Wear depth at each pair's contact point (m), shape (n_candidates, n_angles), or None."""
     gear = pair.driver if fault.gear == "driver" else pair.driven
-    depth_of = {t: next((f.depth for f in fault.faults_of(t) if isinstance(f, Wear)), 0.0)
-                for t in list(fault.teeth) + [-1]}
+    wear_of = {t: next((f for f in fault.faults_of(t) if isinstance(f, Wear)), None)
+               for t in list(fault.teeth) + [-1]}
+    depth_of = {t: (w.depth if w is not None else 0.0) for t, w in wear_of.items()}
     if not any(d > 0 for d in depth_of.values()):
         return None
     pair_index, roll, _ = pair.contact_state(angle)
@@ -408,8 +409,10 @@ def _wear_errors(pair: GearPair, angle: np.ndarray, fault: ToothFaults,
     for t in fault.teeth:
         depth[tooth == t] = depth_of[t]
     out = np.zeros_like(roll)
-    unit = archard_wear_profile(pair, fault.gear, roll[in_contact], 1.0)
-    out[in_contact] = unit * depth[in_contact]
+    # one profile per wear state (the run-in shape depends on the depth against the run-in deflection)
+    for w in {w for w in wear_of.values() if w is not None and w.depth > 0}:
+        on = in_contact & np.isin(depth, [w.depth])
+        out[on] = archard_wear_profile(pair, fault.gear, roll[on], w.depth, w.run_in_deflection)
     return out
 
 
