@@ -97,38 +97,41 @@ def sample_breaks_profile(t0, dt, P, events, tol, out):
     p1 = g * kn.profile_state(t0 + dt, P)[0]
     if not p1 > p0:
         return 0
-    c = math.floor(p0)
-    j = np.searchsorted(events, p0 - c, side="right")
+    # the event phases c + events[j] in (p0, p1), in order: k counts events from the first after p0
+    k0 = np.searchsorted(events, p0 - math.floor(p0), side="right")
     m = 0
-    while m < out.size:
-        if j >= ne:
-            j = 0
-            c += 1.0
-        pe = c + events[j]
+    for k in range(k0, k0 + out.size):
+        pe = math.floor(p0) + (k // ne) + events[k % ne]
         if pe >= p1:
             break
-        lo = t0
-        hi = t0 + dt
-        te = t0 + dt * (pe - p0) / (p1 - p0)
-        for _ in range(30):
-            th, w, _a = kn.profile_state(te, P)
-            r = g * th - pe
-            if r > 0.0:
-                hi = te
-            else:
-                lo = te
-            tn = te - r / (g * w) if w > 0.0 else 0.5 * (lo + hi)
-            if not (tn > lo and tn < hi):
-                tn = 0.5 * (lo + hi)
-            if abs(tn - te) <= 1e-15 * dt:
-                te = tn
-                break
-            te = tn
+        te = _profile_event_time(t0, dt, P, g, p0, p1, pe)
         if te > t0 + tol and te < t0 + dt - tol:
             out[m] = te
             m += 1
-        j += 1
     return m
+
+
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
+def _profile_event_time(t0, dt, P, g, p0, p1, pe):
+    """The time in ``[t0, t0 + dt]`` at which ``g theta_H(t) = pe`` (Newton from the linear guess, kept in the
+    bracket by bisection)."""
+    lo = t0
+    hi = t0 + dt
+    te = t0 + dt * (pe - p0) / (p1 - p0)
+    for _ in range(30):
+        th, w, _a = kn.profile_state(te, P)
+        r = g * th - pe
+        if r > 0.0:
+            hi = te
+        else:
+            lo = te
+        tn = te - r / (g * w) if w > 0.0 else 0.5 * (lo + hi)
+        if not (tn > lo and tn < hi):
+            tn = 0.5 * (lo + hi)
+        if abs(tn - te) <= 1e-15 * dt:
+            return tn
+        te = tn
+    return te
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
