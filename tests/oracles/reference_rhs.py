@@ -91,6 +91,42 @@ class ReferenceRHS:
         self.iH = 3 + 6 * N + 3 * D  # carrier
         self.iR = self.iH + 3  # pin wheel
 
+    def kinematics(self, t: float) -> tuple[float, float, float]:
+        """Carrier angle theta_H, speed Omega and acceleration dOmega/dt at t (docs/model.md section 2): Omega t at
+        constant speed; the trapezoid integrated segment by segment from its speed, theta_H(0) = 0."""
+        P = self.P
+        te = self._te(t)
+        W = P[mdl.I_OMEGA]
+        if P[mdl.I_PROFILE] != 2.0:
+            return W * te, W, 0.0
+        acc, t_s, t_a, t_c = P[mdl.I_PR_ACC], P[mdl.I_PR_TS], P[mdl.I_PR_TA], P[mdl.I_PR_TC]
+        knots = np.array([t_s, t_s + t_a, t_s + t_a + t_c, t_s + 2 * t_a + t_c])
+        rates = np.array([0.0, acc, 0.0, -acc, 0.0])  # acceleration in each of the five phases
+
+        def angle(x: float) -> tuple[float, float, float]:
+            """Integrate the piecewise-constant acceleration from rest at t_s up to x."""
+            th = w = 0.0
+            lo = t_s
+            for tk, r in zip(list(knots[1:]) + [np.inf], rates[1:]):
+                if x <= lo:
+                    break
+                dt = min(x, tk) - lo
+                th += w * dt + 0.5 * r * dt * dt
+                w += r * dt
+                lo = tk
+            return th, w, rates[int(np.searchsorted(knots, x, side="left"))]
+
+        th, w, a = angle(te)
+        return th - angle(0.0)[0], w, a
+
+    def load_torque(self, t: float) -> float:
+        """T_L(t) = T0 + M g L cos(theta_arm0 + theta_H) + M L^2 dOmega/dt (a gravity arm; T0 without one)."""
+        P = self.P
+        if P[mdl.I_PROFILE] == 0.0:
+            return P[mdl.I_TLOAD]
+        th, _, a = self.kinematics(t)
+        return P[mdl.I_TLOAD] + P[mdl.I_ARM_MGL] * np.cos(P[mdl.I_ARM_TH0] + th) + P[mdl.I_ARM_ML2] * a
+
     def _te(self, t: float) -> float:
         tf = self.P[mdl.I_TFROZEN]
         return float(tf) if tf >= 0.0 else float(t)
@@ -112,15 +148,20 @@ class ReferenceRHS:
         t_shaft = P[mdl.I_KIN] * (q[2] - qm) + P[mdl.I_CIN] * (v[2] - vm)
         Q[2] -= t_shaft
         if P[mdl.I_MOTOR] != 0.0:  # rotor: steady drive torque, speed-loop spring and damper, shaft reaction
-            Q[-1] += P[mdl.I_TDRIVE] - P[mdl.I_KSL] * qm - P[mdl.I_CSL] * vm + t_shaft
+            drive = P[mdl.I_TDRIVE]
+            if P[mdl.I_PROFILE] != 0.0:  # feed-forward: T_L(t) / i plus i J_ref dOmega/dt
+                drive = self.load_torque(t) / P[mdl.I_RATIO] + P[mdl.I_JREF_I] * self.kinematics(t)[2]
+            Q[-1] += drive - P[mdl.I_KSL] * qm - P[mdl.I_CSL] * vm + t_shaft
         Q[iH:iH + 2] -= P[mdl.I_KHS] * q[iH:iH + 2] + P[mdl.I_CHS] * v[iH:iH + 2]
-        Q[iH + 2] -= P[mdl.I_TLOAD]
+        Q[iH + 2] -= self.load_torque(t)
         Q[iR:iR + 2] -= P[mdl.I_KRH] * q[iR:iR + 2] + P[mdl.I_CRH] * v[iR:iR + 2]
         Q[iR + 2] -= P[mdl.I_KRT] * q[iR + 2] + P[mdl.I_CRT] * v[iR + 2]
 
         # sun-planet meshes: TVMS at the sun angle relative to planet i, linear interpolation
         nt = self.k_table.size
-        phi = P[mdl.I_WREL] * te
+        th_H, Om_t, _ = self.kinematics(t)
+        phi = P[mdl.I_WREL] * te if P[mdl.I_PROFILE] == 0.0 else (P[mdl.I_RATIO] - 1.0) * th_H
+        w_rel = P[mdl.I_WREL] if P[mdl.I_PROFILE] == 0.0 else (P[mdl.I_RATIO] - 1.0) * Om_t
         x = phi / TWO_PI - np.arange(N) / N
         x = (x - np.floor(x)) * nt
         j0 = np.minimum(x.astype(np.int64), nt - 1)
@@ -142,7 +183,7 @@ class ReferenceRHS:
                 k_ = ks[j0] + fr * (ks[j1] - ks[j0])
                 c_ = cs[j0] + fr * (cs[j1] - cs[j0])
                 g = d - (es[j0] + fr * (es[j1] - es[j0]))
-                gd = dd - (0.0 if frozen else P[mdl.I_WREL] * nt / TWO_PI * (ds[j0] + fr * (ds[j1] - ds[j0])))
+                gd = dd - (0.0 if frozen else w_rel * nt / TWO_PI * (ds[j0] + fr * (ds[j1] - ds[j0])))
                 # the damper grows linearly over the first 1/iramp of approach (Hunt & Crossley), never pulls
                 ramp_in = np.minimum((g - hb) * self.iramp, 1.0)
                 push = np.maximum(k_ * (g - hb) + c_ * ramp_in * gd, 0.0)  # drive flank: pushes, never pulls
@@ -225,10 +266,9 @@ class ReferenceRHS:
 
     def _frames(self, t: float):
         P = self.P
-        te = self._te(t)
-        Om = P[mdl.I_OMEGA]
-        beta = P[mdl.I_BETA0] - P[mdl.I_ZP] * Om * te + np.arange(self.D) * P[mdl.I_DISCPHASE]
-        B = beta + Om * te
+        th_H = self.kinematics(t)[0]
+        beta = P[mdl.I_BETA0] - P[mdl.I_ZP] * th_H + np.arange(self.D) * P[mdl.I_DISCPHASE]
+        B = beta + th_H
         return B, np.cos(beta), np.sin(beta), np.cos(B), np.sin(B)
 
     def _pin_geometry(self, B: np.ndarray):
@@ -267,7 +307,7 @@ class ReferenceRHS:
         """M^-1 (Q - m a0) + rotating-frame terms (docs/model.md section 2)."""
         P = self.P
         acc = self.forces(t, q, v) / self.mass
-        Om = P[mdl.I_OMEGA]
+        _, Om, dOm = self.kinematics(t)
         acc[self.ip] += Om * Om * P[mdl.I_A]  # nominal centripetal acceleration of the orbiting bodies
         acc[self.ic] += Om * Om * P[mdl.I_A]
         _, cb, sb, _, _ = self._frames(t)
@@ -278,6 +318,23 @@ class ReferenceRHS:
             ix = np.arange(0, self.iR, 3)  # every body but the pin wheel (fixed frame)
             acc[ix] += 2.0 * Om * v[ix + 1] + Om * Om * q[ix]
             acc[ix + 1] += -2.0 * Om * v[ix] + Om * Om * q[ix + 1]
+            # Euler term of a frame whose rate changes: -dOmega/dt z x u
+            acc[ix] += dOm * q[ix + 1]
+            acc[ix + 1] -= dOm * q[ix]
+        # tangential parts of the nominal accelerations: planet and crank origins a dOmega/dt e_t (their y),
+        # disc centres -e Zc dOmega/dt e_t(beta_j); minus each body's nominal angular acceleration
+        acc[self.ip + 1] -= P[mdl.I_A] * dOm
+        acc[self.ic + 1] -= P[mdl.I_A] * dOm
+        acc[self.idisc] += P[mdl.I_E] * P[mdl.I_ZC] * dOm * -sb
+        acc[self.idisc + 1] += P[mdl.I_E] * P[mdl.I_ZC] * dOm * cb
+        spin = np.zeros(self.n)  # nominal angular speed of each body per unit carrier speed
+        spin[2] = P[mdl.I_RATIO]
+        spin[self.ip + 2] = spin[self.ic + 2] = -P[mdl.I_ZC]
+        spin[self.idisc + 2] = 1.0
+        spin[self.iH + 2] = 1.0
+        if P[mdl.I_MOTOR] != 0.0:
+            spin[-1] = P[mdl.I_RATIO]
+        acc -= spin * dOm
         return acc
 
     def __call__(self, t: float, y: np.ndarray) -> np.ndarray:

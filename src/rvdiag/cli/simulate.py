@@ -72,6 +72,16 @@ def register(app: typer.Typer) -> None:
                                                 "many seconds, each started --transient ahead and integrated "
                                                 "on its own (0: one continuous run; default 0, or 1 s with "
                                                 "--workers > 1)."),
+        profile: str = typer.Option("constant", "--profile", help="Output speed profile: constant, or trapezoid "
+                                    "(from rest at --accel to --output-speed, cruise, decelerate to rest at the "
+                                    "record's end)."),
+        accel: Optional[float] = typer.Option(None, "--accel", help="Trapezoid's acceleration and deceleration, "
+                                              "deg/s^2."),
+        arm_mass: float = typer.Option(0.0, "--arm-mass", help="Gravity arm on the output: point mass, kg "
+                                       "(load T0 + M g L cos(angle) + M L^2 dOmega/dt)."),
+        arm_length: float = typer.Option(0.0, "--arm-length", help="Gravity arm's length, m."),
+        arm_angle: float = typer.Option(0.0, "--arm-angle", help="Gravity arm's angle above the horizontal at the "
+                                        "record's start, deg."),
         out: Path = opt.out("Output .npz (signal, fs, settings)."),
         quiet: bool = opt.quiet(),
     ) -> None:
@@ -100,7 +110,23 @@ def register(app: typer.Typer) -> None:
         with opt.option_names(SIMULATE_OPTION_NAMES):
             settings = ModelSettings(substeps=substeps, segment_s=segment,
                                      **({} if transient is None else {"transient_s": transient}))
+        from rvdiag.dynamics import LoadProfile, SpeedProfile
+
+        if profile not in ("constant", "trapezoid"):
+            raise ParameterError(f"--profile must be constant or trapezoid, got {profile!r}")
+        if profile == "trapezoid":
+            if output_speed is None or accel is None:
+                raise ParameterError("--profile trapezoid needs --output-speed DEG_S and --accel DEG_S2")
+            speed_profile = SpeedProfile("trapezoid", output_speed, accel)
+            speed_profile.validate(duration)
+        elif accel is not None:
+            raise ParameterError("--accel needs --profile trapezoid")
+        else:
+            speed_profile = SpeedProfile()
+        load_profile = LoadProfile(arm_mass, arm_length, arm_angle)
+        load_profile.validate()
         kw = dict(input_speed_rpm=input_speed, output_speed_deg_s=output_speed, load_Nm=load,
+                  profile=speed_profile, load_profile=load_profile,
                   duration_s=duration, fs=fs, noise_snr_db=snr_db, seed=seed, settings=settings,
                   workers=workers)
         with opt.option_names(SIMULATE_OPTION_NAMES):

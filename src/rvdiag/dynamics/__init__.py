@@ -19,6 +19,7 @@ import numpy as np
 from rvdiag.dynamics.mesh import MeshTable, mesh_table_from_gears, rectangular_mesh_table
 from rvdiag.dynamics.model import Model, ModelSettings, build_model
 from rvdiag.dynamics.noise import add_awgn
+from rvdiag.dynamics.profile import LoadProfile, SpeedProfile
 from rvdiag.dynamics.transfer import apply_path
 from rvdiag.dynamics.results import SimulationResult
 from rvdiag.errors import ParameterError
@@ -26,7 +27,7 @@ from rvdiag.kinematics import sun_speed_hz
 from rvdiag.params import ReducerParams
 
 __all__ = [
-    "MeshTable", "Model", "ModelSettings", "SimulationResult", "add_awgn", "build_model",
+    "LoadProfile", "MeshTable", "Model", "ModelSettings", "SimulationResult", "SpeedProfile", "add_awgn", "build_model",
     "mesh_table", "prepare", "simulate",
 ]
 
@@ -74,16 +75,33 @@ def prepare(
     load_Nm: float | None = None,
     settings: ModelSettings | None = None,
     mesh_source: str = "auto",
+    profile: SpeedProfile | None = None,
+    load_profile: LoadProfile | None = None,
+    duration_s: float | None = None,
 ) -> Model:
-    """Build the model of one operating point (validating every input) without integrating."""
+    """Build the model of one operating point (validating every input) without integrating.
+
+    A trapezoidal ``profile`` cruises at its own ``output_speed_deg_s``, which then needs no speed argument.
+    """
     params = ReducerParams.default() if params is None else params
     if not isinstance(params, ReducerParams):
         raise ParameterError("params must be a ReducerParams")
+    if profile is not None and not isinstance(profile, SpeedProfile):
+        raise ParameterError("profile must be a SpeedProfile")
+    if load_profile is not None and not isinstance(load_profile, LoadProfile):
+        raise ParameterError("load_profile must be a LoadProfile")
+    if profile is not None and not profile.is_constant:
+        profile.validate(duration_s)
+        if input_speed_rpm is None and output_speed_deg_s is None:
+            output_speed_deg_s = profile.output_speed_deg_s
+        elif output_speed_deg_s != profile.output_speed_deg_s:
+            raise ParameterError("a trapezoid cruises at its own output_speed_deg_s: give no other speed")
     fsun = sun_speed_hz(params, input_speed_rpm, output_speed_deg_s)
     load = params.operation.rated_torque if load_Nm is None else float(load_Nm)
     if not math.isfinite(load):
         raise ParameterError(f"load torque must be finite, got {load_Nm}")
-    return build_model(params, mesh_table(params, fault, mesh_source), fsun, load, settings or ModelSettings())
+    return build_model(params, mesh_table(params, fault, mesh_source), fsun, load, settings or ModelSettings(),
+                       profile, load_profile, duration_s)
 
 
 def initial_deflection(model: Model, t0: float) -> tuple[np.ndarray, str]:
@@ -117,8 +135,11 @@ def simulate(
     mesh_source: str = "auto",
     progress: Callable[[int, int], None] | None = None,
     workers: int = 1,
+    profile: SpeedProfile | None = None,
+    load_profile: LoadProfile | None = None,
 ) -> SimulationResult:
-    """Simulate the housing vibration of an RV reducer at constant speed and load.
+    """Simulate the housing vibration of an RV reducer at constant speed and load, or under a speed and load
+    profile.
 
     Parameters
     ----------
@@ -147,12 +168,18 @@ def simulate(
     workers : int
         Threads integrating time segments at once when ``settings.segment_s > 0``
         (:mod:`rvdiag.dynamics.segments`); the output does not depend on it.
+    profile : SpeedProfile, optional
+        The output's speed against time (default constant; a trapezoid gives its own cruise speed, and no
+        speed argument is needed).  :mod:`rvdiag.dynamics.profile`.
+    load_profile : LoadProfile, optional
+        A gravity arm on the output (default: the constant ``load_Nm``).
 
     Returns
     -------
     SimulationResult
         ``signal`` of shape (channels, samples) in m/s^2: the housing acceleration at the sensor point seen
-        through the sensor path of ``params.mounting`` (:mod:`rvdiag.dynamics.transfer`).
+        through the sensor path of ``params.mounting`` (:mod:`rvdiag.dynamics.transfer`); ``theta_out`` and
+        ``theta_in``, the carrier's and the sun's nominal angles at each sample (rad, 0 at the first sample).
     """
     from rvdiag.dynamics.segments import check_workers, integrate_segments
 
@@ -168,7 +195,10 @@ def simulate(
         raise ParameterError(f"duration {duration_s} s at {fs} Hz gives no sample")
     params = ReducerParams.default() if params is None else params
     model = prepare(params, fault, input_speed_rpm=input_speed_rpm, output_speed_deg_s=output_speed_deg_s,
-                    load_Nm=load_Nm, settings=st, mesh_source=mesh_source)
+                    load_Nm=load_Nm, settings=st, mesh_source=mesh_source, profile=profile,
+                    load_profile=load_profile, duration_s=float(duration_s))
+    profile = profile or SpeedProfile()
+    load_profile = load_profile or LoadProfile()
     n_tr = int(round(st.transient_s * fs))
     starts: list[str] = []
 
@@ -183,6 +213,7 @@ def simulate(
     if noise_snr_db is not None:
         signal = add_awgn(signal, noise_snr_db, np.random.default_rng(seed))
     names = [f"accel[{d[0]:.3g},{d[1]:.3g}]" for d in model.sensor]
+    theta_out = profile.state(np.arange(n_samples) / float(fs), float(model.P[5]), float(duration_s))[0]
     record = {
         "initial_state": initial_state,
         "segments": n_segments,
@@ -197,7 +228,9 @@ def simulate(
         "seed": int(seed),
         "fault": _describe(fault),
         "mesh_source": model.mesh_source,
+        "speed_profile": profile.to_dict(),
+        "load_profile": load_profile.to_dict(),
         "model_settings": st.to_dict(),
         "params": params.to_dict(),
     }
-    return SimulationResult(signal, float(fs), record, names)
+    return SimulationResult(signal, float(fs), record, names, theta_out, params.ratio * theta_out)

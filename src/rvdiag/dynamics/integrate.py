@@ -84,6 +84,57 @@ def sample_breaks(t0, dt, f_rel, events, tol, out):
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def sample_breaks_profile(t0, dt, P, events, tol, out):
+    """:func:`sample_breaks` under a speed profile (``P[I_PROFILE] != 0``): the relative sun phase is
+    ``(i - 1) theta_H(t) / 2 pi``, no longer linear in t, so each event's time is found by Newton's method on
+    the closed-form angle (safeguarded by bisection; the angle is piecewise quadratic, so a few iterations reach
+    the rounding level).  No events when the carrier stands still or the model is frozen."""
+    ne = events.size
+    if ne == 0 or P[kn.I_TFROZEN] >= 0.0:
+        return 0
+    g = (P[kn.I_RATIO] - 1.0) / (2.0 * math.pi)
+    p0 = g * kn.profile_state(t0, P)[0]
+    p1 = g * kn.profile_state(t0 + dt, P)[0]
+    if not p1 > p0:
+        return 0
+    # the event phases c + events[j] in (p0, p1), in order: k counts events from the first after p0
+    k0 = np.searchsorted(events, p0 - math.floor(p0), side="right")
+    m = 0
+    for k in range(k0, k0 + out.size):
+        pe = math.floor(p0) + (k // ne) + events[k % ne]
+        if pe >= p1:
+            break
+        te = _profile_event_time(t0, dt, P, g, p0, p1, pe)
+        if te > t0 + tol and te < t0 + dt - tol:
+            out[m] = te
+            m += 1
+    return m
+
+
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
+def _profile_event_time(t0, dt, P, g, p0, p1, pe):
+    """The time in ``[t0, t0 + dt]`` at which ``g theta_H(t) = pe`` (Newton from the linear guess, kept in the
+    bracket by bisection)."""
+    lo = t0
+    hi = t0 + dt
+    te = t0 + dt * (pe - p0) / (p1 - p0)
+    for _ in range(30):
+        th, w, _a = kn.profile_state(te, P)
+        r = g * th - pe
+        if r > 0.0:
+            hi = te
+        else:
+            lo = te
+        tn = te - r / (g * w) if w > 0.0 else 0.5 * (lo + hi)
+        if not (tn > lo and tn < hi):
+            tn = 0.5 * (lo + hi)
+        if abs(tn - te) <= 1e-15 * dt:
+            return tn
+        te = tn
+    return te
+
+
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def step_grid(t0, t_end, substeps, hnom, breaks, nb, grid):
     """Step boundaries of one sample in ``grid[0..M]`` (returns M): the sample cut at the ``nb`` event
     times in ``breaks``, each piece into ``ceil(length / hnom)`` equal steps (``substeps`` equal steps
@@ -163,6 +214,7 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tv
     # values at the sample's start; libm's sincos at every stage time would cost ~8 % of the run
     f_rel, rate_b, rate_w = _time_rates(P)
     cdb0, sdb0, cdw0, sdw0 = _rotation_increments(0.5 * rate_b * hnom, 0.5 * rate_w * hnom)
+    prof = P[kn.I_PROFILE] != 0.0  # a speed profile: the frame angles are exact (closed form) at every stage time
     # pin geometry: exact at the sample's start (gS), middle (gM) and end (gE), interpolated
     # (quadratic) at the half steps (gH) and the inner step ends (gT); gE becomes the next sample's gS
     # by swapping references.  Mesh terms (start, half, end of the step: ma, mb, mc) are exact at every
@@ -182,7 +234,10 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tv
         kn.pin_geometry_cs(cE[0], cE[1], cE[2], cE[3], P, cosk, sink, gE, rE)
         cb, sb, cw, sw = kn.frame_angles(t0 + 0.5 * dts, P)
         kn.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gM, rM)
-        nb = sample_breaks(t0, dts, f_rel, events, tol, breaks)
+        if prof:
+            nb = sample_breaks_profile(t0, dts, P, events, tol, breaks)
+        else:
+            nb = sample_breaks(t0, dts, f_rel, events, tol, breaks)
         M = step_grid(t0, t_end, substeps, hnom, breaks, nb, grid)
         cb, sb, cw, sw = cS
         cdb, sdb, cdw, sdw = cdb0, sdb0, cdw0, sdw0
@@ -200,7 +255,10 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tv
                     _record_sensor(k1, n, iR, sx, sy, sensor, out, s)
             else:
                 kn.rhs_with_terms(y, P, inv_mass, planet, ma, gT, rT, Q, k1)
-            cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
+            if prof:
+                cb, sb, cw, sw = kn.frame_angles(th, P)
+            else:
+                cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
             kn.frame_rotations(cb, sb, cw, sw, P, rH)
             kn.interpolate_geometry(gS, gM, gE, (th - t0) * fs, P, gH)
             kn.mesh_terms(th, P, tvms, mb)
@@ -216,7 +274,10 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tv
             for i in range(n2):
                 ytmp[i] = y[i] + h * k2[i]
                 ks[i] += 2.0 * k2[i]
-            cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
+            if prof:
+                cb, sb, cw, sw = kn.frame_angles(t1, P)
+            else:
+                cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
             if j == M - 1:
                 kn.rhs_with_terms(ytmp, P, inv_mass, planet, mc, gE, rE, Q, k2)
             else:
@@ -261,6 +322,7 @@ def rk38_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, t
     tol = 1e-6 * hnom
     f_rel, rate_b, rate_w = _time_rates(P)
     cdb0, sdb0, cdw0, sdw0 = _rotation_increments(rate_b * hnom / 3.0, rate_w * hnom / 3.0)
+    prof = P[kn.I_PROFILE] != 0.0  # a speed profile: the frame angles are exact (closed form) at every stage time
     cb, sb, cw, sw = kn.frame_angles(k_start * dts, P)
     kn.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, ga, ra)
     kn.mesh_terms(k_start * dts, P, tvms, ma)
@@ -268,7 +330,10 @@ def rk38_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, t
         kk = k_start + s
         t0 = kk * dts
         t_end = (kk + 1) * dts
-        nb = sample_breaks(t0, dts, f_rel, events, tol, breaks)
+        if prof:
+            nb = sample_breaks_profile(t0, dts, P, events, tol, breaks)
+        else:
+            nb = sample_breaks(t0, dts, f_rel, events, tol, breaks)
         M = step_grid(t0, t_end, substeps, hnom, breaks, nb, grid)
         cdb, sdb, cdw, sdw = cdb0, sdb0, cdw0, sdw0
         for j in range(M):
@@ -282,13 +347,19 @@ def rk38_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, t
             kn.rhs_with_terms(y, P, inv_mass, planet, ma, ga, ra, Q, k1)
             if j == 0 and record:
                 _record_sensor(k1, n, iR, sx, sy, sensor, out, s)
-            cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
+            if prof:
+                cb, sb, cw, sw = kn.frame_angles(ta, P)
+            else:
+                cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
             kn.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gb, rb)
             kn.mesh_terms(ta, P, tvms, mb)
             for i in range(n2):
                 ytmp[i] = y[i] + h3 * k1[i]
             kn.rhs_with_terms(ytmp, P, inv_mass, planet, mb, gb, rb, Q, k2)
-            cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
+            if prof:
+                cb, sb, cw, sw = kn.frame_angles(tb, P)
+            else:
+                cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
             kn.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gc, rc)
             kn.mesh_terms(tb, P, tvms, mc)
             for i in range(n2):
@@ -296,6 +367,8 @@ def rk38_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, t
             kn.rhs_with_terms(ytmp, P, inv_mass, planet, mc, gc, rc, Q, k3)
             if j == M - 1:  # re-anchored exactly at every sample's end
                 cb, sb, cw, sw = kn.frame_angles(t_end, P)
+            elif prof:
+                cb, sb, cw, sw = kn.frame_angles(t1, P)
             else:
                 cb, sb, cw, sw = _advance_frames(cb, sb, cw, sw, cdb, sdb, cdw, sdw)
             kn.pin_geometry_cs(cb, sb, cw, sw, P, cosk, sink, gd, rd)
@@ -357,6 +430,7 @@ def _load_step_kernels(model: mdl.Model) -> None:
     with mdl._kernels_lock:
         out = np.zeros(4)
         nb = sample_breaks(0.0, 1.0, 0.5, np.array([0.25]), 1e-9, out)
+        sample_breaks_profile(0.0, 1.0, model.P, np.array([0.25]), 1e-9, out)
         step_grid(0.0, 1.0, 2, 0.5, out, nb, np.zeros(8))
         _step_kernels_loaded = True
 

@@ -58,6 +58,13 @@ P_FIELDS = (
     "IRAMP",  # 1 / MESH_DAMPING_RAMP_M
     "MOTOR",  # 1.0: a motor rotor DOF (the last coordinate) on the input shaft, held by the speed loop
     "KSL", "CSL", "TDRIVE",  # speed-loop spring and damper on the rotor, its steady drive torque
+    # speed and load profile (docs/model.md section 2; rvdiag.dynamics.profile): PROFILE 0 the constant-speed
+    # model (the kernels' original path), 1 constant speed with a time-varying load, 2 a trapezoid
+    "PROFILE",
+    "PR_TS", "PR_TA", "PR_TC", "PR_ACC", "PR_F0",  # trapezoid: start, accel and cruise times, accel, angle at t=0
+    "RATIO",                                    # i: sun speed / carrier speed
+    "ARM_MGL", "ARM_ML2", "ARM_TH0",            # gravity arm: M g L, M L^2, its angle at t = 0
+    "JREF_I",                                   # i J_ref: drive torque per unit carrier acceleration
 )
 #: ``{"NPL": 0, "NDISC": 1, ...}``: the index of each field of ``P``
 P_INDEX = {name: i for i, name in enumerate(P_FIELDS)}
@@ -84,6 +91,33 @@ def eval_time(t, P):
     return t
 
 
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
+def profile_state(te, P):
+    """``(theta_H, Omega, dOmega/dt)`` of the carrier at time ``te`` on the profile path (``P[I_PROFILE] != 0``):
+    constant speed (1) or the trapezoid (2) of :class:`rvdiag.dynamics.profile.SpeedProfile`, in closed form
+    (docs/model.md section 2): at rest until PR_TS, accelerating at PR_ACC for PR_TA, cruising at OMEGA for
+    PR_TC, decelerating for PR_TA, at rest; theta_H(0) = 0 (PR_F0 is the angle the move has covered at t = 0)."""
+    w = P[I_OMEGA]
+    if P[I_PROFILE] == 1.0:
+        return w * te, w, 0.0
+    ac = P[I_PR_ACC]
+    ta = P[I_PR_TA]
+    tc = P[I_PR_TC]
+    tau = te - P[I_PR_TS]
+    if tau <= 0.0:
+        F, W, A = 0.0, 0.0, 0.0
+    elif tau < ta:
+        F, W, A = 0.5 * ac * tau * tau, ac * tau, ac
+    elif tau < ta + tc:
+        F, W, A = w * (0.5 * ta + (tau - ta)), w, 0.0
+    elif tau < 2.0 * ta + tc:
+        s = tau - ta - tc
+        F, W, A = w * (0.5 * ta + tc + s) - 0.5 * ac * s * s, w - ac * s, -ac
+    else:
+        F, W, A = w * (ta + tc), 0.0, 0.0
+    return F - P[I_PR_F0], W, A
+
+
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def pin_geometry(t, P, cosk, sink, geo, rot):
     """Normal (in each disc's eccentric frame) and lever arm of every cycloid-pin contact at time t.
@@ -107,6 +141,10 @@ def frame_angles(t, P):
     disc 0 in the carrier frame, W = Omega t the carrier angle (time-varying terms frozen: at the
     frozen time)."""
     te = eval_time(t, P)
+    if P[I_PROFILE] != 0.0:  # W = theta_H(t), the integrated carrier angle
+        th = profile_state(te, P)[0]
+        b0 = P[I_BETA0] - P[I_ZP] * th
+        return math.cos(b0), math.sin(b0), math.cos(th), math.sin(th)
     Om = P[I_OMEGA]
     b0 = P[I_BETA0] - P[I_ZP] * Om * te
     return math.cos(b0), math.sin(b0), math.cos(Om * te), math.sin(Om * te)
@@ -191,16 +229,38 @@ def mesh_terms(t, P, tvms, mt):
     linearly interpolated in ``tvms`` (``Model.tables``, rows ``k, e, c, e'`` per slot, then the nominal
     TVMS) at the sun angle relative to planet i,
     ``phi = w_rel t - 2 pi i / N``; ``mt[i, 4 S]`` and ``mt[i, 4 S + 1]`` are the nominal TVMS and the
-    load-shared separation (bilateral model).  Computed once per
+    load-shared separation (bilateral model).  With a speed or load profile (``P[I_PROFILE] != 0``) the phase is
+    ``(i - 1) theta_H(t) - 2 pi i / N`` and the rate ``(i - 1) Omega(t)``, and the extra row ``mt[N]`` holds
+    ``(Omega, dOmega/dt, T_L, drive torque)`` at t (:func:`profile_state`).  Computed once per
     distinct stage time by the integrator and shared by the stages that use it.
     """
     te = eval_time(t, P)
     N = int(P[I_NPL])
+    nt = tvms.shape[1]
+    if P[I_PROFILE] != 0.0:  # the sun's angle relative to the carrier is (i - 1) theta_H(t), its rate (i - 1) Omega(t)
+        th, W, A = profile_state(te, P)
+        x0 = (P[I_RATIO] - 1.0) * th * (1.0 / TWO_PI)
+        erate = (P[I_RATIO] - 1.0) * W * nt * (1.0 / TWO_PI) if P[I_TFROZEN] < 0.0 else 0.0
+        # row N: the profile's time terms Omega, dOmega/dt, T_L(t) and the drive torque T_L / i + i J_ref dOmega/dt
+        tl = P[I_TLOAD] + P[I_ARM_MGL] * math.cos(P[I_ARM_TH0] + th) + P[I_ARM_ML2] * A
+        mt[N, 0] = W
+        mt[N, 1] = A
+        mt[N, 2] = tl
+        mt[N, 3] = tl / P[I_RATIO] + P[I_JREF_I] * A
+        _mesh_interpolate(x0, erate, N, P, tvms, mt)
+        return
+    x0 = P[I_WREL] * te * (1.0 / TWO_PI)
+    erate = P[I_WREL] * nt * (1.0 / TWO_PI) if P[I_TFROZEN] < 0.0 else 0.0
+    _mesh_interpolate(x0, erate, N, P, tvms, mt)
+
+
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
+def _mesh_interpolate(x0, erate, N, P, tvms, mt):
+    """The table lookup of :func:`mesh_terms` at relative sun phase ``x0`` (revolutions) and table rate
+    ``erate`` (nodes per second)."""
     S = int(P[I_NSLOT])
     nt = tvms.shape[1]
     inv_n = 1.0 / N
-    x0 = P[I_WREL] * te * (1.0 / TWO_PI)
-    erate = P[I_WREL] * nt * (1.0 / TWO_PI) if P[I_TFROZEN] < 0.0 else 0.0
     for i in range(N):
         x = x0 - i * inv_n
         x = (x - math.floor(x)) * nt
@@ -306,8 +366,9 @@ def generalized_forces(y, P, planet, mt, geo, rot, Q):
     # input shaft between the motor rotor (or the ideal speed source) and the sun
     T_sh = P[I_KIN] * (y[2] - qm) + P[I_CIN] * (y[n + 2] - vm)
     S2 = -T_sh
+    prof = P[I_PROFILE] != 0.0
     if mot:  # the rotor: drive torque, speed loop, and the shaft's reaction
-        Q[iM] = P[I_TDRIVE] - P[I_KSL] * qm - P[I_CSL] * vm + T_sh
+        Q[iM] = (mt[N, 3] if prof else P[I_TDRIVE]) - P[I_KSL] * qm - P[I_CSL] * vm + T_sh
     # ---- carrier: support, load torque
     qH0 = y[iH]
     qH1 = y[iH + 1]
@@ -317,7 +378,7 @@ def generalized_forces(y, P, planet, mt, geo, rot, Q):
     vH2 = y[n + iH + 2]
     H0 = -(P[I_KHS] * qH0 + P[I_CHS] * vH0)
     H1 = -(P[I_KHS] * qH1 + P[I_CHS] * vH1)
-    H2 = -P[I_TLOAD]
+    H2 = -(mt[N, 2] if prof else P[I_TLOAD])
     # ---- pin wheel on the housing (fixed frame)
     R0 = -(P[I_KRH] * y[iR] + P[I_CRH] * y[n + iR])
     R1 = -(P[I_KRH] * y[iR + 1] + P[I_CRH] * y[n + iR + 1])
@@ -520,7 +581,8 @@ def accelerations(y, P, inv_mass, planet, mt, geo, rot, Q, dydt):
     D = int(P[I_NDISC]) & 255
     n = Q.size & 65535
     iR = 6 + 6 * N + 3 * D
-    Om = P[I_OMEGA]
+    prof = P[I_PROFILE] != 0.0
+    Om = mt[N, 0] if prof else P[I_OMEGA]
     for i in range(n):
         dydt[n + i] = Q[i] * inv_mass[i]
     # nominal centripetal accelerations of orbiting bodies (moved to the right-hand side)
@@ -542,6 +604,44 @@ def accelerations(y, P, inv_mass, planet, mt, geo, rot, Q, dydt):
             i = 3 * b
             dydt[n + i] += tO * y[n + i + 1] + O2 * y[i]
             dydt[n + i + 1] += -tO * y[n + i] + O2 * y[i + 1]
+    if prof:
+        _euler_terms(y, P, mt, rot, dydt, N, D, n, iR)
+
+
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
+def _euler_terms(y, P, mt, rot, dydt, N, D, n, iR):
+    """The terms of an accelerating carrier (dOmega/dt = ``mt[N, 1]``; docs/model.md section 2): the tangential
+    parts of the nominal accelerations of the orbiting bodies' origins (planets and cranks a dOmega/dt, discs
+    e Zc dOmega/dt e_t(beta_j)), the nominal angular accelerations of every body (sun and rotor i, planets and
+    cranks -Zc, discs and carrier 1, times dOmega/dt), and the Euler term -dOmega/dt z x u of the rotating frame
+    (with the Coriolis terms)."""
+    dO = mt[N, 1]
+    if dO == 0.0:
+        return
+    ad = P[I_A] * dO
+    zd = P[I_ZC] * dO
+    for i in range(N):
+        dydt[n + 4 + 3 * i] -= ad
+        dydt[n + 4 + 3 * N + 3 * i] -= ad
+        dydt[n + 5 + 3 * i] += zd
+        dydt[n + 5 + 3 * N + 3 * i] += zd
+    ez = P[I_E] * zd
+    iD0 = 3 + 6 * N
+    for jd in range(D):
+        idd = n + iD0 + 3 * jd
+        dydt[idd] -= ez * rot[jd, 1]
+        dydt[idd + 1] += ez * rot[jd, 0]
+        dydt[idd + 2] -= dO
+    ri = P[I_RATIO] * dO
+    dydt[n + 2] -= ri
+    dydt[n + iR - 1] -= dO
+    if P[I_MOTOR] != 0.0:
+        dydt[2 * n - 1] -= ri
+    if P[I_CORIOLIS] != 0.0:
+        for b in range(iR // 3):
+            i = 3 * b
+            dydt[n + i] += dO * y[i + 1]
+            dydt[n + i + 1] -= dO * y[i]
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")

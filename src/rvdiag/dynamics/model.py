@@ -32,6 +32,7 @@ from rvdiag.dynamics.kernels import (  # noqa: F401 (re-exported)
     generalized_forces, interpolate_geometry, mesh_terms, pin_geometry, pin_geometry_cs, rhs, rhs_with_terms)
 from rvdiag.dynamics.layout import dof_layout, dof_names
 from rvdiag.dynamics.mesh import MeshTable
+from rvdiag.dynamics.profile import LoadProfile, SpeedProfile
 from rvdiag.dynamics.packing import (  # noqa: F401 (re-exported)
     EVENT_DEVIATION_KINK, EVENT_STIFFNESS_KINK, MESH_DAMPING_RAMP_M, PIN_LOAD_FLOOR_FRACTION, PIN_STIFFNESS_ANGLES,
     pack_model_arrays, pin_contact_stiffness, separation_slopes, table_events)
@@ -138,6 +139,9 @@ def build_model(
     sun_speed_hz: float,
     load_Nm: float,
     settings: ModelSettings | None = None,
+    profile: SpeedProfile | None = None,
+    load: LoadProfile | None = None,
+    duration_s: float | None = None,
 ) -> Model:
     """Assemble the flat parameter arrays of the model at one operating point.
 
@@ -151,9 +155,14 @@ def build_model(
     load_Nm : float
         Output load torque on the carrier (N m), resisting its rotation.
     settings : ModelSettings
+    profile, load : SpeedProfile, LoadProfile, optional
+        The output's speed profile (default constant at ``sun_speed_hz / i``; a trapezoid cruises at that speed)
+        and the load model (default the constant ``load_Nm``); :mod:`rvdiag.dynamics.profile`.
+    duration_s : float, optional
+        The record's length, which a trapezoid without ``move_s`` fills.
     """
     st = settings or ModelSettings()
-    return Model(**pack_model_arrays(params, mesh, sun_speed_hz, load_Nm, st), settings=st)
+    return Model(**pack_model_arrays(params, mesh, sun_speed_hz, load_Nm, st, profile, load, duration_s), settings=st)
 
 
 _kernels_loaded = False
@@ -200,8 +209,9 @@ def work_arrays(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def mesh_array(model: Model) -> np.ndarray:
-    """A fresh ``(n_planets, 4 slots + 2)`` array for :func:`mesh_terms`."""
-    return np.zeros((model.n_planets, 4 * int(model.P[kn.I_NSLOT]) + 2))
+    """A fresh ``(n_planets + 1, 4 slots + 2)`` array for :func:`mesh_terms` (the last row: the speed and load
+    profile's time terms)."""
+    return np.zeros((model.n_planets + 1, 4 * int(model.P[kn.I_NSLOT]) + 2))
 
 
 def make_rhs(model: Model):

@@ -17,6 +17,7 @@ import numpy as np
 from rvdiag.dynamics import kernels as kn
 from rvdiag.dynamics.layout import dof_layout
 from rvdiag.dynamics.mesh import MeshTable
+from rvdiag.dynamics.profile import G, LoadProfile, SpeedProfile
 from rvdiag.dynamics.settings import ModelSettings
 from rvdiag.errors import ParameterError
 from rvdiag.params import ReducerParams, body_properties
@@ -117,8 +118,21 @@ def separation_slopes(pairs: np.ndarray) -> np.ndarray:
 
 
 
+def _linearisation_load(profile: SpeedProfile, load: LoadProfile, T0: float, Omega: float,
+                        duration_s: float | None) -> float:
+    """The load at which the pin stiffness is linearised: ``T0``, or with a gravity arm the mean of
+    ``|T_L(t)|`` over the record (``duration_s``, else one output revolution)."""
+    if not load.has_arm:
+        return T0
+    span = duration_s if duration_s else 2.0 * math.pi / Omega
+    t = np.linspace(0.0, span, 512)
+    th, _, dw = profile.state(t, Omega, duration_s)
+    return float(np.mean(np.abs(load.torque(T0, th, dw))))
+
+
 def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: float, load_Nm: float,
-                      st: ModelSettings) -> dict:
+                      st: ModelSettings, profile: SpeedProfile | None = None, load: LoadProfile | None = None,
+                      duration_s: float | None = None) -> dict:
     """The keyword arguments of :class:`rvdiag.dynamics.model.Model` (all but ``settings``) at one operating
     point; the arguments are those of :func:`rvdiag.dynamics.model.build_model`, validated here."""
     s1, s2, br, dmp = params.stage1, params.stage2, params.bearings, params.damping
@@ -174,7 +188,11 @@ def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: floa
         meq = m1 if m2 is None else m1 * m2 / (m1 + m2)
         return 2.0 * zeta * math.sqrt(k * meq)
 
-    k_pin = pin_contact_stiffness(params, load_Nm)
+    profile = profile or SpeedProfile()
+    load = load or LoadProfile()
+    profile.validate(duration_s)
+    load.validate()
+    k_pin = pin_contact_stiffness(params, _linearisation_load(profile, load, load_Nm, Omega, duration_s))
     k_rt = br.pin_wheel_torsional
     tv = mesh.resample(st.tvms_points)
     k_mean = float(np.mean(tv))
@@ -215,6 +233,27 @@ def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: floa
         P[kn.I_KSL] = c_sl * w_c / 4.0
         P[kn.I_TDRIVE] = load_Nm / params.ratio
     P[kn.I_TLOAD] = load_Nm
+    P[kn.I_RATIO] = params.ratio
+    # the drive's acceleration feed-forward: i J_ref, J_ref the inertia of the rigid train reflected to the rotor
+    # (kinetic energy J_ref (i Omega)^2 / 2; docs/model.md section 2)
+    P[kn.I_JREF_I] = params.ratio * (
+        (drive.motor_inertia if motor else 0.0) + J_s + (
+            N * (Zc**2 * (J_p + bp.crank.inertia) + a**2 * (bp.planet.mass + bp.crank.mass))
+            + D * (bp.cycloid.inertia + bp.cycloid.mass * (s2.eccentricity * Zc) ** 2)
+            + bp.carrier.inertia) / params.ratio**2)
+    if not profile.is_constant or load.has_arm:
+        P[kn.I_PROFILE] = 1.0
+        if not profile.is_constant:
+            ts, ta, tc, acc, w = profile.segments(duration_s)
+            if abs(w - Omega) > 1e-9 * Omega:
+                raise ParameterError(f"the trapezoid's cruise speed ({profile.output_speed_deg_s} deg/s) differs from "
+                                     "the operating point's output speed")
+            P[kn.I_PROFILE] = 2.0
+            P[kn.I_PR_TS], P[kn.I_PR_TA], P[kn.I_PR_TC], P[kn.I_PR_ACC] = ts, ta, tc, acc
+            P[kn.I_PR_F0] = float(profile._cumulative(np.zeros(1), duration_s)[0][0])
+        M, L = float(load.arm_mass_kg), float(load.arm_length_m)
+        P[kn.I_ARM_MGL], P[kn.I_ARM_ML2] = M * G * L, M * L * L
+        P[kn.I_ARM_TH0] = math.radians(load.arm_angle_deg)
     P[kn.I_TFROZEN] = -1.0 if st.excitation else 0.0
     P[kn.I_CORIOLIS] = 1.0 if st.coriolis else 0.0
     P[kn.I_BETA0] = 0.0

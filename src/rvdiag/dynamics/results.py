@@ -26,12 +26,17 @@ class SimulationResult:
         Every setting (operating point, model settings, fault, seed, parameter set): JSON-able, enough
         to repeat the run with :func:`rvdiag.dynamics.simulate`.
     channel_names : list of str
+    theta_out, theta_in : ndarray, shape (samples,), or None
+        The output (carrier) and input (sun) shafts' nominal angles at each sample, rad (0 at the first
+        sample; the speed profile's closed form, without the micro-radian vibratory twist).
     """
 
     signal: np.ndarray
     fs: float
     settings: dict[str, Any] = field(default_factory=dict)
     channel_names: list[str] = field(default_factory=list)
+    theta_out: np.ndarray | None = None
+    theta_in: np.ndarray | None = None
 
     @property
     def time_s(self) -> np.ndarray:
@@ -67,13 +72,17 @@ class SimulationResult:
         return fig
 
     def to_npz(self, path: str | Path) -> None:
-        """Write ``signal``, ``fs``, ``settings`` (JSON string) and ``channel_names`` to an ``.npz``."""
+        """Write ``signal``, ``fs``, ``settings`` (JSON string), ``channel_names`` and, when known, the shaft
+        angles ``theta_out`` and ``theta_in`` (rad) to an ``.npz``."""
+        angles = {k: np.asarray(v, dtype=np.float64) for k, v in
+                  (("theta_out", self.theta_out), ("theta_in", self.theta_in)) if v is not None}
         np.savez(
             Path(path),
             signal=np.asarray(self.signal, dtype=np.float64),
             fs=np.float64(self.fs),
             settings=np.array(json.dumps(self.settings, sort_keys=True)),
             channel_names=np.array(self.channel_names, dtype=str),
+            **angles,
         )
 
     @classmethod
@@ -86,6 +95,8 @@ class SimulationResult:
                     float(z["fs"]),
                     json.loads(str(z["settings"])),
                     [str(s) for s in z["channel_names"]] if "channel_names" in z else [],
+                    np.array(z["theta_out"]) if "theta_out" in z else None,
+                    np.array(z["theta_in"]) if "theta_in" in z else None,
                 )
         except (OSError, KeyError, ValueError) as exc:
             raise DataFileError(f"{path}: not a simulation result file ({exc})") from None

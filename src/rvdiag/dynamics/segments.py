@@ -65,6 +65,9 @@ def integrate_segments(
     check_workers(workers)
     seg = int(round(model.settings.segment_s * fs))
     bounds = segment_bounds(n_samples, seg)
+    if len(bounds) > 1 and model.P[mdl.I_PROFILE] != 0.0:
+        raise ParameterError("time-parallel segments (segment_s > 0) support the constant speed and load only: "
+                             "a speed or load profile runs as one segment (segment_s = 0)")
     out = np.zeros((model.sensor.shape[0], n_samples))
     total = sum(n + n_transient for _, n in bounds)
     done = [0] * len(bounds)

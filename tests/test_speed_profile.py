@@ -1,0 +1,80 @@
+"""The speed and load profile of the simulator (rvdiag.dynamics.profile; docs/model.md section 2)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.signal import welch
+
+from rvdiag.dynamics import LoadProfile, ModelSettings, SimulationResult, SpeedProfile, simulate
+from rvdiag.errors import ParameterError
+from rvdiag.params import ReducerParams
+
+
+def test_trapezoid_closed_form():
+    p = SpeedProfile.trapezoid(45.0, 90.0, move_s=2.0, start_s=0.5)
+    t = np.array([0.0, 0.75, 1.25, 1.5, 2.25, 2.75, 3.0])
+    th, w, a = p.state(t, 0.0)
+    assert np.degrees(w) == pytest.approx([0, 22.5, 45, 45, 22.5, 0, 0])
+    assert np.degrees(a) == pytest.approx([0, 90, 0, 0, -90, 0, 0])
+    # the angle is the integral of the speed: 45 deg/s x (2 s - 0.5 s) in all
+    assert np.degrees(th[-1]) == pytest.approx(45.0 * 1.5)
+    assert th[0] == 0.0
+
+
+def test_trapezoid_that_cannot_reach_its_speed_is_refused():
+    with pytest.raises(ParameterError, match="needs 1 s"):
+        SpeedProfile.trapezoid(45.0, 90.0, move_s=0.5)
+    with pytest.raises(ParameterError, match="longer than its move"):
+        simulate(profile=SpeedProfile.trapezoid(45.0, 90.0), duration_s=0.05)
+
+
+def test_segments_refuse_a_profile():
+    with pytest.raises(ParameterError, match="segment"):
+        simulate(profile=SpeedProfile.trapezoid(45.0, 1e4), load_Nm=50.0, duration_s=0.02,
+                 settings=ModelSettings(segment_s=0.01, transient_s=0.01))
+
+
+def test_a_trapezoid_in_cruise_reproduces_the_constant_speed_run():
+    """The profile path (exact frame angles at every stage, Newton-located table events) at zero acceleration
+    over the whole run: the constant-speed run to rounding."""
+    c = simulate(output_speed_deg_s=45.0, load_Nm=100.0, duration_s=0.02)
+    z = simulate(profile=SpeedProfile.trapezoid(45.0, 1e5, move_s=10.0, start_s=-1.0), load_Nm=100.0,
+                 duration_s=0.02)
+    assert np.max(np.abs(z.theta_out - c.theta_out)) < 1e-15
+    assert np.linalg.norm(z.signal - c.signal) / np.linalg.norm(c.signal) < 1e-11
+
+
+def _third_octaves_db(x: np.ndarray) -> np.ndarray:
+    f, p = welch(x, fs=48000.0, nperseg=1024)
+    edges = 50.0 * 2.0 ** (np.arange(0.0, 7.7, 1.0 / 3.0))  # 50 Hz - 10 kHz
+    return np.array([10 * np.log10(p[(f >= a) & (f < b)].mean()) for a, b in zip(edges[:-1], edges[1:])
+                     if np.any((f >= a) & (f < b))])
+
+
+def test_quasi_static_trapezoid_gives_the_cruise_spectrum():
+    """Accelerate at 300 deg/s^2 from rest to 45 deg/s (0.15 s), cruise: the last 0.1 s has the spectrum of the
+    constant-speed run over the same carrier angles within 0.5 dB in every third-octave band from 50 Hz to
+    10 kHz (at 45 deg/s the pin geometry changes slowly, so windows at other angles differ by several dB).  In
+    cruise theta_H = Omega (t - t_a / 2): the constant run's window ends 0.075 s earlier."""
+    q = simulate(profile=SpeedProfile.trapezoid(45.0, 300.0, move_s=10.0), load_Nm=100.0, duration_s=0.3)
+    c = simulate(output_speed_deg_s=45.0, load_Nm=100.0, duration_s=0.225)
+    assert np.degrees(q.theta_out[1]) * 48000.0 < 0.1  # starts from rest
+    assert np.max(np.abs(q.theta_out[-4800:] - c.theta_out[-4800:])) < 1e-12
+    for ch in range(2):
+        d = _third_octaves_db(q.signal[ch, -4800:]) - _third_octaves_db(c.signal[ch, -4800:])
+        assert np.max(np.abs(d)) < 0.5
+
+
+def test_gravity_arm_and_angles_are_recorded(tmp_path):
+    r = simulate(profile=SpeedProfile.trapezoid(45.0, 900.0), load_profile=LoadProfile(15.0, 0.5, 0.0),
+                 load_Nm=0.0, duration_s=0.12)
+    assert r.settings["speed_profile"]["kind"] == "trapezoid"
+    assert r.settings["load_profile"]["arm_mass_kg"] == 15.0
+    assert np.array_equal(r.theta_in, ReducerParams.default().ratio * r.theta_out)
+    # 0.12 s: accelerate 0.05 s, cruise 0.02 s, decelerate 0.05 s: 45 x 0.07 deg in all
+    assert np.degrees(r.theta_out[-1]) == pytest.approx(45.0 * 0.07, rel=2e-3)
+    assert np.all(np.isfinite(r.signal))
+    r.to_npz(tmp_path / "a.npz")
+    back = SimulationResult.from_npz(tmp_path / "a.npz")
+    assert np.array_equal(back.theta_out, r.theta_out) and np.array_equal(back.theta_in, r.theta_in)
