@@ -164,3 +164,29 @@ def test_simulate_default_transient_and_the_old_noise_option(tmp_path, capsys):
         settings = json.loads(str(z["settings"]))
     assert settings["model_settings"]["transient_s"] == DEFAULT_TRANSIENT_S == ModelSettings().transient_s
     assert settings["noise_snr_db"] == 20.0
+
+
+def test_simulate_trapezoid_records_the_shaft_angles(tmp_path, capsys):
+    """``--profile trapezoid``: from rest at --accel to the speed and back; the .npz keeps the true carrier and
+    input angles (the input turns i = 121 times the carrier), and the profile is recorded with the settings."""
+    out = tmp_path / "move.npz"
+    code, _, err = run(["simulate", "--profile", "trapezoid", "--output-speed", "45", "--accel", "900",
+                        "--arm-mass", "15", "--arm-length", "0.5", "--load", "0", "--duration", "0.2",
+                        "--fs", "24000", "-o", out, "-q"], capsys)
+    assert code == 0, err
+    with np.load(out, allow_pickle=False) as z:
+        th_out, th_in = z["theta_out"], z["theta_in"]
+    assert th_out.shape == (4800,) and np.all(np.diff(th_out) >= 0)
+    np.testing.assert_allclose(th_in, 121.0 * th_out, rtol=1e-12, atol=1e-12)
+    # a trapezoid 45 deg/s at 900 deg/s^2 up and down over 0.2 s: 0.05 s each way, 0.1 s cruising; 6.75 deg in all
+    assert np.degrees(th_out[-1]) == pytest.approx(6.75, abs=0.05)
+
+
+def test_simulate_trapezoid_that_cannot_reach_its_speed_is_one_error_line(tmp_path, capsys):
+    out = tmp_path / "slow.npz"
+    code, _, err = run(["simulate", "--profile", "trapezoid", "--output-speed", "45", "--accel", "10",
+                        "--duration", "0.2", "-o", out], capsys)
+    assert code == 2 and err.startswith("error:") and err.count("\n") == 1, err
+    assert not out.exists()
+    code, _, err = run(["simulate", "--accel", "100", "--output-speed", "45", "-o", out], capsys)
+    assert code == 2 and "--profile trapezoid" in err
