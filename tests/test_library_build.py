@@ -345,3 +345,19 @@ def _write_toml(cfg, path: Path) -> None:
     import tomli_w
 
     path.write_text(tomli_w.dumps(cfg.to_dict()), encoding="utf-8")
+
+
+def test_a_store_simulated_by_other_physics_is_never_resumed(tmp_path, monkeypatch):
+    """The physics revision is part of the stored, hashed config: a store built before a deliberate physics change
+    is refused by name (resuming it would mix old and new signals), and the same revision resumes."""
+    import rvdiag.dynamics as dyn
+    from rvdiag.errors import StoreError
+
+    cfg = tiny(states={"T1": {}, "T2": {}})
+    path = tmp_path / "lib.zarr"
+    build_library(cfg, path, workers=0, progress=False)
+    assert SampleStore.open(path).attrs["config"]["physics_revision"] == dyn.PHYSICS_REVISION
+    assert build_library(cfg, path, workers=0, progress=False).built == 0  # complete: nothing to do
+    monkeypatch.setattr(dyn, "PHYSICS_REVISION", "2099-01-01")
+    with pytest.raises(StoreError, match=r"physics of 2026-11-25 .* that of 2099-01-01"):
+        build_library(cfg, path, workers=0, progress=False)

@@ -323,6 +323,7 @@ class StoreBuilder:
         self.length = int(length)
         self.classes = list(classes)
         self.config_hash = config_hash(config)
+        self._physics_revision = config.get("physics_revision")
         self._units_dir = self.path / "_units"
         if self.path.exists():
             self._group = self._open_existing()
@@ -350,6 +351,14 @@ class StoreBuilder:
         attrs = dict(group.attrs)
         if attrs.get("format") != STORE_FORMAT or "signals" not in group:
             raise StoreError(f"{self.path} exists and is not a resumable sample store; choose another --out")
+        stored_rev = (attrs.get("config") or {}).get("physics_revision")
+        this_rev = self._physics_revision
+        if attrs.get("config_hash") != self.config_hash and stored_rev != this_rev:
+            raise StoreError(
+                f"{self.path} was simulated by the physics of {stored_rev or 'before 2026-11-25'} and this rvdiag "
+                f"simulates that of {this_rev}: its samples would not match new ones; remove it or choose another "
+                "--out"
+            )
         if attrs.get("config_hash") != self.config_hash:
             raise StoreError(
                 f"{self.path} was built from a different config (hash {attrs.get('config_hash')}, "

@@ -26,7 +26,13 @@ from rvdiag.errors import ParameterError
 from rvdiag.kinematics import sun_speed_hz
 from rvdiag.params import ReducerParams
 
+#: The revision of the simulated physics: the date of the last deliberate change to what a simulation returns for
+#: the same parameters (bumped with it; 2026-11-25: extended tooth contact, run-in wear, speed profiles).  Library
+#: stores record it in their hashed config, so a build never resumes a store simulated by other physics.
+PHYSICS_REVISION = "2026-11-25"
+
 __all__ = [
+    "PHYSICS_REVISION",
     "LoadProfile", "MeshTable", "Model", "ModelSettings", "SimulationResult", "SpeedProfile", "add_awgn", "build_model",
     "mesh_table", "prepare", "simulate",
 ]

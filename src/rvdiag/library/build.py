@@ -49,6 +49,9 @@ from rvdiag.library.states import STATES, FaultSpec
 
 #: Key added to the stored config so that its hash also covers the reducer parameter values.
 PARAMS_HASH_KEY = "reducer_params_hash"
+#: Key added to the stored config so that its hash also covers the simulator's physics revision
+#: (:data:`rvdiag.dynamics.PHYSICS_REVISION`): a store simulated by other physics is never resumed or mixed.
+PHYSICS_KEY = "physics_revision"
 
 
 # ---------------------------------------------------------------------- plan
@@ -313,9 +316,13 @@ def default_workers() -> int:
 
 
 def stored_config(cfg: LibraryConfig, params: Any) -> dict[str, Any]:
-    """The config the store keeps (and hashes): the canonical library config plus the parameters' hash."""
+    """The config the store keeps (and hashes): the canonical library config plus the parameters' hash and the
+    simulator's physics revision."""
+    from rvdiag.dynamics import PHYSICS_REVISION
+
     out = cfg.to_dict()
     out[PARAMS_HASH_KEY] = config_hash(params.to_dict())
+    out[PHYSICS_KEY] = PHYSICS_REVISION
     return out
 
 
@@ -323,6 +330,7 @@ def config_from_store(attrs: Mapping[str, Any]) -> LibraryConfig:
     """The :class:`LibraryConfig` a library store was built from (``SampleStore.attrs``)."""
     data = dict(attrs["config"])
     data.pop(PARAMS_HASH_KEY, None)
+    data.pop(PHYSICS_KEY, None)
     return LibraryConfig.from_dict(data, source="<store>")
 
 
