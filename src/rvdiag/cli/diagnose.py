@@ -9,6 +9,14 @@ printed when the file's sampling rate differs from the training rate, or is unkn
 A model that reads per-sample metadata (card ``metadata_columns``, e.g. the shaft speed ``rpm`` of
 bearing-envelope features) gets it from ``--meta NAME=VALUE``, else from the file's scalar that the training
 store read into that column (card ``metadata_sources``, e.g. CWRU's ``X105RPM`` for ``--scalar rpm=RPM``).
+
+It also gives the gear condition indicators of the whole signal on the sun shaft (relative to the carrier;
+:func:`file_indicators`, docs/orders.md): the nine of :data:`rvdiag.features.orders.INDICATORS` of the TSA
+over all its whole revolutions, in a table and in ``--json`` under ``indicators`` (with ``indicators_source``:
+the shaft, where the speed came from, the shaft frequency and the revolutions averaged).  The speed is the
+first of ``--meta output_speed_deg_s=...`` (or ``input_speed_rpm=...``), the speed a simulated record states,
+and the stage-1 mesh peak of the spectrum, as ``rvdiag orders``; indicators that cannot be computed (no
+sampling rate, less than one revolution) leave ``indicators`` null and a WARNING, never a failed diagnosis.
 """
 
 from __future__ import annotations
@@ -24,6 +32,40 @@ from rvdiag.cli import _options as opt
 from rvdiag.errors import DataFileError, ParameterError
 
 MAX_ROWS = 40
+#: ``--meta`` names that give the speed for the indicators: output deg/s, input rev/min.
+SPEED_META = ("output_speed_deg_s", "input_speed_rpm")
+
+
+def file_indicators(sig, meta: dict[str, float] | None = None) -> dict:
+    """Gear condition indicators of the signal ``sig`` (:class:`rvdiag.io.readers.MeasuredSignal`) on the sun shaft.
+
+    Returns ``{"indicators": {name: value} or None, "indicators_source": {"shaft", "speed_source",
+    "shaft_hz", "n_revolutions", "samples_per_rev"} or {"shaft", "error"}}``."""
+    from rvdiag.cli.orders import _angle
+    from rvdiag.errors import RvdiagError
+    from rvdiag.features import orders as o
+    from rvdiag.params import ReducerParams
+
+    meta = meta or {}
+    out_speed, in_speed = meta.get(SPEED_META[0]), meta.get(SPEED_META[1])
+    if out_speed is not None and in_speed is not None:
+        in_speed = None  # the output speed is the one a library records
+    try:
+        if not sig.fs:
+            raise ParameterError("the file states no sampling rate: give --fs")
+        p = ReducerParams.default()
+        revs, what = _angle(sig, "sun", p, output_speed=out_speed, input_speed=in_speed, rpm=None,
+                            tacho_channel=None, ppr=None, angle_channel=None, fs=sig.fs)
+        if out_speed is not None or in_speed is not None:
+            what = f"--meta {SPEED_META[0] if out_speed is not None else SPEED_META[1]}=" \
+                   f"{out_speed if out_speed is not None else in_speed:g}"
+        res = o.analyse(np.asarray(sig.data, dtype=np.float64), float(sig.fs), revs, "sun", p)
+    except RvdiagError as exc:
+        return {"indicators": None, "indicators_source": {"shaft": "sun", "error": str(exc)}}
+    return {"indicators": {k: float(v) for k, v in res["indicators"].items()},
+            "indicators_source": {"shaft": "sun", "speed_source": what, "shaft_hz": res["shaft_hz"],
+                                  "n_revolutions": int(res["n_revolutions"]),
+                                  "samples_per_rev": int(res["samples_per_rev"])}}
 
 
 def diagnose_signal(loaded, x: np.ndarray, fs: float | None, meta: dict[str, float] | None = None) -> dict:
@@ -91,6 +133,9 @@ def register(app: typer.Typer) -> None:
         values = _metadata_values(loaded, sig, meta)
         res = diagnose_signal(loaded, np.asarray(sig.data, dtype=np.float64), sig.fs, values)
         res.update({"file": str(file), "channel": sig.channel, "model": str(model_dir)})
+        res.update(file_indicators(sig, values))
+        if res["indicators"] is None:
+            res["warnings"].append(f"WARNING: no gear condition indicators: {res['indicators_source']['error']}")
         for w in res["warnings"]:
             typer.echo(w, err=True)
         if json_out:
@@ -149,3 +194,12 @@ def _print(res: dict) -> None:
     con.print(t)
     p = res["probabilities"][res["diagnosis"]]
     con.print(f"diagnosis: [bold]{res['diagnosis']}[/bold] (mean probability {p:.3f} over {res['n_windows']} windows)")
+    if res.get("indicators"):
+        src = res["indicators_source"]
+        it = Table(title=f"gear condition indicators, {src['shaft']} shaft ({src['shaft_hz']:.4g} Hz from "
+                         f"{src['speed_source']}; TSA of {src['n_revolutions']} revolutions)")
+        it.add_column("indicator")
+        it.add_column("value", justify="right")
+        for k, v in res["indicators"].items():
+            it.add_row(k, f"{v:.4g}")
+        con.print(it)

@@ -114,7 +114,8 @@ def build_estimator(model: str, features: str | None, *, epochs: int, device: st
         return CNNClassifier(architecture=model, input_length=input_length, max_epochs=epochs, device=device,
                              random_state=seed, batch_size=batch_size, learning_rate=lr,
                              n_iter_no_change=patience, validation_fraction=validation_fraction,
-                             normalize=normalize, representation=representation)
+                             normalize=normalize, representation=representation, fs=fs,
+                             speed_column=speed_column)
     if model in CLASSICAL_MODELS:
         from rvdiag.models.pipelines import make_classical_model
 
@@ -187,7 +188,9 @@ def register(app: typer.Typer) -> None:
                                            "(training mean/std, keeps amplitude) | none."),
         representation: str = typer.Option(RECOMMENDED_TRAINING["representation"], "--representation",
                                            help="CNN input: logspec (log-magnitude spectrum of each window; "
-                                                "docs/models.md) | waveform (the time window, as in the paper)."),
+                                                "docs/models.md) | waveform (the time window, as in the paper) | "
+                                                "orders (each sample resampled to the sun shaft's angle at its "
+                                                "--speed-column) | orders-residual (its TSA residual)."),
         snr_db: float = opt.snr_db("Add white Gaussian noise at this SNR (dB, per sample) to the training and "
                                    "test samples before training, seeded by --seed: one point of an "
                                    "accuracy-against-SNR curve from a clean library (docs/results.md)."),
@@ -201,8 +204,8 @@ def register(app: typer.Typer) -> None:
                                             "sample's shaft speed in rev/min (e.g. from dataset from-files "
                                             "--scalar rpm=RPM)."),
         speed_column: str = typer.Option("output_speed_deg_s", "--speed-column",
-                                         help="tsa-ci / orders features: the store's metadata column holding each "
-                                              "sample's speed, output deg/s (name ending in _deg_s, as a library "
+                                         help="tsa-ci / orders features and --representation orders: the store's "
+                                              "metadata column holding each sample's speed, output deg/s (name ending in _deg_s, as a library "
                                               "writes) or input rev/min (ending in _rpm)."),
     ) -> None:
         """Train a classifier on the train split of a store and save it as a model directory.
@@ -234,19 +237,20 @@ def register(app: typer.Typer) -> None:
         store = SampleStore.open(data)
         if "train" not in store.splits():
             raise StoreError(f"{data} has no 'train' split (splits: {', '.join(store.splits())})")
-        if model in CNN_MODELS:
-            with opt.option_names(CNN_OPTION_NAMES):  # the samples must be at least one network input long
-                probe.network_input_length(store.length)
-        tr = store.load("train")
-        te = store.load("test") if "test" in store.splits() else None
-        if snr_db is not None:
-            tr, te = _with_noise(tr, snr_db, [seed, 0]), (None if te is None else _with_noise(te, snr_db, [seed, 1]))
         from rvdiag.features.combine import input_metadata, with_metadata
 
         meta_cols = input_metadata(probe)
         if meta_cols and not store.fs:
-            raise StoreError(f"{data} states no sampling rate, which bearing-envelope features need to place the "
-                             "defect lines: rebuild it with 'rvdiag dataset from-files --fs HZ'")
+            raise StoreError(f"{data} states no sampling rate, which {', '.join(meta_cols)} needs beside it (to place "
+                             "the defect lines, or to resample to the shaft angle): rebuild it with "
+                             "'rvdiag dataset from-files --fs HZ'")
+        if model in CNN_MODELS:
+            with opt.option_names(CNN_OPTION_NAMES):  # the samples must be at least one network input long
+                new_estimator(seed=seed, fs=store.fs).network_input_length(store.length)
+        tr = store.load("train")
+        te = store.load("test") if "test" in store.splits() else None
+        if snr_db is not None:
+            tr, te = _with_noise(tr, snr_db, [seed, 0]), (None if te is None else _with_noise(te, snr_db, [seed, 1]))
         Xtr = with_metadata(tr.X, tr.meta, meta_cols, where=f"the store {data}")
         Xte = None if te is None else with_metadata(te.X, te.meta, meta_cols, where=f"the store {data}")
         labels = [c for c in store.classes if c in set(tr.y.tolist())]
@@ -260,7 +264,11 @@ def register(app: typer.Typer) -> None:
         for r in range(repeat):
             s = seed + r
             est = new_estimator(seed=s, fs=store.fs)
-            if r == 0 and model in CNN_MODELS:
+            if r == 0 and model in CNN_MODELS and meta_cols:
+                echo(f"note: each sample is resampled to the {est.shaft} shaft's angle at its {est.speed_column} and "
+                     f"fitted to the {model} input of {est.network_input_length(store.length)} angle samples "
+                     "(docs/models.md)")
+            elif r == 0 and model in CNN_MODELS:
                 W = est.network_input_length(store.length)
                 starts = window_starts(store.length, W, est.long_input)
                 if W != store.length:

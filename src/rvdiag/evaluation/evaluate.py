@@ -127,6 +127,49 @@ def learned_features(estimator, X: np.ndarray) -> np.ndarray:
     return np.asarray(X)
 
 
+#: Speed columns the report's indicator section reads, in order of preference.
+SPEED_COLUMNS = ("output_speed_deg_s", "input_speed_rpm")
+
+
+def indicators_by_class(ev: Evaluation, fs: float | None, max_per_class: int = 50, seed: int = 0,
+                        notes: list[str] | None = None) -> dict | None:
+    """The gear condition indicators (sun shaft, :class:`rvdiag.features.tsa.TSAIndicatorFeatures`, linear) of
+    at most ``max_per_class`` samples of each class of the evaluation (drawn with ``seed``), summarised per
+    class by their quartiles.
+
+    Returns ``{"speed_column", "names", "per_class": {class: {"n", "q25", "median", "q75"}}}`` (each quartile
+    a dict name -> value), or None when the store gives no sampling rate or no speed column, or when the
+    samples hold less than one revolution (the reason appended to ``notes``)."""
+    from rvdiag.errors import RvdiagError
+    from rvdiag.features.combine import with_metadata
+    from rvdiag.features.tsa import TSAIndicatorFeatures
+
+    notes = [] if notes is None else notes
+    column = next((c for c in SPEED_COLUMNS if c in ev.meta), None)
+    if not fs or column is None:
+        notes.append("gear condition indicators not shown: the store gives no "
+                     + ("sampling rate" if not fs else f"speed column ({' or '.join(SPEED_COLUMNS)})"))
+        return None
+    rng = np.random.default_rng(seed)
+    tf = TSAIndicatorFeatures(fs=float(fs), speed_column=column, log=False)
+    names = tf._feature_names()
+    per_class = {}
+    try:
+        for c in np.unique(ev.y_true):
+            rows = np.flatnonzero(ev.y_true == c)
+            if rows.size > max_per_class:
+                rows = np.sort(rng.choice(rows, max_per_class, replace=False))
+            X = with_metadata(ev.X[rows], {column: np.asarray(ev.meta[column])[rows]}, [column])
+            F = tf.fit_transform(X)
+            q = np.percentile(F, [25, 50, 75], axis=0)
+            per_class[str(c)] = {"n": int(rows.size), **{k: dict(zip(names, map(float, v)))
+                                                         for k, v in zip(("q25", "median", "q75"), q)}}
+    except RvdiagError as exc:
+        notes.append(f"gear condition indicators not shown: {exc}")
+        return None
+    return {"speed_column": column, "names": names, "per_class": per_class}
+
+
 def report_html(loaded, store, ev: Evaluation, max_tsne: int = 600, seed: int = 0) -> str:
     """The HTML report of an evaluation (see :mod:`rvdiag.evaluation.report`)."""
     from rvdiag.evaluation.plots import tsne_embedding
@@ -156,7 +199,8 @@ def report_html(loaded, store, ev: Evaluation, max_tsne: int = 600, seed: int = 
     title = f"rvdiag evaluation: {loaded.card.get('model')} on {Path(store.path).name} ({ev.split})"
     return render_report(title=title, metrics=ev.metrics, card=loaded.card, store_info=store_info,
                          examples=examples, fs=store.fs, frequencies=freqs, embedding=emb,
-                         embedding_labels=ev.y_true[pick], notes=notes)
+                         embedding_labels=ev.y_true[pick], notes=notes,
+                         indicators=indicators_by_class(ev, store.fs, seed=seed, notes=notes))
 
 
 def accuracy_by(ev: Evaluation, column: str, n_bins: int = 6) -> list[dict]:

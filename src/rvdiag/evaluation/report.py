@@ -4,7 +4,8 @@ no script, no external resource), readable from disk without a server.
 Sections: summary metrics; per-class precision / recall / F1 and the confusion matrix; a t-SNE map of
 the model's learned features (CNN: last hidden layer; classical: the standardised features); the
 training curve (CNN); one example waveform and spectrum per state with the characteristic frequencies
-of ``rvdiag freqs`` marked; caveats (a default used in place of unreadable store data, a formula used
+of ``rvdiag freqs`` marked; the gear condition indicators (sun shaft) per state, median and quartiles of at
+most 50 samples of each (when the store gives a sampling rate and a speed column); caveats (a default used in place of unreadable store data, a formula used
 outside its fitted range); the library config and the model card.
 """
 
@@ -124,7 +125,8 @@ def characteristic_frequencies_for(store_attrs: Mapping[str, Any], meta: Mapping
 def render_report(*, title: str, metrics: Mapping[str, Any], card: Mapping[str, Any],
                   store_info: Mapping[str, Any], examples: Mapping[str, np.ndarray] | None = None,
                   fs: float | None = None, frequencies: Mapping[str, float] | None = None,
-                  embedding: np.ndarray | None = None, embedding_labels=None, notes: Sequence[str] = ()) -> str:
+                  embedding: np.ndarray | None = None, embedding_labels=None, notes: Sequence[str] = (),
+                  indicators: Mapping[str, Any] | None = None) -> str:
     """The report as an HTML string.
 
     Parameters
@@ -139,6 +141,8 @@ def render_report(*, title: str, metrics: Mapping[str, Any], card: Mapping[str, 
     embedding : (n, 2) t-SNE coordinates, with ``embedding_labels`` (true classes)
     notes : caveats to show (a default used in place of unreadable data, a formula outside its fitted range),
         listed in the "Caveats" section before the library config and announced under the title
+    indicators : the gear condition indicators per class, from
+        :func:`rvdiag.evaluation.evaluate.indicators_by_class` (section "Gear condition indicators")
     """
     labels = metrics["labels"]
     parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
@@ -191,6 +195,8 @@ def render_report(*, title: str, metrics: Mapping[str, Any], card: Mapping[str, 
         parts.append("<h2>Example signals per state</h2>" + _img(png, "waveforms and spectra") +
                      "<p class='muted'>One sample per state from the evaluated split. Dashed lines: "
                      "characteristic frequencies (as <code>rvdiag freqs</code>) at the samples' speed.</p>" + ftab)
+    if indicators:
+        parts.append(_indicator_section(indicators))
     if notes:
         items = "".join(f"<li>{html.escape(str(n))}</li>" for n in notes)
         parts.append(f"<h2>Caveats</h2><ul class='caveats'>{items}</ul>")
@@ -202,6 +208,22 @@ def render_report(*, title: str, metrics: Mapping[str, Any], card: Mapping[str, 
     parts.append(f"<h2>Model card</h2><pre>{html.escape(json.dumps(card_view, indent=2, default=str))}</pre>")
     parts.append("</body></html>")
     return "\n".join(parts)
+
+
+def _indicator_section(ind: Mapping[str, Any]) -> str:
+    """The "Gear condition indicators" section: per state, the median [quartiles] of each indicator."""
+    pc = ind["per_class"]
+    head = "".join(f"<th>{html.escape(c)} (n={v['n']})</th>" for c, v in pc.items())
+    rows = "".join(
+        f"<tr><td>{html.escape(k)}</td>" + "".join(
+            f"<td>{v['median'][k]:.4g} <span class='muted'>[{v['q25'][k]:.3g}, {v['q75'][k]:.3g}]</span></td>"
+            for v in pc.values()) + "</tr>" for k in ind["names"])
+    return ("<h2 id='indicators'>Gear condition indicators</h2>"
+            f"<table class='indicators'><tr><th>indicator</th>{head}</tr>{rows}</table>"
+            "<p class='muted'>Median [first, third quartile] per true state of the indicators of each sample's TSA "
+            "on the sun shaft (relative to the carrier), at the speed of the store's column "
+            f"<code>{html.escape(str(ind['speed_column']))}</code>; at most 50 samples per state. FM4 = 3, "
+            "M6A = 15, M8A = 105 for a Gaussian difference signal; formulas and sources in docs/orders.md.</p>")
 
 
 def write_report(path: str | Path, html_text: str) -> Path:

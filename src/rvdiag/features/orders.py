@@ -240,19 +240,26 @@ def estimate_shaft_speed(x, fs: float, order: float, speed_range: tuple[float, f
 
 # --------------------------------------------------------------------------- resampling
 def _lowpass(x: np.ndarray, cutoff_cps: float) -> np.ndarray:
-    """FFT low-pass with a raised-cosine edge from 0.85 to 1.0 x ``cutoff_cps`` (cycles/sample)."""
+    """FFT low-pass with a raised-cosine edge from 0.85 to 1.0 x ``cutoff_cps`` (cycles/sample).
+
+    The record is first extended at both ends by its point reflection (odd extension, half its length each
+    side), which keeps its value and slope continuous, so the FFT's implied period has no jump at the record's
+    ends to ring at: without it the first samples after the angle origin of :func:`resample_to_angle` were off
+    by up to 60 % of the amplitude."""
     from scipy import fft
 
     n = x.size
-    m = fft.next_fast_len(n, real=True)
-    X = fft.rfft(x, m)
+    p = n // 2
+    xp = np.pad(x, p, mode="reflect", reflect_type="odd") if p else x
+    m = fft.next_fast_len(xp.size, real=True)
+    X = fft.rfft(xp, m)
     f = np.arange(X.size) / m
     f0 = 0.85 * cutoff_cps
     g = np.ones(X.size)
     edge = (f > f0) & (f < cutoff_cps)
     g[edge] = 0.5 * (1 + np.cos(np.pi * (f[edge] - f0) / (cutoff_cps - f0)))
     g[f >= cutoff_cps] = 0.0
-    return fft.irfft(X * g, m)[:n]
+    return fft.irfft(X * g, m)[p:p + n]
 
 
 def cubic_interpolate(x: np.ndarray, u: np.ndarray) -> np.ndarray:

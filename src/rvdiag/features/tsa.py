@@ -19,6 +19,22 @@ from rvdiag.features import orders as _o
 _CI = tuple(_o.INDICATORS)
 
 
+def shaft_hz_from_column(shaft: str, column: str, value: float, params=None) -> float:
+    """Rotation frequency (Hz) of ``shaft`` from a speed metadata column's value: a column named ``*_rpm`` holds
+    the input (motor) speed in rev/min, any other (``*_deg_s``) the output speed in deg/s."""
+    if str(column).endswith("_rpm"):
+        return _o.shaft_frequency(shaft, params, input_speed_rpm=float(value))
+    return _o.shaft_frequency(shaft, params, output_speed_deg_s=float(value))
+
+
+def check_speed_column(column) -> str:
+    """``column`` if it names a speed metadata column (ending in ``_deg_s`` or ``_rpm``), else ParameterError."""
+    if not (isinstance(column, str) and column.endswith(("_rpm", "_deg_s"))):
+        raise ParameterError(f"speed_column must name a metadata column ending in _deg_s (output speed) "
+                             f"or _rpm (input speed), got {column!r}")
+    return column
+
+
 class _AngleFeatures(SignalTransformer):
     """Shared parameters and per-window resampling of the angle-domain feature sets."""
 
@@ -29,21 +45,16 @@ class _AngleFeatures(SignalTransformer):
         return () if self.speed_column is None else (str(self.speed_column),)
 
     def _shaft_hz(self, speed: float | None = None) -> float:
-        col = self.speed_column
-        if speed is None or col is None:
+        if speed is None or self.speed_column is None:
             return _o.shaft_frequency(self.shaft, self.params, output_speed_deg_s=float(self.output_speed_deg_s))
-        if str(col).endswith("_rpm"):
-            return _o.shaft_frequency(self.shaft, self.params, input_speed_rpm=float(speed))
-        return _o.shaft_frequency(self.shaft, self.params, output_speed_deg_s=float(speed))
+        return shaft_hz_from_column(self.shaft, self.speed_column, speed, self.params)
 
     def _check_params(self, n_points: int, speed: float | None = None) -> None:
         _o._check_shaft(self.shaft)
         if not (self.fs is not None and float(self.fs) > 0):
             raise ParameterError(f"fs must be > 0 Hz, got {self.fs}")
         if self.speed_column is not None:
-            if not (isinstance(self.speed_column, str) and self.speed_column.endswith(("_rpm", "_deg_s"))):
-                raise ParameterError(f"speed_column must name a metadata column ending in _deg_s (output speed) "
-                                     f"or _rpm (input speed), got {self.speed_column!r}")
+            check_speed_column(self.speed_column)
             n_points -= 1
             if speed is None:
                 return

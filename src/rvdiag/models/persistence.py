@@ -18,10 +18,12 @@ Card fields (both kinds, returned by :func:`load_model` as ``card``):
 
 ``kind`` ("cnn" | "classical"), ``model`` (the ``--model`` name), ``features`` (classical), ``classes``,
 ``input_length`` (points per sample = the training samples' length), ``metadata_columns`` (the
-metadata a classical model reads after each sample's points, e.g. ``["rpm"]`` for bearing-envelope features:
+metadata a model reads after each sample's points, e.g. ``["rpm"]`` for bearing-envelope features:
 its ``predict`` takes ``input_length + len(metadata_columns)`` columns, built by :meth:`LoadedModel.inputs`),
-``fs`` (Hz or None), ``preprocessing`` (normalisation, network input length, window starts, policy for
-long samples), ``training_store`` (``path``, ``config_hash``, ``kind``, ``n_train``), ``metrics`` (on the
+``fs`` (Hz or None), ``preprocessing`` (normalisation, representation, network input length, window starts,
+policy for long samples; for ``--representation orders``/``orders-residual`` also ``samples_per_rev``,
+``speed_column`` and ``shaft``, the speed column being the model's one ``metadata_columns`` entry),
+``training_store`` (``path``, ``config_hash``, ``kind``, ``n_train``), ``metrics`` (on the
 held-out test split), ``seed``, ``rvdiag_version``, ``created`` (UTC ISO time); CNN cards also hold
 ``params`` (the estimator's ``get_params``), the learned scalars and ``history``; classical cards hold
 ``estimator``, ``sklearn_version`` and ``skops_version``.
@@ -43,7 +45,7 @@ from rvdiag import __version__
 from rvdiag.errors import ModelFileError, ParameterError
 from rvdiag.models.card import CARD, CARD_FORMAT, CARD_VERSION, atomic_write, jsonable, now, read_card, write_card
 from rvdiag.models.cnn import build_network
-from rvdiag.models.torch_estimator import CNNClassifier, network_length
+from rvdiag.models.torch_estimator import ANGLE_REPRESENTATIONS, CNNClassifier, network_length
 
 WEIGHTS = "model.safetensors"
 __all__ = ["CARD", "CARD_FORMAT", "CARD_VERSION", "LoadedModel", "WEIGHTS", "base_card", "load_model", "read_card",
@@ -51,7 +53,7 @@ __all__ = ["CARD", "CARD_FORMAT", "CARD_VERSION", "LoadedModel", "WEIGHTS", "bas
 
 _CNN_PARAM_KEYS = ("architecture", "input_length", "long_input", "normalize", "max_epochs", "batch_size",
                    "learning_rate", "weight_decay", "validation_fraction", "n_iter_no_change", "device",
-                   "random_state", "net_kwargs", "representation")
+                   "random_state", "net_kwargs", "representation", "fs", "speed_column", "shaft", "samples_per_rev")
 
 
 @dataclass
@@ -128,6 +130,10 @@ def base_card(estimator, *, model: str, features: str | None = None, fs: float |
             "long_input": estimator.long_input,
             "window_starts": [int(s) for s in estimator.window_starts_],
         }
+        if hasattr(estimator, "samples_per_rev_"):  # angle-domain input: what evaluate / diagnose rebuild
+            card["preprocessing"].update({"samples_per_rev": int(estimator.samples_per_rev_),
+                                          "speed_column": str(estimator.speed_column),
+                                          "shaft": str(estimator.shaft)})
     else:
         card["kind"] = "classical"
         card["preprocessing"] = {"features": features, "scaling": "StandardScaler on the features"}
@@ -221,10 +227,15 @@ def _load_cnn(d: Path, card: dict) -> CNNClassifier:
     net.eval()
     est.net_ = net
     est.classes_ = np.array(card["classes"], dtype=object)
-    est.n_features_in_ = int(card["input_length"])
+    est.n_features_in_ = int(card["input_length"]) + len(card.get("metadata_columns") or [])
     est.net_input_length_ = W
     est.window_starts_ = np.asarray(pre["window_starts"], dtype=np.int64)
-    if est.window_starts_.size == 0 or est.window_starts_.max() + W > est.n_features_in_:
+    if est.representation in ANGLE_REPRESENTATIONS:
+        if not isinstance(pre.get("samples_per_rev"), int) or est.input_metadata() != tuple(card["metadata_columns"]):
+            raise ModelFileError(f"{d}/card.json: an angle-domain CNN needs preprocessing.samples_per_rev and its "
+                                 f"speed column in metadata_columns")
+        est.samples_per_rev_ = int(pre["samples_per_rev"])
+    elif est.window_starts_.size == 0 or est.window_starts_.max() + W > est.n_features_in_:
         raise ModelFileError(f"{d}/card.json: window starts do not fit the input length")
     est.norm_mean_ = float(pre.get("norm_mean", 0.0))
     est.norm_std_ = float(pre.get("norm_std", 1.0))

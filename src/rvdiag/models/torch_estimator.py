@@ -34,6 +34,20 @@ network weighs points by energy and misses them, the log spectrum puts them on a
 diagnosis (e.g. Jing et al. 2017, Measurement 111, "A convolutional neural network based feature learning
 and fault diagnosis method for the condition monitoring of gearbox").
 
+``"orders"`` and ``"orders-residual"`` (angle domain, docs/models.md): the network sees each sample
+resampled to ``samples_per_rev`` points per revolution of ``shaft`` (computed order tracking,
+:func:`rvdiag.features.orders.resample_to_angle`), so a line at a shaft order stays at one input position
+whatever the speed.  Each sample's speed is read from the metadata column ``speed_column`` appended after
+its points (``*_deg_s``: output deg/s; ``*_rpm``: input rpm; :func:`input_metadata`), the sampling rate is
+``fs``.  The whole sample is resampled from shaft angle 0 over its whole revolutions, then fitted to the
+network input of ``input_length`` angle samples: cut to its first ``input_length`` points when longer,
+repeated revolution after revolution (``numpy.resize``) when shorter.  ``"orders-residual"`` takes instead
+the residual signal of the sample's TSA (the TSA minus the shaft orders and the mesh harmonics,
+:func:`rvdiag.features.orders.gear_signals`), one revolution repeated to the input length.  One sample is
+one network input (``window_starts_ = [0]``).  ``samples_per_rev`` (default: the largest power of two that
+one revolution holds at the fastest training speed, but at least enough for 4 mesh harmonics and their
+sidebands, :func:`rvdiag.features.orders.default_samples_per_rev`) is learned as ``samples_per_rev_`` and stored in the card with the speed column.
+
 Training
 --------
 Adam (Kingma & Ba 2015) on the cross-entropy loss, mini-batches, a stratified validation split of
@@ -62,7 +76,8 @@ from rvdiag.models.cnn import ARCHITECTURES, DEFAULT_INPUT_LENGTH, build_network
 
 NORMALIZATIONS = ("window", "global", "none")
 LONG_INPUT = ("window", "crop")
-REPRESENTATIONS = ("waveform", "logspec")
+ANGLE_REPRESENTATIONS = ("orders", "orders-residual")
+REPRESENTATIONS = ("waveform", "logspec") + ANGLE_REPRESENTATIONS
 LOGSPEC_EPS = 1e-12
 
 
@@ -78,7 +93,39 @@ def log_spectrum(windows: np.ndarray) -> np.ndarray:
 
 def network_length(window: int, representation: str) -> int:
     """Length of the network input for ``window`` points in the given representation."""
-    return int(window) if representation == "waveform" else int(window) // 2 + 1
+    return int(window) // 2 + 1 if representation == "logspec" else int(window)
+
+
+def angle_inputs(X: np.ndarray, speeds: np.ndarray, *, fs: float, speed_column: str, shaft: str,
+                 samples_per_rev: int, length: int, residual: bool = False, params=None) -> np.ndarray:
+    """Samples ``X`` (n, L) at ``speeds`` (one per sample, unit given by ``speed_column``) in the angle domain:
+    ``samples_per_rev`` points per revolution of ``shaft`` from angle 0, whole revolutions, fitted to ``length``
+    points (cut, or repeated revolution by revolution); with ``residual``, the TSA's residual signal repeated.
+    Shape ``(n, length)``, float64 (representations ``orders`` / ``orders-residual``; module docstring)."""
+    from rvdiag.features import orders as _o
+    from rvdiag.features.tsa import shaft_hz_from_column
+
+    X = np.asarray(X, dtype=np.float64)
+    v = np.asarray(speeds, dtype=np.float64)
+    if not np.all(np.isfinite(v) & (v > 0)):
+        raise ParameterError(f"the speed column {speed_column!r} must hold finite values > 0")
+    spr = int(samples_per_rev)
+    mesh = _o.mesh_order(shaft, params) if residual else 0
+    out = np.empty((X.shape[0], int(length)))
+    L = X.shape[1]
+    for value in np.unique(v):
+        f = shaft_hz_from_column(shaft, speed_column, float(value), params)
+        if L * f / float(fs) < 1:
+            raise ParameterError(f"samples of {L} points hold {L * f / float(fs):.3g} revolutions of the {shaft} shaft "
+                                 f"at {speed_column} = {value:g} (fs {float(fs):g} Hz): the orders representation "
+                                 f"needs at least one (longer samples, or a faster speed)")
+        revs = _o.angle_from_speed(L, float(fs), f)
+        for i in np.flatnonzero(v == value):
+            xa = _o.resample_to_angle(X[i], float(fs), revs, spr)
+            if residual:
+                xa = _o.gear_signals(_o.tsa(xa, spr), mesh)["residual"]
+            out[i] = np.resize(xa, int(length))
+    return out
 
 
 def resolve_device(device: str) -> torch.device:
@@ -131,7 +178,7 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         What to do with samples longer than the input (module docstring).
     normalize : {"window", "global", "none"}
         Input normalisation (module docstring).
-    representation : {"waveform", "logspec"}
+    representation : {"waveform", "logspec", "orders", "orders-residual"}
         What the network sees of each window (module docstring).
     max_epochs : int
         Upper bound on epochs.
@@ -151,6 +198,16 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         Seed of the weights, the validation split and the batch order.
     net_kwargs : dict or None
         Extra arguments of the network constructor (e.g. ``{"fc_hidden": (64, 32)}`` for tests).
+    fs : float or None
+        Sampling rate (Hz) of the samples; needed by the angle-domain representations.
+    speed_column : str
+        ``orders`` / ``orders-residual``: the metadata column of each sample's speed, appended after its points
+        (``*_deg_s`` output deg/s, ``*_rpm`` input rpm).
+    shaft : {"sun", "crank", "output"}
+        ``orders`` / ``orders-residual``: the shaft whose revolutions set the angle (default the sun relative
+        to the carrier, :data:`rvdiag.features.orders.SHAFTS`).
+    samples_per_rev : int or None
+        ``orders`` / ``orders-residual``: angle samples per revolution (default: from the training speeds).
 
     Attributes
     ----------
@@ -159,6 +216,7 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
     net_ : torch.nn.Module, the trained network (on CPU after ``fit``)
     net_input_length_ : int
     window_starts_ : ndarray of int
+    samples_per_rev_ : int, angle samples per revolution (angle-domain representations only)
     norm_mean_, norm_std_ : float, used when ``normalize="global"``
     history_ : list of dict per epoch (loss, val_loss, val_accuracy, seconds)
     best_epoch_ : int, the epoch whose weights were kept
@@ -168,7 +226,9 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
                  long_input: str = "window", normalize: str = "window", max_epochs: int = 30,
                  batch_size: int = 32, learning_rate: float = 1e-3, weight_decay: float = 0.0,
                  validation_fraction: float = 0.2, n_iter_no_change: int = 5, device: str = "auto",
-                 random_state: int = 0, net_kwargs: dict | None = None, representation: str = "waveform"):
+                 random_state: int = 0, net_kwargs: dict | None = None, representation: str = "waveform",
+                 fs: float | None = None, speed_column: str = "output_speed_deg_s", shaft: str = "sun",
+                 samples_per_rev: int | None = None):
         self.architecture = architecture
         self.input_length = input_length
         self.long_input = long_input
@@ -183,6 +243,15 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         self.random_state = random_state
         self.net_kwargs = net_kwargs
         self.representation = representation
+        self.fs = fs
+        self.speed_column = speed_column
+        self.shaft = shaft
+        self.samples_per_rev = samples_per_rev
+
+    def input_metadata(self) -> tuple[str, ...]:
+        """Metadata columns appended to each sample of ``X``: the speed column for the angle-domain
+        representations (``orders``, ``orders-residual``), else none."""
+        return (str(self.speed_column),) if self.representation in ANGLE_REPRESENTATIONS else ()
 
     # ------------------------------------------------------------------ validation
     def _check_params(self, length: int) -> int:
@@ -208,6 +277,9 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         W = int(W)
         if W < 1:
             raise ParameterError(f"input_length must be >= 1, got {W}")
+        if self.representation in ANGLE_REPRESENTATIONS:
+            self._check_angle_params()
+            return W  # angle samples: revolutions are repeated to fill the input (module docstring)
         if W > length:
             if self.architecture == "cnn1d-lean":
                 W = length
@@ -217,6 +289,19 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
                     f"give a shorter input_length (--input-length) or use cnn1d-lean"
                 )
         return W
+
+    def _check_angle_params(self) -> None:
+        from rvdiag.features.orders import _check_shaft
+        from rvdiag.features.tsa import check_speed_column
+
+        _check_shaft(self.shaft)
+        check_speed_column(self.speed_column)
+        if not (self.fs is not None and float(self.fs) > 0):
+            raise ParameterError(f"representation {self.representation!r} needs the sampling rate fs > 0 Hz, "
+                                 f"got {self.fs}")
+        if self.samples_per_rev is not None and not (isinstance(self.samples_per_rev, (int, np.integer))
+                                                     and self.samples_per_rev >= 8):
+            raise ParameterError(f"samples_per_rev must be an integer >= 8, got {self.samples_per_rev!r}")
 
     def network_input_length(self, n_points: int) -> int:
         """Check the settings and return the network input (points) for samples of ``n_points``: the
@@ -244,6 +329,12 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
 
     def _represent(self, X: np.ndarray) -> np.ndarray:
         """Windows of ``X`` in the model's representation, before normalisation."""
+        if self.representation in ANGLE_REPRESENTATIONS:
+            X = np.asarray(X, dtype=np.float64)
+            return angle_inputs(X[:, :-1], X[:, -1], fs=float(self.fs), speed_column=self.speed_column,
+                                shaft=self.shaft, samples_per_rev=self.samples_per_rev_,
+                                length=self.net_input_length_,
+                                residual=self.representation == "orders-residual").astype(np.float32)
         Xw = self._windows(np.asarray(X, dtype=np.float32))
         if self.representation == "logspec":
             return log_spectrum(Xw)
@@ -271,14 +362,19 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         -------
         self
         """
-        X, y = validate_data(self, X, y, dtype=np.float32, ensure_min_samples=2)
+        angle = self.representation in ANGLE_REPRESENTATIONS
+        X, y = validate_data(self, X, y, dtype=np.float64 if angle else np.float32, ensure_min_samples=2)
         check_classification_targets(y)
-        W = self._check_params(X.shape[1])
+        W = self._check_params(X.shape[1] - (1 if angle else 0))
         self.classes_, y_idx = np.unique(y, return_inverse=True)
         if len(self.classes_) < 2:
             raise ParameterError(f"need at least 2 classes to train, got {len(self.classes_)}")
         self.net_input_length_ = W
-        self.window_starts_ = window_starts(X.shape[1], W, self.long_input)
+        if angle:
+            self.window_starts_ = np.array([0], dtype=np.int64)
+            self.samples_per_rev_ = self._default_samples_per_rev(X[:, -1])
+        else:
+            self.window_starts_ = window_starts(X.shape[1], W, self.long_input)
         device = resolve_device(self.device)
         self.device_ = str(device)
         rng = np.random.default_rng(self.random_state)
@@ -362,9 +458,23 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         return self
 
     # ------------------------------------------------------------------ inference
+    def _default_samples_per_rev(self, speeds: np.ndarray) -> int:
+        """``samples_per_rev``, or :func:`~rvdiag.features.orders.default_samples_per_rev` at the fastest speed."""
+        from rvdiag.features import orders as _o
+        from rvdiag.features.tsa import shaft_hz_from_column
+
+        if self.samples_per_rev is not None:
+            return int(self.samples_per_rev)
+        v = np.asarray(speeds, dtype=np.float64)
+        if not np.all(np.isfinite(v) & (v > 0)):
+            raise ParameterError(f"the speed column {self.speed_column!r} must hold finite values > 0")
+        f = shaft_hz_from_column(self.shaft, self.speed_column, float(v.max()))
+        return _o.default_samples_per_rev(float(self.fs), f, _o.mesh_order(self.shaft))
+
     def _check_X(self, X) -> np.ndarray:
         check_is_fitted(self, "net_")
-        return validate_data(self, X, dtype=np.float32, reset=False)
+        angle = self.representation in ANGLE_REPRESENTATIONS
+        return validate_data(self, X, dtype=np.float64 if angle else np.float32, reset=False)
 
     def predict_proba(self, X) -> np.ndarray:
         """Class probabilities (softmax), averaged over the windows of each sample; shape (n, n_classes)."""
