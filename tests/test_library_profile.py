@@ -13,11 +13,11 @@ import hashlib
 import numpy as np
 import pytest
 
-from rvdiag.datasets import SampleStore, StoreBuilder
+from rvdiag.datasets import SampleStore
 from rvdiag.errors import ConfigError, StoreError
 from rvdiag.library import LibraryConfig, build_library, config_from_store, make_plan, run_unit
 from rvdiag.library.build import Job
-from test_library_build import TINY, assert_same_store
+from test_library_build import TINY, assert_same_store, interrupted_build
 
 PROFILE = {"trapezoid_fraction": 0.5, "accel_deg_s2": {"min": 400.0, "max": 800.0},
            "arm_mass_kg": {"min": 0.0, "max": 15.0}, "arm_length_m": 0.5, "arm_angle_deg": [-30.0, 0.0, 30.0]}
@@ -162,21 +162,7 @@ def test_resume_after_interrupt_equals_uninterrupted_with_profiles(tmp_path, mon
     cfg = cfg_of(PROF)
     build_library(cfg, tmp_path / "ref.zarr", workers=0, progress=False)
     path = tmp_path / "resumed.zarr"
-    original = StoreBuilder.write_unit
-    calls = []
-
-    def interrupt_after_five(self, *args, **kwargs):
-        if len(calls) == 5:
-            raise KeyboardInterrupt
-        calls.append(1)
-        return original(self, *args, **kwargs)
-
-    monkeypatch.setattr(StoreBuilder, "write_unit", interrupt_after_five)
-    with pytest.raises(KeyboardInterrupt):
-        build_library(cfg, path, workers=0, progress=False)
-    monkeypatch.setattr(StoreBuilder, "write_unit", original)
-    with pytest.raises(StoreError, match="unfinished build"):
-        SampleStore.open(path)
+    interrupted_build(cfg, path, monkeypatch, after=5)
     with pytest.raises(StoreError, match="different config"):  # the same library without [profile]: refused
         build_library(cfg_of(NO_PROFILE), path, workers=0, progress=False)
     report = build_library(cfg, path, workers=0, progress=False)

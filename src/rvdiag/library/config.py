@@ -189,6 +189,17 @@ def _int(raw: Any, where: str, minimum: int) -> int:
     return int(value)
 
 
+def _bounded_sweeps(raw: Mapping[str, Any], bounds: Mapping[str, tuple[float, float]], w: str) -> dict[str, Sweep]:
+    """The sweeps of those keys of ``bounds`` that ``raw`` has, each checked to lie in its ``(lo, hi)``."""
+    out = {}
+    for key, (lo, hi) in bounds.items():
+        if key in raw:
+            sweep = out[key] = Sweep.parse(raw[key], f"{w} {key}")
+            if not (lo <= sweep.lo and sweep.hi <= hi):
+                raise ConfigError(f"{w} {key}: must lie in [{lo:g}, {hi:g}], got {sweep.lo:g}..{sweep.hi:g}")
+    return out
+
+
 def _positive(raw: Any, where: str) -> float:
     value = _number(raw, where)
     if value <= 0:
@@ -252,12 +263,7 @@ def _parse_profile(raw: Mapping[str, Any], w: str, *, speed_key: str, speed: Swe
                 f"{w} accel_deg_s2: at {accel.lo:g} deg/s^2 a trapezoid needs {need:.4g} s to reach "
                 f"{speed.hi:g} deg/s and stop again, longer than the {move_s:.4g} s of a simulation "
                 f"(transient_s + duration_s): raise the acceleration or lengthen the simulation")
-    arm = {}
-    for key, (lo, hi) in ARM_KEYS.items():
-        if key in raw:
-            arm[key] = Sweep.parse(raw[key], f"{w} {key}")
-            if not (lo <= arm[key].lo and arm[key].hi <= hi):
-                raise ConfigError(f"{w} {key}: must lie in [{lo:g}, {hi:g}], got {arm[key].lo:g}..{arm[key].hi:g}")
+    arm = _bounded_sweeps(raw, ARM_KEYS, w)
     if (frac > 0 or arm) and float(model.get("segment_s", 0.0) or 0.0) > 0:
         raise ConfigError(f"{w}: a speed or load profile runs as one segment: remove [model] segment_s")
     return ProfileConfig(frac, accel, arm)
@@ -440,12 +446,7 @@ class LibraryConfig:
             pct[key] = _number(rnd.get(key, 0.0), f"{w} {key}")
             if not 0.0 <= pct[key] < 100.0:
                 raise ConfigError(f"{w} {key}: must lie in [0, 100) percent, got {pct[key]:g}")
-        path = {}
-        for key, (lo, hi) in PATH_KEYS.items():
-            if key in rnd:
-                path[key] = Sweep.parse(rnd[key], f"{w} {key}")
-                if not (lo <= path[key].lo and path[key].hi <= hi):
-                    raise ConfigError(f"{w} {key}: must lie in [{lo:g}, {hi:g}], got {path[key].lo:g}..{path[key].hi:g}")
+        path = _bounded_sweeps(rnd, PATH_KEYS, w)
         colour = None
         if "noise_colour_exponent" in rnd:
             colour = Sweep.parse(rnd["noise_colour_exponent"], f"{w} noise_colour_exponent")
