@@ -168,23 +168,28 @@ def test_worker_errors_reach_the_client_typed_and_keep_committed_units(tmp_path,
         SampleStore.open(tmp_path / "bad.zarr")
 
 
-def test_resume_after_interrupt_equals_uninterrupted(tmp_path, reference, monkeypatch):
-    path = tmp_path / "resumed.zarr"
+def interrupted_build(cfg, path, monkeypatch, after: int) -> None:
+    """Build ``cfg`` serially into ``path`` and stop it (Ctrl-C) once ``after`` simulations are written."""
     original = StoreBuilder.write_unit
     calls = []
 
-    def interrupt_after_four(self, *args, **kwargs):
-        if len(calls) == 4:
+    def interrupt(self, *args, **kwargs):
+        if len(calls) == after:
             raise KeyboardInterrupt
         calls.append(1)
         return original(self, *args, **kwargs)
 
-    monkeypatch.setattr(StoreBuilder, "write_unit", interrupt_after_four)
+    monkeypatch.setattr(StoreBuilder, "write_unit", interrupt)
     with pytest.raises(KeyboardInterrupt):
-        build_library(tiny(), path, workers=0, progress=False)
+        build_library(cfg, path, workers=0, progress=False)
     monkeypatch.setattr(StoreBuilder, "write_unit", original)
     with pytest.raises(StoreError, match="unfinished build"):
         SampleStore.open(path)
+
+
+def test_resume_after_interrupt_equals_uninterrupted(tmp_path, reference, monkeypatch):
+    path = tmp_path / "resumed.zarr"
+    interrupted_build(tiny(), path, monkeypatch, after=4)
     report = build_library(tiny(), path, workers=0, progress=False)
     assert (report.skipped, report.built) == (4, 8)
     assert_same_store(reference, path)

@@ -9,7 +9,8 @@ simulation.  Unit ``u`` gets its own seed from the config's master seed::
     unit_seed = 63-bit integer from children[u].generate_state
 
 and every random draw of the unit comes from ``SeedSequence(unit_seed)``, split into four independent
-streams: the draws (severities, operating point, SNR, parameter scales, in that fixed order), the
+streams: the draws (severities, operating point, SNR, parameter scales, then the ``[randomise]`` path
+and the ``[profile]`` draws, in that fixed order), the
 simulator's seed, the noise, and (paper mode) the assignment of segments to train/test.  The recorded
 ``seed`` column therefore reproduces any one simulation alone, and the arrays do not depend on how many
 workers ran the build, nor on the order in which units finished.
@@ -44,7 +45,7 @@ import numpy as np
 from rvdiag import __version__
 from rvdiag.datasets import StoreBuilder, config_hash
 from rvdiag.errors import ConfigError, RvdiagError, SimulationError
-from rvdiag.library.config import LibraryConfig, scaled_keys
+from rvdiag.library.config import ARM_KEYS, LibraryConfig, scaled_keys
 from rvdiag.library.states import STATES, FaultSpec
 
 #: Key added to the stored config so that its hash also covers the reducer parameter values.
@@ -89,6 +90,28 @@ class Unit:
     mounting: Mapping[str, float] = field(default_factory=dict)
     #: colour of the added noise (PSD ~ 1 / f^beta), ``None`` = white
     noise_exponent: float | None = None
+    #: ``[profile]`` draws (empty without ``[profile]``): ``profile`` (0 constant, 1 trapezoid), ``accel_deg_s2``
+    #: (``None`` at constant speed), ``arm_mass_kg``, ``arm_length_m``, ``arm_angle_deg``
+    profile: Mapping[str, float | None] = field(default_factory=dict)
+
+    def speed_profile(self, transient_s: float) -> Any:
+        """The unit's :class:`rvdiag.dynamics.profile.SpeedProfile` (``None`` at constant speed): a trapezoid
+        from rest at the start of the run-in (``-transient_s``) to rest at the end of the record."""
+        if not self.profile.get("profile"):
+            return None
+        from rvdiag.dynamics.profile import SpeedProfile
+
+        return SpeedProfile("trapezoid", float(self.speed), float(self.profile["accel_deg_s2"]), None,
+                            -float(transient_s))
+
+    def load_profile(self) -> Any:
+        """The unit's :class:`rvdiag.dynamics.profile.LoadProfile` (``None`` without a gravity arm)."""
+        mass, length = self.profile.get("arm_mass_kg") or 0.0, self.profile.get("arm_length_m") or 0.0
+        if mass <= 0.0 or length <= 0.0:
+            return None
+        from rvdiag.dynamics.profile import LoadProfile
+
+        return LoadProfile(float(mass), float(length), float(self.profile.get("arm_angle_deg") or 0.0))
 
 
 def _streams(unit_seed: int) -> list[np.random.SeedSequence]:
@@ -125,10 +148,22 @@ def make_plan(cfg: LibraryConfig) -> list[Unit]:
             # drawn after every earlier draw, so a config without them keeps its units bit for bit
             mounting = {key: float(sw.draw(rng)) for key, sw in cfg.path.items()}
             colour = None if cfg.noise_colour_exponent is None else float(cfg.noise_colour_exponent.draw(rng))
+            profile = {} if cfg.profile is None else _draw_profile(cfg.profile, rng)
             units.append(Unit(u, state, k, seeds[u], severity, speed, load, snr, scales, split,
-                              cfg.rows_per_simulation(state), mounting, colour))
+                              cfg.rows_per_simulation(state), mounting, colour, profile))
             u += 1
     return units
+
+
+def _draw_profile(prof: Any, rng: np.random.Generator) -> dict[str, float | None]:
+    """The ``[profile]`` draws of one unit, after every other draw and always the same number of them (the
+    acceleration is drawn at constant speed too, and recorded as ``None``), so that streams stay aligned."""
+    trapezoid = bool(rng.random() < prof.trapezoid_fraction)
+    accel = None if prof.accel_deg_s2 is None else float(prof.accel_deg_s2.draw(rng))
+    out: dict[str, float | None] = {"profile": int(trapezoid), "accel_deg_s2": accel if trapezoid else None}
+    for key in ARM_KEYS:
+        out[key] = float(prof.arm[key].draw(rng)) if key in prof.arm else 0.0
+    return out
 
 
 # ---------------------------------------------------------------------- one unit (runs on a worker)
@@ -153,6 +188,8 @@ class Job:
     severity_columns: tuple[str, ...]
     scale_columns: tuple[str, ...] = field(default_factory=tuple)
     model: Mapping[str, Any] = field(default_factory=dict)
+    #: the config has a ``[profile]`` table: pass the profiles, record their columns
+    profile_columns: bool = False
 
     @classmethod
     def from_config(cls, cfg: LibraryConfig, params: Any) -> "Job":
@@ -163,6 +200,7 @@ class Job:
             train_per_state=cfg.train_per_state, test_per_state=cfg.test_per_state, assign=cfg.assign,
             severity_columns=tuple(cfg.severity_parameters()),
             scale_columns=tuple(f"{s}.{k}" for s, k, _ in scaled_keys(cfg)), model=dict(cfg.model),
+            profile_columns=cfg.profile is not None,
         )
 
 
@@ -213,6 +251,25 @@ def segment_starts(n_points: int, length: int, hop: int) -> np.ndarray:
     return np.arange(0, n_points - length + 1, hop, dtype=np.int64)
 
 
+def window_angles(unit: Unit, job: Job, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Output (carrier) angle at the first point of each window (deg, 0 at the first recorded sample) and the
+    window's mean output speed (deg/s: the angle it turns through over its length), from the unit's speed
+    profile in closed form (:meth:`rvdiag.dynamics.profile.SpeedProfile.state`, the simulator's own angles)."""
+    from rvdiag.dynamics.profile import SpeedProfile
+
+    if job.speed_key == "output_speed_deg_s":
+        omega = np.radians(unit.speed)
+    else:  # input rpm -> output rad/s through the reducer's ratio
+        from rvdiag.params import ReducerParams
+
+        omega = unit.speed * 2.0 * np.pi / 60.0 / ReducerParams.from_dict(dict(job.params), source="<library>").ratio
+    profile = unit.speed_profile(job.transient_s) or SpeedProfile()
+    t0 = np.asarray(starts, dtype=np.float64) / job.fs
+    th0 = profile.state(t0, omega, job.duration_s)[0]
+    th1 = profile.state(t0 + job.segment_length / job.fs, omega, job.duration_s)[0]
+    return np.degrees(th0), np.degrees(th1 - th0) * job.fs / job.segment_length
+
+
 def run_unit(unit: Unit, job: Job) -> UnitResult:
     """Simulate one unit and cut it into samples (the Dask task; pure function of its arguments)."""
     from rvdiag.params import ReducerParams
@@ -232,9 +289,16 @@ def run_unit(unit: Unit, job: Job) -> UnitResult:
     fault = spec if getattr(sim, "accepts_fault_spec", False) else spec.to_tooth_faults()
     _, sim_ss, noise_ss, split_ss = _streams(unit.seed)
     sim_seed = int(sim_ss.generate_state(1, np.uint32)[0])
+    profiles: dict[str, Any] = {}
+    if unit.profile:  # passed only when drawn: a simulator without profiles keeps working on other configs
+        speed_profile, load_profile = unit.speed_profile(job.transient_s), unit.load_profile()
+        if speed_profile is not None:
+            profiles["profile"] = speed_profile
+        if load_profile is not None:
+            profiles["load_profile"] = load_profile
     result = sim(
         params, fault, **{job.speed_key: unit.speed}, load_Nm=unit.load_Nm, duration_s=job.duration_s,
-        transient_s=job.transient_s, fs=job.fs, seed=sim_seed, model=dict(job.model),
+        transient_s=job.transient_s, fs=job.fs, seed=sim_seed, model=dict(job.model), **profiles,
     )
     if abs(float(getattr(result, "fs", job.fs)) - job.fs) > 1e-9 * job.fs:
         raise SimulationError(f"simulator returned fs = {result.fs} Hz, asked for {job.fs} Hz")
@@ -285,6 +349,12 @@ def run_unit(unit: Unit, job: Job) -> UnitResult:
         meta["mounting." + name] = [value] * rows
     if unit.noise_exponent is not None:
         meta["noise_colour_exponent"] = [unit.noise_exponent] * rows
+    if job.profile_columns:
+        for key, value in unit.profile.items():
+            meta[key] = [value] * rows
+        theta0, speed = window_angles(unit, job, starts[chosen])
+        meta["theta_out_start_deg"] = theta0.tolist()
+        meta["window_speed_deg_s"] = speed.tolist()
     return UnitResult(unit.index, X, [unit.state] * rows, meta, time.perf_counter() - t0)
 
 

@@ -103,12 +103,13 @@ DAMPING_KEYS: tuple[tuple[str, str], ...] = (
 )
 
 _TOP_KEYS = {"name", "mode", "seed", "simulator", "params", "channel", "model",
-             "signal", "operation", "randomise", "split", "states"}
+             "signal", "operation", "randomise", "profile", "split", "states"}
 _SECTION_KEYS = {
     "signal": {"fs", "duration_s", "transient_s", "segment_length", "hop"},
     "operation": {"input_speed_rpm", "output_speed_deg_s", "load_Nm", "noise_snr_db"},
     "randomise": {"stiffness_pct", "damping_pct", "path_resonance_hz", "path_damping_ratio", "housing_added_mass",
                   "noise_colour_exponent"},
+    "profile": {"trapezoid_fraction", "accel_deg_s2", "arm_mass_kg", "arm_length_m", "arm_angle_deg"},
     "split": {"train_per_state", "test_per_state", "assign",
               "simulations_per_state", "test_simulations_per_state"},
 }
@@ -188,11 +189,84 @@ def _int(raw: Any, where: str, minimum: int) -> int:
     return int(value)
 
 
+def _bounded_sweeps(raw: Mapping[str, Any], bounds: Mapping[str, tuple[float, float]], w: str) -> dict[str, Sweep]:
+    """The sweeps of those keys of ``bounds`` that ``raw`` has, each checked to lie in its ``(lo, hi)``."""
+    out = {}
+    for key, (lo, hi) in bounds.items():
+        if key in raw:
+            sweep = out[key] = Sweep.parse(raw[key], f"{w} {key}")
+            if not (lo <= sweep.lo and sweep.hi <= hi):
+                raise ConfigError(f"{w} {key}: must lie in [{lo:g}, {hi:g}], got {sweep.lo:g}..{sweep.hi:g}")
+    return out
+
+
 def _positive(raw: Any, where: str) -> float:
     value = _number(raw, where)
     if value <= 0:
         raise ConfigError(f"{where}: must be > 0, got {value:g}")
     return value
+
+
+#: ``[profile]`` gravity-arm keys, each a sweep, with the range it must lie in
+ARM_KEYS: dict[str, tuple[float, float]] = {
+    "arm_mass_kg": (0.0, 1000.0),
+    "arm_length_m": (0.0, 10.0),
+    "arm_angle_deg": (-360.0, 360.0),
+}
+
+
+@dataclass(frozen=True)
+class ProfileConfig:
+    """The ``[profile]`` table: speed and load profiles drawn per simulation (docs/library.md).
+
+    ``trapezoid_fraction`` of the simulations run a trapezoid (from rest at the start of the run-in,
+    accelerating at the drawn ``accel_deg_s2`` to the simulation's drawn output speed, cruising, decelerating
+    to rest at the end of the record); the others run at constant speed.  Every simulation carries a
+    gravity arm of the drawn ``arm_mass_kg`` at ``arm_length_m``, at ``arm_angle_deg`` above the horizontal
+    at the first recorded sample (no arm when the mass or the length is 0).
+    """
+
+    trapezoid_fraction: float = 0.0
+    accel_deg_s2: Sweep | None = None
+    arm: Mapping[str, Sweep] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"trapezoid_fraction": self.trapezoid_fraction}
+        if self.accel_deg_s2 is not None:
+            out["accel_deg_s2"] = self.accel_deg_s2.to_toml()
+        for key, sweep in self.arm.items():
+            out[key] = sweep.to_toml()
+        return out
+
+
+def _parse_profile(raw: Mapping[str, Any], w: str, *, speed_key: str, speed: Sweep, move_s: float,
+                   model: Mapping[str, Any]) -> ProfileConfig:
+    """Validate a ``[profile]`` table (``w``: "FILE: [profile]"; ``move_s``: transient + signal)."""
+    frac = _number(raw.get("trapezoid_fraction", 0.0), f"{w} trapezoid_fraction")
+    if not 0.0 <= frac <= 1.0:
+        raise ConfigError(f"{w} trapezoid_fraction: must lie in [0, 1], got {frac:g}")
+    accel = None
+    if "accel_deg_s2" in raw:
+        accel = Sweep.parse(raw["accel_deg_s2"], f"{w} accel_deg_s2")
+        if accel.lo <= 0:
+            raise ConfigError(f"{w} accel_deg_s2: must be > 0, got {accel.lo:g}")
+    if frac > 0:
+        if accel is None:
+            raise ConfigError(f"{w} accel_deg_s2: missing (trapezoid_fraction = {frac:g} needs an acceleration)")
+        if speed_key != "output_speed_deg_s":
+            raise ConfigError(
+                f"{w} trapezoid_fraction: a trapezoid cruises at an output speed; give [operation] "
+                f"output_speed_deg_s instead of {speed_key}")
+        need = 2.0 * speed.hi / accel.lo
+        if need > move_s * (1.0 + 1e-12):
+            raise ConfigError(
+                f"{w} accel_deg_s2: at {accel.lo:g} deg/s^2 a trapezoid needs {need:.4g} s to reach "
+                f"{speed.hi:g} deg/s and stop again, longer than the {move_s:.4g} s of a simulation "
+                f"(transient_s + duration_s): raise the acceleration or lengthen the simulation")
+    arm = _bounded_sweeps(raw, ARM_KEYS, w)
+    if (frac > 0 or arm) and float(model.get("segment_s", 0.0) or 0.0) > 0:
+        raise ConfigError(f"{w}: a speed or load profile runs as one segment: remove [model] segment_s")
+    return ProfileConfig(frac, accel, arm)
 
 
 # ---------------------------------------------------------------------- the config
@@ -223,6 +297,8 @@ class LibraryConfig:
     path: Mapping[str, Sweep] = field(default_factory=dict)
     #: ``[randomise] noise_colour_exponent``: the added noise's PSD falls as 1 / f^beta (0 white, 1 pink)
     noise_colour_exponent: Sweep | None = None
+    #: the ``[profile]`` table, ``None`` when the config has none (constant speed and load)
+    profile: ProfileConfig | None = None
     train_per_state: int = 0
     test_per_state: int = 0
     assign: str = "random"
@@ -370,12 +446,7 @@ class LibraryConfig:
             pct[key] = _number(rnd.get(key, 0.0), f"{w} {key}")
             if not 0.0 <= pct[key] < 100.0:
                 raise ConfigError(f"{w} {key}: must lie in [0, 100) percent, got {pct[key]:g}")
-        path = {}
-        for key, (lo, hi) in PATH_KEYS.items():
-            if key in rnd:
-                path[key] = Sweep.parse(rnd[key], f"{w} {key}")
-                if not (lo <= path[key].lo and path[key].hi <= hi):
-                    raise ConfigError(f"{w} {key}: must lie in [{lo:g}, {hi:g}], got {path[key].lo:g}..{path[key].hi:g}")
+        path = _bounded_sweeps(rnd, PATH_KEYS, w)
         colour = None
         if "noise_colour_exponent" in rnd:
             colour = Sweep.parse(rnd["noise_colour_exponent"], f"{w} noise_colour_exponent")
@@ -383,6 +454,12 @@ class LibraryConfig:
                 raise ConfigError(f"{w} noise_colour_exponent: must lie in [0, 3], got {colour.lo:g}..{colour.hi:g}")
             if noise is None:
                 raise ConfigError(f"{w} noise_colour_exponent: needs [operation] noise_snr_db")
+
+        # --- profile
+        profile = None
+        if "profile" in data:
+            profile = _parse_profile(sections["profile"], f"{source}: [profile]", speed_key=speed_key, speed=speed,
+                                     move_s=transient_s + duration_s, model=model)
 
         # --- states
         raw_states = data.get("states")
@@ -464,7 +541,7 @@ class LibraryConfig:
             name=name, mode=mode, seed=seed, fs=fs, duration_s=duration_s, transient_s=transient_s,
             segment_length=segment_length, hop=hop, states=states, speed_key=speed_key, speed=speed,
             load_Nm=load, noise_snr_db=noise, stiffness_pct=pct["stiffness_pct"], damping_pct=pct["damping_pct"],
-            path=path, noise_colour_exponent=colour, simulator=simulator, params=params, channel=channel, model=model, source=source, **kw,
+            path=path, noise_colour_exponent=colour, profile=profile, simulator=simulator, params=params, channel=channel, model=model, source=source, **kw,
         )
 
     # ------------------------------------------------------------------ output
@@ -483,7 +560,7 @@ class LibraryConfig:
         operation: dict[str, Any] = {self.speed_key: self.speed.to_toml(), "load_Nm": self.load_Nm.to_toml()}
         if self.noise_snr_db is not None:
             operation["noise_snr_db"] = self.noise_snr_db.to_toml()
-        return {
+        out: dict[str, Any] = {
             "name": self.name,
             "mode": self.mode,
             "seed": self.seed,
@@ -498,6 +575,9 @@ class LibraryConfig:
             "split": split,
             "states": {s: {k: v.to_toml() for k, v in sw.items()} for s, sw in self.states.items()},
         }
+        if self.profile is not None:  # only then: a config without it keeps its hash
+            out["profile"] = self.profile.to_dict()
+        return out
 
     def _randomise_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"stiffness_pct": self.stiffness_pct, "damping_pct": self.damping_pct}
@@ -509,12 +589,12 @@ class LibraryConfig:
 
     def replace(self, **changes: Any) -> "LibraryConfig":
         """Copy with top-level or section keys changed, re-validated: ``cfg.replace(seed=2)``,
-        ``cfg.replace(signal={"duration_s": 2.0})``.  The tables ``signal``, ``operation``, ``randomise``
-        and ``split`` are updated key by key; ``states`` and ``model`` are replaced whole."""
+        ``cfg.replace(signal={"duration_s": 2.0})``.  The tables ``signal``, ``operation``, ``randomise``,
+        ``profile`` and ``split`` are updated key by key; ``states`` and ``model`` are replaced whole."""
         data = self.to_dict()
         for key, value in changes.items():
             if key in _SECTION_KEYS and isinstance(value, Mapping):
-                data[key] = {**data[key], **value}
+                data[key] = {**data.get(key, {}), **value}
             else:
                 data[key] = value
         new = type(self).from_dict(data, source=self.source)

@@ -11,6 +11,10 @@ A library simulator is a module-level function ``"package.module:function"`` (na
   attribute ``accepts_fault_spec = True``, the library's :class:`rvdiag.library.states.FaultSpec`;
 - ``duration_s``: the signal to return, recorded after ``transient_s`` of discarded start-up (s);
 - ``seed``: an integer from the unit's own seed stream; ``model``: the config's ``[model]`` table (dict);
+- ``profile``, ``load_profile``: passed only by a config with a ``[profile]`` table, and only when the
+  simulation drew a trapezoid or a gravity arm: a :class:`rvdiag.dynamics.profile.SpeedProfile` (cruising at
+  the output speed given) and a :class:`rvdiag.dynamics.profile.LoadProfile`; a simulator that takes no
+  profiles serves every config without ``[profile]``;
 - ``result.signal``: array (channels, round(duration_s * fs)); ``result.fs``; optionally
   ``result.channel_names``.  The library adds the noise itself, so the simulator adds none.
 
@@ -61,7 +65,8 @@ def dynamics(
 ) -> Any:
     """The 27-DOF dynamic model (:func:`rvdiag.dynamics.simulate`) with the library's contract.
 
-    ``operating`` holds the speed (``input_speed_rpm`` or ``output_speed_deg_s``) and ``load_Nm``.
+    ``operating`` holds the speed (``input_speed_rpm`` or ``output_speed_deg_s``) and ``load_Nm``, and with a
+    ``[profile]`` table the ``profile`` and ``load_profile`` of the simulation.
     Returns a :class:`rvdiag.dynamics.SimulationResult` (two housing-acceleration channels, x and y).
     """
     from rvdiag.dynamics import simulate

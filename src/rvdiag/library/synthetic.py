@@ -13,7 +13,10 @@ Signal model (all amplitudes in m/s^2, arbitrary scale):
 - broken tooth (``broken_fraction``) and root crack (``crack_depth``, ``crack_angle_deg``): an impulse at each
   passage of the faulty sun tooth through a mesh, N (f_s - f_H), exciting a 2nd-order structural resonance
   whose frequency scales with sqrt(stiffness scale) and whose damping with the damping-ratio scale;
-- a small broadband component drawn from ``seed``, so different seeds give different signals.
+- a small broadband component drawn from ``seed``, so different seeds give different signals;
+- with a speed ``profile`` (:class:`rvdiag.dynamics.profile.SpeedProfile`) every tone and impact follows the
+  carrier angle instead of time (the frequencies above are those of the cruise speed), and with a
+  ``load_profile`` the amplitudes follow its torque.
 """
 
 from __future__ import annotations
@@ -55,6 +58,8 @@ def simulate(
     fs: float = 48000.0,
     seed: int = 0,
     model: Any = None,
+    profile: Any = None,
+    load_profile: Any = None,
 ) -> SyntheticResult:
     """Synthetic vibration signal of one operating point (see module docstring).
 
@@ -73,6 +78,8 @@ def simulate(
     rng = np.random.default_rng(seed)
     t = np.arange(n) / fs
     load = 1.0 + float(load_Nm) / float(params.operation.rated_torque)
+    if profile is not None or load_profile is not None:
+        t, load = _warp(params, f.f1, t - n_tr / fs, duration_s, load_Nm, profile, load_profile)
     phases = rng.uniform(0.0, 2.0 * np.pi, size=4)
 
     wear = severity.get("wear_depth", 0.0) / 1.0e-4
@@ -92,8 +99,13 @@ def simulate(
         w0 = 2.0 * np.pi * _RESONANCE_HZ * np.sqrt(k_scale) / fs
         r = np.exp(-zeta * w0)
         pulses = np.zeros(n)
-        t_hit = np.arange(rng.uniform(0.0, 1.0 / f.f_sun_fault), n / fs, 1.0 / f.f_sun_fault)
-        pulses[np.minimum((t_hit * fs).astype(np.int64), n - 1)] = impact * load
+        if np.ndim(load) == 0:
+            t_hit = np.arange(rng.uniform(0.0, 1.0 / f.f_sun_fault), n / fs, 1.0 / f.f_sun_fault)
+            pulses[np.minimum((t_hit * fs).astype(np.int64), n - 1)] = impact * load
+        else:  # warped time: the impacts fall at equal carrier angles
+            t_hit = np.arange(rng.uniform(0.0, 1.0 / f.f_sun_fault), t[-1], 1.0 / f.f_sun_fault)
+            idx = np.minimum(np.searchsorted(t, t_hit), n - 1)
+            pulses[idx] = impact * load[idx]
         x += lfilter([1.0 - r], [1.0, -2.0 * r * np.cos(w0), r * r], pulses) * 20.0
     x += 0.05 * rng.standard_normal(n)
     x = x[n_tr:]
@@ -102,6 +114,17 @@ def simulate(
         "duration_s": duration_s, "transient_s": transient_s, "fs": fs, "seed": seed, "fault": getattr(fault, "state", "T1"),
     }
     return SyntheticResult(signal=x[None, :], fs=float(fs), settings=settings)
+
+
+def _warp(params: Any, f_sun: float, t_rec: np.ndarray, duration_s: float, load_Nm: float, profile: Any,
+          load_profile: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Warped time (carrier angle / cruise speed, from 0) and the load factor per sample under the profiles."""
+    from rvdiag.dynamics.profile import LoadProfile, SpeedProfile
+
+    omega = 2.0 * np.pi * f_sun / params.ratio
+    theta, _, domega = (profile or SpeedProfile()).state(t_rec, omega, duration_s)
+    torque = (load_profile or LoadProfile()).torque(float(load_Nm), theta, domega)
+    return (theta - theta[0]) / omega, 1.0 + np.abs(torque) / float(params.operation.rated_torque)
 
 
 def check_options(model: Any) -> None:
