@@ -400,18 +400,19 @@ def _wear_errors(pair: GearPair, angle: np.ndarray, fault: ToothFaults,
     gear = pair.driver if fault.gear == "driver" else pair.driven
     wear_of = {t: next((f for f in fault.faults_of(t) if isinstance(f, Wear)), None)
                for t in list(fault.teeth) + [-1]}
-    depth_of = {t: (w.depth if w is not None else 0.0) for t, w in wear_of.items()}
-    if not any(d > 0 for d in depth_of.values()):
+    teeth_of: dict[Wear, list[int]] = {}  # the teeth of each wear state (-1: every tooth without faults of its own)
+    for t, w in wear_of.items():
+        if w is not None and w.depth > 0:
+            teeth_of.setdefault(w, []).append(t)
+    if not teeth_of:
         return None
     pair_index, roll, _ = pair.contact_state(angle)
     tooth = np.mod(pair_index, gear.teeth)
-    depth = np.full(roll.shape, depth_of[-1])
-    for t in fault.teeth:
-        depth[tooth == t] = depth_of[t]
+    own = np.isin(tooth, list(fault.teeth))
     out = np.zeros_like(roll)
     # one profile per wear state (the run-in shape depends on the depth against the run-in deflection)
-    for w in {w for w in wear_of.values() if w is not None and w.depth > 0}:
-        on = in_contact & np.isin(depth, [w.depth])
+    for w, teeth in teeth_of.items():
+        on = in_contact & (np.isin(tooth, teeth) | (~own if -1 in teeth else False))
         out[on] = archard_wear_profile(pair, fault.gear, roll[on], w.depth, w.run_in_deflection)
     return out
 
