@@ -351,7 +351,6 @@ def archard_wear_profile(pair: GearPair, gear: str, roll: np.ndarray, depth: flo
         d0 = float(run_in_deflection)
         step = _RUN_IN_STEP * d0
         h = np.zeros_like(s)
-        share = fixed_share.copy()
         for _ in range(int(math.ceil(depth / step)) + 1):
             e_partner = np.where(enter, np.interp(s + pb, s, h), np.where(leave, np.interp(s - pb, s, h), 0.0))
             share = np.where(enter | leave, np.clip(0.5 * (1.0 + (e_partner - h) / d0), 0.0, 1.0), 1.0)
