@@ -19,7 +19,8 @@ _OPTION = {"wear_depth": "--wear-depth", "crack_depth": "--crack-depth", "crack_
 SIMULATE_OPTION_NAMES = {"duration_s": "--duration", "fs": "--fs", "substeps": "--substeps",
                          "transient_s": "--transient", "segment_s": "--segment", "workers": "--workers",
                          "noise_snr_db": "--snr-db", "load_Nm": "--load", "input_speed_rpm": "--input-speed",
-                         "output_speed_deg_s": "--output-speed"}
+                         "output_speed_deg_s": "--output-speed", "signal": "--signal",
+                         "current_fs": "--current-fs", "current_snr_db": "--current-snr-db"}
 
 
 def _check_severities(state: str, severities: dict) -> None:
@@ -82,10 +83,18 @@ def register(app: typer.Typer) -> None:
         arm_length: float = typer.Option(0.0, "--arm-length", help="Gravity arm's length, m."),
         arm_angle: float = typer.Option(0.0, "--arm-angle", help="Gravity arm's angle above the horizontal at the "
                                         "record's start, deg."),
-        out: Path = opt.out("Output .npz (signal, fs, settings)."),
+        signal: str = typer.Option("vibration", "--signal", help="What to record: vibration (housing "
+                                   "acceleration), current (the servo motor's phase currents i_a, i_b, i_c, i_q and "
+                                   "its speed, from the PMSM model under i_d = 0 vector control) or both."),
+        current_fs: float = typer.Option(1000.0, "--current-fs", help="Sampling rate of the motor current, Hz "
+                                         "(a simple fraction of --fs)."),
+        current_snr_db: Optional[float] = typer.Option(None, "--current-snr-db", help="More white noise on the "
+                                                       "current at this SNR (dB), beyond the sensors' own."),
+        out: Path = opt.out("Output .npz (signal, fs, settings; with --signal both also current, current_fs)."),
         quiet: bool = opt.quiet(),
     ) -> None:
-        """Simulate the housing acceleration (x, y) of the reducer; write signal, fs and settings to an .npz."""
+        """Simulate the housing acceleration (x, y) of the reducer and, with --signal current or both, the servo
+        motor's phase currents; write signal, fs and settings (and the current) to an .npz."""
         from rvdiag.dynamics import ModelSettings, simulate
         from rvdiag.gears import ToothFaults
         from rvdiag.params import ReducerParams
@@ -128,7 +137,7 @@ def register(app: typer.Typer) -> None:
         kw = dict(input_speed_rpm=input_speed, output_speed_deg_s=output_speed, load_Nm=load,
                   profile=speed_profile, load_profile=load_profile,
                   duration_s=duration, fs=fs, noise_snr_db=snr_db, seed=seed, settings=settings,
-                  workers=workers)
+                  workers=workers, signal=signal, current_fs=current_fs, current_snr_db=current_snr_db)
         with opt.option_names(SIMULATE_OPTION_NAMES):
             if quiet:
                 res = simulate(p, None if fault.is_healthy else fault, **kw)
@@ -152,4 +161,7 @@ def register(app: typer.Typer) -> None:
             res.to_npz(out)
         except OSError as exc:
             raise ParameterError(f"cannot write --out {out}: {exc}") from None
-        typer.echo(f"wrote {out}: {res.signal.shape[0]} channels x {res.signal.shape[1]} samples at {fs:g} Hz")
+        typer.echo(f"wrote {out}: {res.signal.shape[0]} channels x {res.signal.shape[1]} samples at {res.fs:g} Hz")
+        if signal == "both":
+            typer.echo(f"  and the motor current: {', '.join(res.current_names)} x {res.current.shape[1]} samples "
+                       f"at {res.current_fs:g} Hz")

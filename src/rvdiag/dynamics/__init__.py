@@ -31,6 +31,39 @@ from rvdiag.params import ReducerParams
 #: stores record it in their hashed config, so a build never resumes a store simulated by other physics.
 PHYSICS_REVISION = "2026-11-25"
 
+#: what :func:`simulate` can record
+SIGNALS = ("vibration", "current", "both")
+#: the motor-current channels of a result (``SimulationResult.current``) and their units
+CURRENT_CHANNELS = ("i_a", "i_b", "i_c", "i_q", "speed")
+CURRENT_UNITS = ("A", "A", "A", "A", "rpm")
+
+
+def current_record_margin(fs: float, current_fs: float) -> int:
+    """Samples recorded beyond each end of a motor-current record (at ``fs``), so that the rate change's FIR
+    filter (half length ``10 max(up, down)``, :func:`scipy.signal.resample_poly`) never reaches past the
+    simulated record: a whole number of output samples, at least 12 max(up, down) input samples."""
+    from rvdiag.motor import current_rate_ratio
+
+    r = current_rate_ratio(float(fs), current_fs)
+    return r.denominator * math.ceil(12 * max(r.numerator, r.denominator) / r.denominator)
+
+
+def motor_current_record(motor_rows: np.ndarray, fs: float, current_fs: float, margin: int = 0) -> np.ndarray:
+    """The drive's current record from the integrator's motor rows (i_d, i_q, electrical angle, rotor speed in
+    rad/s, :data:`rvdiag.dynamics.integrate.MOTOR_CHANNELS`): i_a, i_b, i_c, i_q (A) and the speed (rpm),
+    sampled at ``current_fs`` (:func:`rvdiag.motor.sample_current`); ``margin`` input samples at each end
+    (:func:`current_record_margin`) are filtered with the record and then dropped."""
+    from rvdiag.motor import current_rate_ratio, phase_currents, sample_current
+
+    i_d, i_q, theta_e, speed = motor_rows
+    rows = np.vstack([phase_currents(i_d, i_q, theta_e), i_q[None, :], speed[None, :] * (60.0 / (2.0 * math.pi))])
+    x = sample_current(rows, fs, current_fs)
+    r = current_rate_ratio(float(fs), current_fs)
+    cut = margin * r.numerator // r.denominator
+    n_out = math.ceil((motor_rows.shape[1] - 2 * margin) * r.numerator / r.denominator)
+    return np.ascontiguousarray(x[:, cut:cut + n_out])
+
+
 __all__ = [
     "PHYSICS_REVISION",
     "LoadProfile", "MeshTable", "Model", "ModelSettings", "SimulationResult", "SpeedProfile", "add_awgn", "build_model",
@@ -143,6 +176,9 @@ def simulate(
     workers: int = 1,
     profile: SpeedProfile | None = None,
     load_profile: LoadProfile | None = None,
+    signal: str = "vibration",
+    current_fs: float = 1000.0,
+    current_snr_db: float | None = None,
 ) -> SimulationResult:
     """Simulate the housing vibration of an RV reducer at constant speed and load, or under a speed and load
     profile.
@@ -179,6 +215,17 @@ def simulate(
         speed argument is needed).  :mod:`rvdiag.dynamics.profile`.
     load_profile : LoadProfile, optional
         A gravity arm on the output (default: the constant ``load_Nm``).
+    signal : {"vibration", "current", "both"}
+        What is recorded.  ``"current"`` and ``"both"`` add the servo motor's electrical side (``[motor]``, a
+        PMSM under i_d = 0 vector control; ``settings.electrical``; docs/model.md section 10), which also
+        changes the vibration a little (the drive's current loop and dead time act on the rotor).
+    current_fs : float
+        Sampling rate of the motor-current record (Hz; the drive's logger: 1 kHz in the motor-current study);
+        ``fs / current_fs`` must be a ratio of small integers (:func:`rvdiag.motor.sample_current`).
+    current_snr_db : float, optional
+        More white Gaussian noise on each current channel, at this SNR.  The current always carries the
+        sensors' noise, ``[motor] current_noise`` (A rms).  Both come from ``numpy.random.default_rng([seed, 1])``
+        (the vibration's noise stream is unchanged).
 
     Returns
     -------
@@ -186,10 +233,22 @@ def simulate(
         ``signal`` of shape (channels, samples) in m/s^2: the housing acceleration at the sensor point seen
         through the sensor path of ``params.mounting`` (:mod:`rvdiag.dynamics.transfer`); ``theta_out`` and
         ``theta_in``, the carrier's and the sun's nominal angles at each sample (rad, 0 at the first sample).
+        With the motor current (``signal`` "current" or "both"): ``current`` of shape (5, samples at
+        ``current_fs``) with the channels ``i_a``, ``i_b``, ``i_c``, ``i_q`` (A) and ``speed`` (the rotor's, rpm);
+        for ``signal="current"`` the result's ``signal``, ``fs`` and ``channel_names`` are those of the current.
     """
     from rvdiag.dynamics.segments import check_workers, integrate_segments
 
+    if signal not in SIGNALS:
+        raise ParameterError(f"signal must be one of {', '.join(SIGNALS)}, got {signal!r}")
+    signal_kind = signal
+    if signal != "vibration":
+        from rvdiag.motor import current_rate_ratio
+
+        current_rate_ratio(float(fs), current_fs)
     st = settings or ModelSettings()
+    if signal != "vibration" and not st.electrical:
+        st = dataclasses.replace(st, electrical=True)
     for name, val in (("duration_s", duration_s), ("fs", fs)):
         if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val) or val <= 0:
             raise ParameterError(f"{name} must be a number > 0, got {val!r}")
@@ -211,14 +270,23 @@ def simulate(
     def start_state(t0: float) -> np.ndarray:
         q0, how = initial_deflection(model, t0)
         starts.append(how)
-        return np.concatenate([q0, np.zeros_like(q0)])
+        return model.initial_state(q0, t0)
 
-    signal, n_segments = integrate_segments(model, fs, n_samples, n_tr, start_state, workers, progress)
-    signal = apply_path(signal, fs, params.mounting)
+    margin = current_record_margin(fs, current_fs) if model.has_pmsm else 0
+    out, n_segments = integrate_segments(model, fs, n_samples, n_tr, start_state, workers, progress, margin)
+    n_sens = model.sensor.shape[0]
+    signal = apply_path(out[:n_sens, margin:margin + n_samples], fs, params.mounting)
     initial_state = starts[0] if len(set(starts)) == 1 else "; ".join(sorted(set(starts)))
     if noise_snr_db is not None:
         signal = add_awgn(signal, noise_snr_db, np.random.default_rng(seed))
     names = [f"accel[{d[0]:.3g},{d[1]:.3g}]" for d in model.sensor]
+    current = None
+    if model.has_pmsm:
+        current = motor_current_record(out[n_sens:], fs, current_fs, margin)
+        rng = np.random.default_rng([int(seed), 1])
+        current[:4] += params.motor.current_noise * rng.standard_normal(current[:4].shape)
+        if current_snr_db is not None:
+            current = add_awgn(current, current_snr_db, rng)
     theta_out = profile.state(np.arange(n_samples) / float(fs), float(model.P[5]), float(duration_s))[0]
     record = {
         "initial_state": initial_state,
@@ -239,4 +307,10 @@ def simulate(
         "model_settings": st.to_dict(),
         "params": params.to_dict(),
     }
-    return SimulationResult(signal, float(fs), record, names, theta_out, params.ratio * theta_out)
+    if current is None:
+        return SimulationResult(signal, float(fs), record, names, theta_out, params.ratio * theta_out)
+    record.update(signal=signal_kind, current_fs=float(current_fs), current_snr_db=current_snr_db,
+                  current_units=dict(zip(CURRENT_CHANNELS, CURRENT_UNITS)))
+    res = SimulationResult(signal, float(fs), record, names, theta_out, params.ratio * theta_out,
+                           current=current, current_fs=float(current_fs), current_names=list(CURRENT_CHANNELS))
+    return res.current_only() if signal_kind == "current" else res

@@ -183,6 +183,25 @@ def _record_sensor(dydt, n, iR, sx, sy, sensor, out, s):
         out[c, s] = sensor[c, 0] * ax + sensor[c, 1] * ay
 
 
+#: rows the motor adds to the output after the sensor channels (:func:`_record_motor`)
+MOTOR_CHANNELS = ("i_d", "i_q", "theta_e", "speed")
+
+
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
+def _record_motor(y, n, P, mt, c0, out, s):
+    """With the motor's electrical side on: ``out[c0:c0 + 4, s]`` = i_d, i_q (A), the electrical angle
+    ``p (theta_nom + q_m)`` wrapped to [0, 2 pi) and the rotor's speed ``omega_nom + v_m`` (rad/s) at the
+    sample (:data:`MOTOR_CHANNELS`; ``mt`` holds the mesh terms at the sample's time)."""
+    if P[kn.I_PMSM] == 0.0:
+        return
+    N = int(P[kn.I_NPL])
+    out[c0, s] = y[2 * n]
+    out[c0 + 1, s] = y[2 * n + 1]
+    th = P[kn.I_M_P] * (mt[N, 4] + y[n - 1])
+    out[c0 + 2, s] = th - 2.0 * math.pi * math.floor(th / (2.0 * math.pi))
+    out[c0 + 3, s] = mt[N, 5] + y[2 * n - 1]
+
+
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", nogil=True)
 def rk4_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tvms, cosk, sink, sensor, out,
             geo0, rot0, mt0, geo1, rot1, mt1, geo2, rot2, mt2, geo3, rot3, geo4, rot4, Q, k1, k2, k3, ytmp,
@@ -199,8 +218,8 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tv
     on step boundaries.  Without events inside a sample this is ``substeps`` equal steps.  ``breaks``
     and ``grid`` are work space.
     """
-    n2 = y.size
-    n = n2 // 2
+    n2 = y.size  # [q, v] and the motor's electrical states when on
+    n = Q.size
     dts = 1.0 / fs
     hnom = dts / substeps
     iR = 6 + 6 * int(P[kn.I_NPL]) + 3 * int(P[kn.I_NDISC])  # the pin wheel's first coordinate
@@ -253,6 +272,7 @@ def rk4_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, tv
                 kn.rhs_with_terms(y, P, inv_mass, planet, ma, gS, rS, Q, k1)
                 if record:
                     _record_sensor(k1, n, iR, sx, sy, sensor, out, s)
+                    _record_motor(y, n, P, ma, sensor.shape[0], out, s)
             else:
                 kn.rhs_with_terms(y, P, inv_mass, planet, ma, gT, rT, Q, k1)
             if prof:
@@ -308,8 +328,8 @@ def rk38_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, t
     Same arguments, outputs, step grid (cut at the mesh-table events) and instability checks as
     :func:`rk4_run`, with a fourth geometry slot; the pin geometry is exact at every stage time.
     """
-    n2 = y.size
-    n = n2 // 2
+    n2 = y.size  # [q, v] and the motor's electrical states when on
+    n = Q.size
     dts = 1.0 / fs
     hnom = dts / substeps
     iR = 6 + 6 * int(P[kn.I_NPL]) + 3 * int(P[kn.I_NDISC])  # the pin wheel's first coordinate
@@ -347,6 +367,7 @@ def rk38_run(y, k_start, n_samples, substeps, fs, record, P, inv_mass, planet, t
             kn.rhs_with_terms(y, P, inv_mass, planet, ma, ga, ra, Q, k1)
             if j == 0 and record:
                 _record_sensor(k1, n, iR, sx, sy, sensor, out, s)
+                _record_motor(y, n, P, ma, sensor.shape[0], out, s)
             if prof:
                 cb, sb, cw, sw = kn.frame_angles(ta, P)
             else:
@@ -408,7 +429,7 @@ def _check_state(y, n, lim, limr):
                 bigr = a
         elif a > big:
             big = a
-    for i in range(n, 2 * n):
+    for i in range(n, y.size):  # velocities and the motor's electrical states
         if not (abs(y[i]) < math.inf):
             return NONFINITE
     if big > lim or bigr > limr:
@@ -447,29 +468,32 @@ def integrate(
     """Integrate from sample ``first_sample - n_transient`` (state ``y0``) and record ``n_samples`` sensor
     samples from sample ``first_sample`` on (time ``first_sample / fs``).
 
-    Returns ``(signal, y_end)``, ``signal`` of shape (channels, n_samples) in m/s^2.  ``progress`` is
+    Returns ``(signal, y_end)``, ``signal`` of shape (channels, n_samples) in m/s^2; with the motor's electrical
+    side on (``model.has_pmsm``), the rows :data:`MOTOR_CHANNELS` follow the sensor channels.  ``progress`` is
     called as ``progress(done, total)`` after each chunk (total counts transient samples too).
     """
     _load_step_kernels(model)
     st = model.settings
     S = int(st.substeps)
     n = model.n_dof
+    n_state = model.n_state
     y = np.array(y0, dtype=np.float64, copy=True)
-    if y.shape != (2 * n,):
-        raise SimulationError(f"initial state must have {2 * n} entries, got {y.shape}")
+    if y.shape != (n_state,):
+        raise SimulationError(f"initial state must have {n_state} entries, got {y.shape}")
     nd, nz = model.n_discs, model.cosk.size
     rk38 = st.method == "rk38"
     geo = [np.zeros((nd, 3, nz)) for _ in range(4 if rk38 else 5)]
     rot = [np.zeros((nd, 4)) for _ in range(4 if rk38 else 5)]
     mts = [mdl.mesh_array(model) for _ in range(4 if rk38 else 3)]
-    work = [np.zeros(n)] + [np.zeros(2 * n) for _ in range(5 if rk38 else 4)]  # Q, k1..k3 (k4), ytmp
+    work = [np.zeros(n)] + [np.zeros(n_state) for _ in range(5 if rk38 else 4)]  # Q, k1..k3 (k4), ytmp
     # table events inside one sample (at most all of them, once per relative revolution it spans)
     f_rel = abs(model.P[kn.I_WREL]) / (2.0 * math.pi)
     breaks = np.zeros(model.events.size * (int(f_rel / fs) + 2) + 1)
     grid = np.zeros(S + breaks.size + 2)  # step boundaries of one sample
-    out = np.zeros((model.sensor.shape[0], n_samples))
+    n_out = model.sensor.shape[0] + (len(MOTOR_CHANNELS) if model.has_pmsm else 0)
+    out = np.zeros((n_out, n_samples))
     chunk = max(1, int(st.chunk_samples))
-    cbuf = np.zeros((model.sensor.shape[0], chunk))
+    cbuf = np.zeros((n_out, chunk))
     slots = [a for triple in zip(geo, rot, mts) for a in triple]
     if not rk38:
         slots += [geo[3], rot[3], geo[4], rot[4]]

@@ -29,6 +29,7 @@ import math
 import numba
 import numpy as np
 
+from rvdiag.dynamics.motor_kernel import MOTOR_P_FIELDS, air_gap_torque, motor_rates
 from rvdiag.dynamics.numba_cache import guard_kernel_module
 
 guard_kernel_module(__file__)
@@ -65,6 +66,8 @@ P_FIELDS = (
     "RATIO",                                    # i: sun speed / carrier speed
     "ARM_MGL", "ARM_ML2", "ARM_TH0",            # gravity arm: M g L, M L^2, its angle at t = 0
     "JREF_I",                                   # i J_ref: drive torque per unit carrier acceleration
+    # the servo motor's electrical side (rvdiag.dynamics.motor_kernel; docs/model.md section 10), last
+    *MOTOR_P_FIELDS,
 )
 #: ``{"NPL": 0, "NDISC": 1, ...}``: the index of each field of ``P``
 P_INDEX = {name: i for i, name in enumerate(P_FIELDS)}
@@ -247,8 +250,14 @@ def mesh_terms(t, P, tvms, mt):
         mt[N, 1] = A
         mt[N, 2] = tl
         mt[N, 3] = tl / P[I_RATIO] + P[I_JREF_I] * A
+        if P[I_PMSM] != 0.0:  # the rotor's nominal angle and speed, for the motor's electrical side
+            mt[N, 4] = P[I_RATIO] * th
+            mt[N, 5] = P[I_RATIO] * W
         _mesh_interpolate(x0, erate, N, P, tvms, mt)
         return
+    if P[I_PMSM] != 0.0:
+        mt[N, 4] = P[I_RATIO] * P[I_OMEGA] * te
+        mt[N, 5] = P[I_RATIO] * P[I_OMEGA]
     x0 = P[I_WREL] * te * (1.0 / TWO_PI)
     erate = P[I_WREL] * nt * (1.0 / TWO_PI) if P[I_TFROZEN] < 0.0 else 0.0
     _mesh_interpolate(x0, erate, N, P, tvms, mt)
@@ -367,7 +376,9 @@ def generalized_forces(y, P, planet, mt, geo, rot, Q):
     T_sh = P[I_KIN] * (y[2] - qm) + P[I_CIN] * (y[n + 2] - vm)
     S2 = -T_sh
     prof = P[I_PROFILE] != 0.0
-    if mot:  # the rotor: drive torque, speed loop, and the shaft's reaction
+    if mot and P[I_PMSM] != 0.0 and y.size > 2 * n:  # the PMSM's air-gap torque and friction on the rotor
+        Q[iM] = (air_gap_torque(P, I_PMSM, y[2 * n], y[2 * n + 1]) - P[I_M_B] * (mt[N, 5] + vm) + T_sh)
+    elif mot:  # the rotor: drive torque, speed loop, and the shaft's reaction
         Q[iM] = (mt[N, 3] if prof else P[I_TDRIVE]) - P[I_KSL] * qm - P[I_CSL] * vm + T_sh
     # ---- carrier: support, load torque
     qH0 = y[iH]
@@ -646,12 +657,18 @@ def _euler_terms(y, P, mt, rot, dydt, N, D, n, iR):
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def rhs_with_terms(y, P, inv_mass, planet, mt, geo, rot, Q, dydt):
-    """First-order right-hand side dy/dt, y = [q, v], from the time-varying terms precomputed at the
+    """First-order right-hand side dy/dt, y = [q, v] (and the motor's electrical states after them when
+    ``P[I_PMSM]`` is on, :mod:`rvdiag.dynamics.motor_kernel`), from the time-varying terms precomputed at the
     stage time (:func:`mesh_terms`, :func:`pin_geometry`); ``inv_mass`` is ``Model.inv_mass``."""
     n = Q.size & 65535
     for i in range(n):
         dydt[i] = y[n + i]
     accelerations(y, P, inv_mass, planet, mt, geo, rot, Q, dydt)
+    if P[I_PMSM] != 0.0 and y.size > 2 * n:
+        N = int(P[I_NPL]) & 255
+        w_nom = mt[N, 5]
+        t_ff = (mt[N, 3] if P[I_PROFILE] != 0.0 else P[I_TDRIVE]) + P[I_M_B] * w_nom
+        motor_rates(y, P, I_PMSM, n, mt[N, 4], w_nom, t_ff, P[I_KSL], P[I_CSL], dydt)
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")

@@ -32,6 +32,7 @@ from rvdiag.dynamics.kernels import (  # noqa: F401 (re-exported)
     generalized_forces, interpolate_geometry, mesh_terms, pin_geometry, pin_geometry_cs, rhs, rhs_with_terms)
 from rvdiag.dynamics.layout import dof_layout, dof_names
 from rvdiag.dynamics.mesh import MeshTable
+from rvdiag.dynamics.motor_kernel import N_MOTOR_STATES, motor_rates
 from rvdiag.dynamics.profile import LoadProfile, SpeedProfile
 from rvdiag.dynamics.packing import (  # noqa: F401 (re-exported)
     EVENT_DEVIATION_KINK, EVENT_STIFFNESS_KINK, MESH_DAMPING_RAMP_M, PIN_LOAD_FLOOR_FRACTION, PIN_STIFFNESS_ANGLES,
@@ -104,6 +105,38 @@ class Model:
     @property
     def n_dof(self) -> int:
         return self.mass.size
+
+    @property
+    def has_pmsm(self) -> bool:
+        """True when the motor's electrical side (PMSM, current loop, encoder observer) is on: the state
+        then ends with its :data:`N_MOTOR_STATES` states (:mod:`rvdiag.dynamics.motor_kernel`)."""
+        return bool(self.P[kn.I_PMSM] != 0.0)
+
+    @property
+    def n_state(self) -> int:
+        """Length of the first-order state ``y = [q, v]`` (plus the motor's electrical states)."""
+        return 2 * self.n_dof + (N_MOTOR_STATES if self.has_pmsm else 0)
+
+    def initial_state(self, q0: np.ndarray, t0: float = 0.0) -> np.ndarray:
+        """The first-order state that starts a run from the displacements ``q0`` at rest at time ``t0``.
+
+        With the motor's electrical side on, its states start in their steady state for that load: the
+        observer on the rotor's angle, ``i_d = 0``, ``i_q`` carrying the speed loop's torque command and the
+        current PIs' integrators holding the voltages that keep it (docs/model.md section 10)."""
+        q0 = np.asarray(q0, dtype=float)
+        y = np.concatenate([q0, np.zeros_like(q0)])
+        if not self.has_pmsm:
+            return y
+        P = self.P
+        mt = mesh_array(self)
+        mesh_terms(float(t0), P, self.tables, mt)
+        N = self.n_planets
+        w_nom = mt[N, 5]
+        t_ff = (mt[N, 3] if P[kn.I_PROFILE] != 0.0 else P[kn.I_TDRIVE]) + P[kn.I_M_B] * w_nom
+        qm = float(q0[-1])
+        i_q = float(np.clip((t_ff - P[kn.I_KSL] * qm) / P[kn.I_M_KT], -P[kn.I_M_IMAX], P[kn.I_M_IMAX]))
+        x = np.array([0.0, i_q, 0.0, P[kn.I_M_R] * i_q / P[kn.I_M_KIC], qm, 0.0])
+        return np.concatenate([y, x])
 
     @property
     def has_motor(self) -> bool:
@@ -192,12 +225,14 @@ def load_kernels(model: Model) -> None:
             return
         geo, rot, Q = work_arrays(model)
         mt = mesh_array(model)
-        y = np.zeros(2 * model.n_dof)
+        y = np.zeros(model.n_state)
         eval_time(0.0, model.P)
         frame_angles(0.0, model.P)
         pin_geometry_cs(1.0, 0.0, 1.0, 0.0, model.P, model.cosk, model.sink, geo, rot)
         pin_geometry(0.0, model.P, model.cosk, model.sink, geo, rot)
         mesh_terms(0.0, model.P, model.tables, mt)
+        ym = np.zeros(2 * model.n_dof + N_MOTOR_STATES)
+        motor_rates(ym, model.P, kn.I_PMSM, model.n_dof, 0.0, 0.0, 0.0, 0.0, 0.0, np.zeros_like(ym))
         rhs_with_terms(y, model.P, model.inv_mass, model.planet, mt, geo, rot, Q, np.empty_like(y))
         _kernels_loaded = True
 
@@ -211,7 +246,7 @@ def work_arrays(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def mesh_array(model: Model) -> np.ndarray:
     """A fresh ``(n_planets + 1, 4 slots + 2)`` array for :func:`mesh_terms` (the last row: the speed and load
     profile's time terms)."""
-    return np.zeros((model.n_planets + 1, 4 * int(model.P[kn.I_NSLOT]) + 2))
+    return np.zeros((model.n_planets + 1, max(6, 4 * int(model.P[kn.I_NSLOT]) + 2)))
 
 
 def make_rhs(model: Model):

@@ -17,7 +17,7 @@ import hashlib
 from pathlib import Path
 
 #: the files of :mod:`rvdiag.dynamics` that define numba kernels, relative to this folder
-KERNEL_FILES = ("kernels.py", "integrate.py")
+KERNEL_FILES = ("kernels.py", "integrate.py", "motor_kernel.py")
 
 
 def kernel_files(root: str | Path | None = None) -> list[Path]:

@@ -254,6 +254,8 @@ def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: floa
         M, L = float(load.arm_mass_kg), float(load.arm_length_m)
         P[kn.I_ARM_MGL], P[kn.I_ARM_ML2] = M * G * L, M * L * L
         P[kn.I_ARM_TH0] = math.radians(load.arm_angle_deg)
+    if st.electrical:
+        _pack_motor(P, params, motor, Omega, load_Nm, profile, load, duration_s)
     P[kn.I_TFROZEN] = -1.0 if st.excitation else 0.0
     P[kn.I_CORIOLIS] = 1.0 if st.coriolis else 0.0
     P[kn.I_BETA0] = 0.0
@@ -280,3 +282,30 @@ def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: floa
     return dict(P=P, mass=mass, planet=planet, tvms=tv, cosk=np.cos(kk), sink=np.sin(kk), sensor=sensor,
                 n_planets=N, n_discs=D, mesh_source=mesh.source, extra=extra,
                 tvms_error=mesh.resample_error(st.tvms_points), pairs=np.stack([pk, pe], axis=1))
+
+
+def _pack_motor(P: np.ndarray, params: ReducerParams, has_rotor: bool, Omega: float, load_Nm: float,
+                profile: SpeedProfile, load: LoadProfile, duration_s: float | None) -> None:
+    """The motor's electrical side in ``P`` (``[motor]``; :mod:`rvdiag.dynamics.motor_kernel`), after the
+    operating point is checked against the motor's current and voltage limits
+    (:func:`rvdiag.motor.check_operating_point`)."""
+    from rvdiag.motor import check_operating_point, controller_gains
+
+    if not has_rotor:
+        raise ParameterError("the motor's electrical model needs the motor rotor: set [drive] "
+                             "speed_loop_bandwidth_hz > 0")
+    m = params.motor
+    g = controller_gains(m)
+    acc = 0.0 if profile.is_constant else abs(profile.segments(duration_s)[3])
+    arm = float(load.arm_mass_kg) * float(load.arm_length_m)
+    torque = ((abs(load_Nm) + arm * G + arm * float(load.arm_length_m) * acc) / params.ratio
+              + P[kn.I_JREF_I] * acc + m.viscous_friction * params.ratio * Omega)
+    check_operating_point(m, params.ratio * Omega, torque)
+    P[kn.I_PMSM] = 1.0
+    P[kn.I_M_P], P[kn.I_M_R], P[kn.I_M_LD], P[kn.I_M_LQ] = m.pole_pairs, m.resistance, m.inductance_d, m.inductance_q
+    P[kn.I_M_PSI], P[kn.I_M_B] = m.flux_linkage, m.viscous_friction
+    P[kn.I_M_KPC], P[kn.I_M_KIC], P[kn.I_M_VMAX] = g.kp_current, g.ki_current, g.voltage_limit
+    P[kn.I_M_UDT], P[kn.I_M_IDT] = g.dead_time_voltage, m.dead_time_current
+    P[kn.I_M_QENC], P[kn.I_M_L1], P[kn.I_M_L2] = g.encoder_quantum, g.observer_l1, g.observer_l2
+    P[kn.I_M_IMAX], P[kn.I_M_KT] = m.max_current, g.torque_constant
+    P[kn.I_M_EENC] = math.radians(m.encoder_error_arcsec / 3600.0)

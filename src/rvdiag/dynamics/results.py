@@ -29,6 +29,9 @@ class SimulationResult:
     theta_out, theta_in : ndarray, shape (samples,), or None
         The output (carrier) and input (sun) shafts' nominal angles at each sample, rad (0 at the first
         sample; the speed profile's closed form, without the micro-radian vibratory twist).
+    current : ndarray, shape (channels, samples at current_fs), or None
+        The servo motor's current record (``simulate(signal="current" | "both")``): ``current_names``
+        ``i_a, i_b, i_c, i_q`` (A) and ``speed`` (rpm), sampled at ``current_fs`` (Hz).
     """
 
     signal: np.ndarray
@@ -37,6 +40,19 @@ class SimulationResult:
     channel_names: list[str] = field(default_factory=list)
     theta_out: np.ndarray | None = None
     theta_in: np.ndarray | None = None
+    current: np.ndarray | None = None
+    current_fs: float | None = None
+    current_names: list[str] = field(default_factory=list)
+
+    def current_only(self) -> "SimulationResult":
+        """The motor current as the result's signal (``signal="current"``): ``signal``, ``fs`` and
+        ``channel_names`` are the current record's, the shaft angles are dropped (they are on the vibration's
+        time base)."""
+        if self.current is None:
+            raise DataFileError("this result holds no motor current (simulate with signal='current' or 'both')")
+        return SimulationResult(self.current, float(self.current_fs), dict(self.settings), list(self.current_names),
+                                current=self.current, current_fs=self.current_fs,
+                                current_names=list(self.current_names))
 
     @property
     def time_s(self) -> np.ndarray:
@@ -73,9 +89,13 @@ class SimulationResult:
 
     def to_npz(self, path: str | Path) -> None:
         """Write ``signal``, ``fs``, ``settings`` (JSON string), ``channel_names`` and, when known, the shaft
-        angles ``theta_out`` and ``theta_in`` (rad) to an ``.npz``."""
+        angles ``theta_out`` and ``theta_in`` (rad) and the motor current (``current``, ``current_fs``,
+        ``current_names``) to an ``.npz``."""
         angles = {k: np.asarray(v, dtype=np.float64) for k, v in
                   (("theta_out", self.theta_out), ("theta_in", self.theta_in)) if v is not None}
+        if self.current is not None:
+            angles.update(current=np.asarray(self.current, dtype=np.float64), current_fs=np.float64(self.current_fs),
+                          current_names=np.array(self.current_names, dtype=str))
         np.savez(
             Path(path),
             signal=np.asarray(self.signal, dtype=np.float64),
@@ -97,6 +117,9 @@ class SimulationResult:
                     [str(s) for s in z["channel_names"]] if "channel_names" in z else [],
                     np.array(z["theta_out"]) if "theta_out" in z else None,
                     np.array(z["theta_in"]) if "theta_in" in z else None,
+                    np.array(z["current"]) if "current" in z else None,
+                    float(z["current_fs"]) if "current_fs" in z else None,
+                    [str(s) for s in z["current_names"]] if "current_names" in z else [],
                 )
         except (OSError, KeyError, ValueError) as exc:
             raise DataFileError(f"{path}: not a simulation result file ({exc})") from None

@@ -69,6 +69,11 @@ class ModelSettings:
     max_rotation_rad : float
         A vibratory rotation larger than this is taken as instability (the small-rotation model is
         meaningless long before).
+    electrical : bool
+        ``True`` adds the servo motor's electrical side (``[motor]``: a PMSM under i_d = 0 vector control,
+        its current loop, inverter dead time and encoder; docs/model.md section 10) and records its currents.
+        ``simulate(signal="current" | "both")`` turns it on.  ``False`` (default): the speed loop acts on the
+        rotor as an ideal torque source.
     """
 
     substeps: int = 9
@@ -84,6 +89,7 @@ class ModelSettings:
     chunk_samples: int = 48000
     max_displacement_m: float = 1.0e-2
     max_rotation_rad: float = 0.5
+    electrical: bool = False
 
     def __post_init__(self) -> None:
         if int(self.substeps) != self.substeps or self.substeps < 1:

@@ -1,1 +1,11 @@
-"""rvdiag.motor."""
+"""The servo motor: a PMSM under i_d = 0 vector control driving the reducer's sun (docs/model.md section 10).
+
+The compiled rates of its electrical side live with the reducer's kernels (:mod:`rvdiag.dynamics.motor_kernel`);
+this package holds the design side: controller gains, operating-point checks, the phase currents
+(:mod:`rvdiag.motor.pmsm`).
+"""
+
+from rvdiag.motor.pmsm import (ControllerGains, check_operating_point, controller_gains, current_rate_ratio,
+                               phase_currents, sample_current)
+
+__all__ = ["ControllerGains", "check_operating_point", "controller_gains", "current_rate_ratio", "phase_currents", "sample_current"]

@@ -222,6 +222,56 @@ class Drive:
 
 
 @dataclass(frozen=True)
+class Motor:
+    """The servo motor's electrical side: a surface-magnet PMSM under i_d = 0 vector control
+    (:mod:`rvdiag.motor`, docs/model.md section 10).  Used when a simulation records the motor current
+    (``simulate(signal="current" | "both")``); the rotor's inertia and the speed loop are ``[drive]``'s.
+
+    The motor-current rig's motor is a 0.75 kW, 3000 rpm, 2.39 N m servo with p = 5 pole pairs and a 23-bit
+    encoder (Li, Zhao et al. 2024, docs/references.md); its R, L and flux linkage are not public.  The defaults
+    are derived from the published figures of 0.75 kW, 3000 rpm, 2.39 N m, 200 V-class servos of that size
+    (Delta ECMA-C20807, Mitsubishi HG-KR73, Panasonic MSMF082 catalogues: torque constant 0.45-0.50 N m per
+    A rms, voltage constant 26-29 V rms line-to-line per 1000 rpm, electrical time constant 4-9 ms, rated
+    current 4-5.8 A rms, peak torque 3x rated):
+
+    - ``flux_linkage`` psi_f = K_t / (1.5 p) with K_t = 0.47 N m / A rms = 0.332 N m / A peak: 0.0443 Wb
+      (back-EMF 28.4 V rms line-to-line per 1000 rpm, inside the catalogues' range);
+    - ``resistance`` 0.62 ohm per phase (50 W of copper loss at the rated 5.1 A rms, 93 % efficiency at
+      rated output with the iron and friction losses);
+    - ``inductance_d`` = ``inductance_q`` = 3.2 mH (surface magnets, electrical time constant L/R = 5.2 ms);
+    - ``max_current`` 21.6 A peak (3x the rated 5.1 A rms, the catalogues' peak-torque ratio);
+    - ``viscous_friction`` 1e-4 N m s/rad (0.03 N m at 3000 rpm: bearing and seal drag of a motor this size);
+    - ``dc_link_voltage`` 310 V (rectified 220 V mains), ``pwm_frequency_hz`` 10 kHz, ``dead_time_s``
+      1 us (a 600 V IGBT bridge; 0 turns the inverter's dead time off), ``dead_time_current`` 0.1 A (the
+      current below which the dead-time voltage reverses smoothly: the switches' output capacitance);
+    - ``current_loop_bandwidth_hz`` 1000 (PI with pole-zero cancellation, K_p = L w_cc, K_i = R w_cc);
+    - ``encoder_bits`` 23 (the rig's encoder; 0: an ideal angle sensor) and ``speed_observer_hz`` 2000 (the
+      drive estimates speed from the quantised angle with a second-order tracking observer);
+      ``encoder_error_arcsec`` 20: the amplitude of the encoder's once-per-revolution angle error (disc
+      eccentricity and shaft mounting; servo encoders of this class are specified to +-20 to +-80 arcsec);
+    - ``current_noise`` 5 mA rms: the current sensors' and ADC's noise (a 12-bit ADC over +-25 A has a 12 mA
+      step, 3.5 mA rms of quantisation noise; Hall-effect sensors add a few mA), drawn from the run's seed.
+    """
+
+    pole_pairs: int = _positive(default=5)
+    resistance: float = _positive(default=0.62)
+    inductance_d: float = _positive(default=3.2e-3)
+    inductance_q: float = _positive(default=3.2e-3)
+    flux_linkage: float = _positive(default=0.0443)
+    max_current: float = _positive(default=21.6)
+    viscous_friction: float = _nonnegative(default=1e-4)
+    dc_link_voltage: float = _positive(default=310.0)
+    pwm_frequency_hz: float = _positive(default=10000.0)
+    dead_time_s: float = _nonnegative(default=1e-6)
+    dead_time_current: float = _positive(default=0.1)
+    current_loop_bandwidth_hz: float = _positive(default=1000.0)
+    encoder_bits: int = _nonnegative(default=23)
+    speed_observer_hz: float = _positive(default=2000.0)
+    encoder_error_arcsec: float = _nonnegative(default=20.0)
+    current_noise: float = _nonnegative(default=0.005)
+
+
+@dataclass(frozen=True)
 class Mounting:
     """What the pin wheel (housing) carries and how the sensor sees it.
 
@@ -252,9 +302,10 @@ _SECTIONS: dict[str, type] = {
     "modification": Modification,
     "drive": Drive,
     "mounting": Mounting,
+    "motor": Motor,
 }
 #: sections added after the first parameter files: a file without them takes every default of the section
-OPTIONAL_SECTIONS = ("modification", "drive", "mounting")
+OPTIONAL_SECTIONS = ("modification", "drive", "mounting", "motor")
 
 
 @dataclass(frozen=True)
@@ -275,6 +326,7 @@ class ReducerParams:
     modification: Modification = field(default_factory=Modification)
     drive: Drive = field(default_factory=Drive)
     mounting: Mounting = field(default_factory=Mounting)
+    motor: Motor = field(default_factory=Motor)
     source: str = field(default="", compare=False)
 
     # ------------------------------------------------------------------ derived kinematics
