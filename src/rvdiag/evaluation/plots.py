@@ -77,6 +77,34 @@ def plot_tsne(embedding: np.ndarray, labels: Sequence[str], title: str = "") -> 
     return fig
 
 
+def plot_tsne_panels(panels: Sequence[tuple[str, np.ndarray | None, Sequence[str]]], title: str = "") -> Figure:
+    """One t-SNE scatter per panel ``(panel title, 2-D embedding or None, labels)``, side by side, one colour per
+    class across all panels (``None``: too few points to embed, the panel says so)."""
+    classes = sorted({str(c) for _, _, labels in panels for c in labels})
+    colour = {c: plt.cm.tab10(i % 10) for i, c in enumerate(classes)}
+    n = max(1, len(panels))
+    fig, axes = plt.subplots(1, n, figsize=(4.2 * n, 4.2), squeeze=False)
+    for ax, (name, emb, labels) in zip(axes[0], panels):
+        labels = np.asarray(labels).astype(str)
+        if emb is None:
+            ax.text(0.5, 0.5, f"{len(labels)} samples: too few to embed", ha="center", va="center",
+                    transform=ax.transAxes)
+        else:
+            for c in classes:
+                m = labels == c
+                if m.any():
+                    ax.scatter(emb[m, 0], emb[m, 1], s=10, color=colour[c], alpha=0.8, label=c)
+        ax.set_xticks([])
+        ax.set_yticks([])
+        ax.set_title(name)
+    handles = [plt.Line2D([], [], ls="", marker="o", color=colour[c], label=c) for c in classes]
+    if handles:
+        fig.legend(handles=handles, loc="lower center", ncol=min(len(handles), 8), fontsize=8, frameon=False)
+    fig.suptitle(title or "t-SNE")
+    fig.tight_layout(rect=(0, 0.08, 1, 1))
+    return fig
+
+
 def amplitude_spectrum(x: np.ndarray, fs: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """One-sided amplitude spectrum with a Hann window: (frequency, amplitude).
 

@@ -1,0 +1,601 @@
+"""The evaluation protocol of the motor-current study (Li, Zhao et al. 2024) on a sample store.
+
+The study classifies sun-gear states from the motor phase current (1 kHz, 4096-point samples) at each of three
+output speeds (30, 45, 60 deg/s) with three feature sets, each fed to an SVM, over 70/30 random splits repeated
+10 times.  :func:`run_mcsa` runs that protocol on any store (``rvdiag mcsa``):
+
+- the samples are grouped by operating speed (a metadata column, default ``output_speed_deg_s``: the speed a
+  library draws per simulation; ``window_speed_deg_s`` varies window by window under a speed profile and is
+  no grouping key);
+- at each speed, for each feature set, ``repeats`` stratified splits (``test_size`` of each class to the test
+  side; :func:`split_seeds` derives one seed per repeat from ``seed``) fit ``StandardScaler -> SVC`` (RBF,
+  the same settings for every feature set) on the training side and score the test side: accuracy, macro
+  precision / recall / F1 and Cohen's kappa (:func:`rvdiag.evaluation.metrics.classification_metrics`),
+  their mean and (population) standard deviation over the repeats;
+- with a second store (``test_store``), the honest protocol as well: fit on every sample of the first store at
+  that speed, score the samples of the second store at the same speed (simulations the fit never saw).
+
+Feature sets (:data:`FEATURE_SETS`):
+
+``time``  the ten time-domain statistics of :mod:`rvdiag.features.timedomain` (peak-to-peak, mean, variance,
+          RMS, square-root amplitude, kurtosis, pulse factor, margin factor, crest factor, shape factor): the
+          study's set, so the existing ``time`` features are used as they are;
+``wpt``   the relative energies of the 16 bands of a level-4 wavelet-packet decomposition
+          (:class:`rvdiag.features.wavelet.WaveletPacketEnergy`, ``db4``, frequency order);
+``cnn``   the 32 FC activations of the study's CNN (``mcsa-cnn``, Table 5, 1 x 4096 input;
+          :class:`rvdiag.models.cnn_features.CNNFeatures`), trained on the training side of each split only.
+
+``time`` and ``wpt`` learn nothing from the data, so their features are computed once per speed and split
+afterwards (the same figures as a pipeline refitted per split, in a fraction of the time).
+
+The random window splits are the study's protocol; when a simulation (``unit``) gives several windows, windows
+of one simulation land on both sides and the split scores are optimistic (a
+:class:`rvdiag.errors.SplitLeakWarning`).  ``test_store`` gives the honest figure.
+
+The module has no command-line logic: :mod:`rvdiag.cli.mcsa` parses the options and draws the progress bars
+(this module reports its stages to :mod:`rvdiag.progress`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import warnings
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from rvdiag import __version__
+from rvdiag.errors import ParameterError, SplitLeakWarning, StoreError
+from rvdiag.evaluation.metrics import classification_metrics
+from rvdiag.features.timedomain import TIME_FEATURE_NAMES
+from rvdiag.progress import report
+
+FORMAT = "rvdiag-mcsa/1"
+
+#: Feature-set name -> what the report calls it.
+FEATURE_SETS = {
+    "time": "time-domain statistics (10)",
+    "wpt": "wavelet-packet energies (level 4)",
+    "cnn": "CNN features (mcsa-cnn FC 32)",
+}
+
+#: The figures of the study on measured motor current (4 states), for comparison (docs/references.md).
+STUDY_FIGURES = {"time": "<= 83.75 %", "wpt": "> 82.5 %", "cnn": "> 96 %"}
+
+#: The metrics averaged over repeats (keys of :func:`classification_metrics`).
+METRICS = ("accuracy", "precision_macro", "recall_macro", "f1_macro", "kappa")
+
+#: The channel the command picks when the store has it: the motor's phase current.
+DEFAULT_CHANNEL = "i_a"
+
+
+@dataclass
+class McsaSettings:
+    """Every setting of one run (recorded in ``mcsa.json``).
+
+    Attributes
+    ----------
+    feature_sets : names of :data:`FEATURE_SETS`, in the order run
+    repeats : random splits per speed and feature set
+    test_size : share of each class on the test side of a split
+    seed : the seed every split seed (and CNN seed) derives from (:func:`split_seeds`)
+    speed_column : metadata column grouping the samples by operating speed
+    channel : the channel asked for (a name or regular expression; None = ``i_a`` if present, else the first)
+    svm_c, svm_gamma : the RBF SVC's ``C`` and ``gamma`` (the same for every feature set)
+    wavelet, wpt_level : the wavelet-packet decomposition
+    cnn_epochs, cnn_batch_size, cnn_lr, cnn_patience, cnn_validation_fraction, cnn_input_length, device :
+        the CNN's training (:class:`rvdiag.models.cnn_features.CNNFeatures`)
+    tsne_samples : at most this many test samples per speed in each t-SNE panel
+    """
+
+    feature_sets: tuple[str, ...] = ("time", "wpt", "cnn")
+    repeats: int = 10
+    test_size: float = 0.3
+    seed: int = 0
+    speed_column: str = "output_speed_deg_s"
+    channel: str | None = None
+    svm_c: float = 10.0
+    svm_gamma: str = "scale"
+    wavelet: str = "db4"
+    wpt_level: int = 4
+    cnn_epochs: int = 30
+    cnn_batch_size: int = 32
+    cnn_lr: float = 1e-3
+    cnn_patience: int = 5
+    cnn_validation_fraction: float = 0.2
+    cnn_input_length: int | None = None
+    device: str = "auto"
+    tsne_samples: int = 600
+
+    def check(self) -> None:
+        """Raise :class:`ParameterError` for a setting out of range (names as the Python fields)."""
+        unknown = [s for s in self.feature_sets if s not in FEATURE_SETS]
+        if unknown or not self.feature_sets:
+            raise ParameterError(f"unknown feature set {', '.join(map(repr, unknown)) or '(none given)'}; "
+                                 f"use one or more of {','.join(FEATURE_SETS)}")
+        if len(set(self.feature_sets)) != len(self.feature_sets):
+            raise ParameterError(f"feature_sets names a set twice: {','.join(self.feature_sets)}")
+        if not (isinstance(self.seed, (int, np.integer)) and self.seed >= 0):
+            raise ParameterError(f"seed must be a whole number >= 0, got {self.seed}")
+        if not (isinstance(self.repeats, (int, np.integer)) and self.repeats >= 1):
+            raise ParameterError(f"repeats must be a whole number >= 1, got {self.repeats}")
+        if not (isinstance(self.test_size, (int, float)) and 0.0 < float(self.test_size) < 1.0):
+            raise ParameterError(f"test_size must be a fraction in (0, 1), got {self.test_size}")
+        if not (math.isfinite(self.svm_c) and self.svm_c > 0):
+            raise ParameterError(f"svm_c must be a number > 0, got {self.svm_c}")
+        if self.cnn_epochs < 1:
+            raise ParameterError(f"cnn_epochs must be >= 1, got {self.cnn_epochs}")
+        if self.cnn_batch_size < 1:
+            raise ParameterError(f"cnn_batch_size must be >= 1, got {self.cnn_batch_size}")
+        if not (math.isfinite(self.cnn_lr) and self.cnn_lr > 0):
+            raise ParameterError(f"cnn_lr must be a number > 0, got {self.cnn_lr}")
+        if self.cnn_patience < 1:
+            raise ParameterError(f"cnn_patience must be >= 1, got {self.cnn_patience}")
+        if not 0.0 <= self.cnn_validation_fraction < 1.0:
+            raise ParameterError(f"cnn_validation_fraction must be in [0, 1), got {self.cnn_validation_fraction}")
+        if self.cnn_input_length is not None and self.cnn_input_length < 4:
+            raise ParameterError(f"cnn_input_length must be >= 4, got {self.cnn_input_length}")
+        if self.tsne_samples < 0:
+            raise ParameterError(f"tsne_samples must be >= 0, got {self.tsne_samples}")
+        import pywt
+
+        if self.wavelet not in pywt.wavelist(kind="discrete"):
+            raise ParameterError(f"unknown discrete wavelet {self.wavelet!r}")
+        if not 1 <= self.wpt_level <= 10:
+            raise ParameterError(f"wpt_level must be in 1..10, got {self.wpt_level}")
+
+
+def parse_feature_sets(text: str) -> tuple[str, ...]:
+    """``"time,wpt"`` -> ``("time", "wpt")``; unknown names raise :class:`ParameterError`."""
+    names = tuple(s.strip() for s in str(text).split(",") if s.strip())
+    unknown = [s for s in names if s not in FEATURE_SETS]
+    if unknown or not names:
+        raise ParameterError(f"unknown feature set {', '.join(map(repr, unknown)) or '(none given)'}; "
+                             f"use one or more of {','.join(FEATURE_SETS)}, comma-separated")
+    return names
+
+
+def split_seeds(seed: int, repeats: int) -> list[int]:
+    """One seed per repeat, derived from ``seed`` (``numpy.random.SeedSequence(seed).generate_state``, reduced to
+    31 bits): repeat ``r`` splits with ``split_seeds(seed, n)[r]`` and trains its CNN and SVM with it; the held-out
+    fit uses the first.
+
+    >>> split_seeds(0, 3) == split_seeds(0, 3) != split_seeds(1, 3)
+    True
+    """
+    return [int(s) % 2**31 for s in np.random.SeedSequence(int(seed)).generate_state(int(repeats))]
+
+
+# ---------------------------------------------------------------------- channels and speeds
+def sample_channels(store) -> np.ndarray:
+    """The channel name of every sample of a store.
+
+    A store holds one signal per row.  A store written from measured files records the channel of each row in
+    its ``channel`` metadata column; a simulated library keeps the channel its config names (``channel``, a
+    simulator channel name such as ``i_a``, or an index, named by its number).
+    """
+    col = store.meta.get("channel")
+    if col is not None and np.asarray(col).dtype.kind in "OUS":
+        return np.asarray(col).astype(str)
+    configured = (store.attrs.get("config") or {}).get("channel")
+    name = "0" if configured is None or configured == "" else str(configured)
+    return np.full(store.n_samples, name, dtype=object).astype(str)
+
+
+def pick_channel(names: Sequence[str], wanted: str | None, where: Any) -> str:
+    """The channel to use among ``names`` (in the store's order).
+
+    ``wanted`` None: ``i_a`` (the phase current) when present, else the first channel.  Otherwise an exact name,
+    or a regular expression (:func:`re.search`, as ``-c/--channel`` everywhere) matching exactly one name.
+    """
+    order = list(dict.fromkeys(str(n) for n in names))
+    if wanted is None:
+        return DEFAULT_CHANNEL if DEFAULT_CHANNEL in order else order[0]
+    if wanted in order:
+        return wanted
+    try:
+        pattern = re.compile(wanted)
+    except re.error as exc:
+        raise ParameterError(f"--channel {wanted!r} is no valid regular expression: {exc}") from None
+    hits = [n for n in order if pattern.search(n)]
+    if len(hits) == 1:
+        return hits[0]
+    what = "no channel" if not hits else f"{len(hits)} channels ({', '.join(hits)})"
+    raise StoreError(f"{where}: {what} match --channel {wanted!r} (channels: {', '.join(order)})")
+
+
+def speed_unit(column: str) -> str:
+    """The unit of a speed column by its name's ending (``_deg_s`` -> deg/s, ``_rpm`` -> rev/min)."""
+    if column.endswith("_deg_s"):
+        return "deg/s"
+    if column.endswith("_rpm"):
+        return "rev/min"
+    return ""
+
+
+def speed_labels(store, column: str) -> np.ndarray:
+    """The operating speed of every sample as a label (``"45"``, ``"37.5"``), from metadata ``column``."""
+    if column not in store.meta:
+        numeric = sorted(k for k, v in store.meta.items() if np.asarray(v).dtype.kind in "fiu"
+                         and k not in ("unit", "seed", "segment", "simulation"))
+        raise StoreError(f"{store.path} has no metadata column {column!r} to group the samples by speed; name one "
+                         f"with --speed-column (numeric columns: {', '.join(numeric) or 'none'})")
+    col = np.asarray(store.meta[column])
+    if col.dtype.kind in "fiu":
+        values = col.astype(np.float64)
+        if not np.all(np.isfinite(values)):
+            bad = int(np.sum(~np.isfinite(values)))
+            raise StoreError(f"{store.path}: {bad} sample(s) have no speed in column {column!r} (NaN)")
+        return np.asarray([f"{round(v, 6):g}" for v in values.tolist()], dtype=object).astype(str)
+    return col.astype(str)
+
+
+def _speed_order(labels) -> list[str]:
+    def key(s: str):
+        try:
+            return (0, float(s), s)
+        except ValueError:
+            return (1, 0.0, s)
+
+    return sorted(set(labels), key=key)
+
+
+# ---------------------------------------------------------------------- data
+@dataclass
+class _Group:
+    """The samples of one store at one speed, on one channel."""
+
+    X: np.ndarray
+    y: np.ndarray
+    units: np.ndarray | None
+    sims: np.ndarray | None  # (class, seed) identities of the simulations, when the store records seeds
+
+
+def _load_groups(store, channel: str, column: str) -> dict[str, _Group]:
+    on_channel = sample_channels(store) == channel
+    speeds = speed_labels(store, column)
+    out: dict[str, _Group] = {}
+    for speed in _speed_order(speeds[on_channel].tolist()):
+        idx = np.flatnonzero(on_channel & (speeds == speed))
+        s = store.load(index=idx)
+        units = s.meta.get("unit")
+        sims = None
+        if "seed" in s.meta:
+            sims = np.asarray([f"{c}/{v}" for c, v in zip(s.y.tolist(), s.meta["seed"].tolist())], dtype=object)
+        out[speed] = _Group(X=np.asarray(s.X, dtype=np.float32), y=np.asarray(s.y).astype(str),
+                            units=None if units is None else np.asarray(units), sims=sims)
+    return out
+
+
+def _check_splittable(groups: dict[str, _Group], test_size: float, where: Any, unit: str) -> None:
+    """Refuse a speed whose classes are too small for a stratified split (before any work)."""
+    for speed, g in groups.items():
+        classes, counts = np.unique(g.y, return_counts=True)
+        at = f"{where} at {speed} {unit}".rstrip()
+        if len(classes) < 2:
+            raise StoreError(f"{at}: only one class ({classes[0]}); a classification needs at least two")
+        n = len(g.y)
+        n_test = math.ceil(test_size * n)
+        n_train = n - n_test
+        small = [f"{c} ({k})" for c, k in zip(classes.tolist(), counts.tolist()) if k < 2]
+        if small or n_test < len(classes) or n_train < len(classes):
+            detail = (f"class {', '.join(small)} has fewer than 2 samples" if small else
+                      f"{n} samples give {n_train} training / {n_test} test samples for {len(classes)} classes")
+            raise StoreError(f"{at}: too few samples for a stratified {round(100 * (1 - test_size))}/"
+                             f"{round(100 * test_size)} split ({detail}); a split needs at least 2 samples per "
+                             f"class and one per class on each side")
+
+
+# ---------------------------------------------------------------------- models
+def _svm(settings: McsaSettings, seed: int):
+    from sklearn.pipeline import Pipeline
+    from sklearn.preprocessing import StandardScaler
+    from sklearn.svm import SVC
+
+    return Pipeline([("scale", StandardScaler()),
+                     ("svm", SVC(kernel="rbf", C=float(settings.svm_c), gamma=settings.svm_gamma,
+                                 random_state=int(seed)))])
+
+
+def _fixed_features(name: str, settings: McsaSettings, X: np.ndarray) -> np.ndarray:
+    """Features of a set that learns nothing (``time``, ``wpt``)."""
+    if name == "time":
+        from rvdiag.features.timedomain import time_features
+
+        return time_features(X)
+    from rvdiag.features.wavelet import WaveletPacketEnergy
+
+    return WaveletPacketEnergy(wavelet=settings.wavelet, level=int(settings.wpt_level)).fit_transform(X)
+
+
+def _cnn(settings: McsaSettings, seed: int):
+    from rvdiag.models.cnn_features import CNNFeatures
+
+    return CNNFeatures(architecture="mcsa-cnn", input_length=settings.cnn_input_length,
+                       max_epochs=int(settings.cnn_epochs), batch_size=int(settings.cnn_batch_size),
+                       learning_rate=float(settings.cnn_lr), n_iter_no_change=int(settings.cnn_patience),
+                       validation_fraction=float(settings.cnn_validation_fraction), device=settings.device,
+                       random_state=int(seed))
+
+
+def _fit_score(name: str, settings: McsaSettings, seed: int, Xtr, ytr, Xte, yte, Ftr=None, Fte=None):
+    """Fit features (cnn) and the SVM on the training side; (metrics, standardised test features)."""
+    if name == "cnn":
+        cnn = _cnn(settings, seed).fit(Xtr, ytr)
+        Ftr, Fte = cnn.transform(Xtr), cnn.transform(Xte)
+    svm = _svm(settings, seed).fit(Ftr, ytr)
+    pred = svm.predict(Fte)
+    labels = sorted(set(ytr.tolist()) | set(yte.tolist()))
+    m = classification_metrics(yte, pred, labels=labels)
+    keep = {k: m[k] for k in METRICS}
+    keep.update(confusion=m["confusion"], labels=m["labels"], n_train=int(len(ytr)), n_test=int(len(yte)))
+    return keep, svm.named_steps["scale"].transform(Fte)
+
+
+def _summary(runs: list[dict]) -> dict:
+    return {k: {"mean": float(np.mean([r[k] for r in runs])), "std": float(np.std([r[k] for r in runs]))}
+            for k in METRICS}
+
+
+# ---------------------------------------------------------------------- the run
+@dataclass
+class McsaResult:
+    """What :func:`run_mcsa` found: ``report`` (the JSON of ``mcsa.json``) and the t-SNE inputs.
+
+    ``tsne[set][speed]`` = (standardised test features of the first repeat, their classes).
+    """
+
+    report: dict
+    tsne: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)
+
+
+def _store_info(store, channel: str, n_used: int) -> dict:
+    return {"path": str(store.path), "config_hash": store.attrs.get("config_hash"), "kind": store.attrs.get("kind"),
+            "n_samples": int(store.n_samples), "n_used": int(n_used), "length": int(store.length), "fs": store.fs,
+            "classes": list(store.classes), "channel": channel}
+
+
+def prepare(store, settings: McsaSettings, test_store=None):
+    """Check the settings and the stores before any work: (channel, groups, (other channel, other groups) or
+    None, notes, leaks), ``leaks`` the notes that say a score is optimistic (also in ``notes``).
+
+    Raises :class:`ParameterError` / :class:`StoreError` (one line each) for a bad setting, a missing channel or
+    speed column, a speed with too few samples for the split, or a second store that does not fit the first.
+    """
+    settings.check()
+    unit = speed_unit(settings.speed_column)
+    channel = pick_channel(sample_channels(store).tolist(), settings.channel, store.path)
+    if "cnn" in settings.feature_sets and settings.cnn_input_length and settings.cnn_input_length > store.length:
+        raise ParameterError(f"cnn_input_length {settings.cnn_input_length} is longer than the samples of "
+                             f"{store.path} ({store.length} points)")
+    groups = _load_groups(store, channel, settings.speed_column)
+    _check_splittable(groups, float(settings.test_size), store.path, unit)
+    notes: list[str] = []
+    leaks: list[str] = []
+    other = None
+    if test_store is not None:
+        if test_store.length != store.length:
+            raise StoreError(f"{test_store.path} has {test_store.length}-point samples, {store.path} "
+                             f"{store.length}-point ones: the features need samples of one length")
+        if store.fs and test_store.fs and abs(store.fs - test_store.fs) > 1e-6 * store.fs:
+            raise StoreError(f"{test_store.path} is sampled at {test_store.fs:g} Hz, {store.path} at {store.fs:g} Hz")
+        other_channel = pick_channel(sample_channels(test_store).tolist(), settings.channel, test_store.path)
+        other_groups = _load_groups(test_store, other_channel, settings.speed_column)
+        common = [s for s in groups if s in other_groups]
+        if not common:
+            raise StoreError(f"{test_store.path} has no sample at the speeds of {store.path} "
+                             f"({', '.join(groups)} {unit}; it has {', '.join(other_groups) or 'none'})".rstrip())
+        for s in common:
+            unseen = sorted(set(other_groups[s].y.tolist()) - set(groups[s].y.tolist()))
+            if unseen:
+                raise StoreError(f"{test_store.path} has class(es) {', '.join(unseen)} at {s} {unit}, which "
+                                 f"{store.path} lacks there: nothing could learn them")
+        missing = [s for s in groups if s not in other_groups]
+        if missing:
+            notes.append(f"{test_store.path} has no sample at {', '.join(missing)} {unit}: no held-out figure there")
+        shared = 0
+        for s in common:
+            a, b = groups[s].sims, other_groups[s].sims
+            if a is not None and b is not None:
+                shared += len(set(a.tolist()) & set(b.tolist()))
+        same_hash = store.attrs.get("config_hash")
+        if same_hash and test_store.attrs.get("config_hash") == same_hash:
+            leaks.append(f"{test_store.path} was built from the same config as {store.path} (hash {same_hash}): the "
+                         "same simulations, so the held-out figures are optimistic")
+        elif shared:
+            leaks.append(f"{shared} simulation(s) (class and seed) of {test_store.path} are also in {store.path}: "
+                         "the held-out figure is optimistic")
+        other = (other_channel, other_groups)
+    if any(g.units is not None and len(np.unique(g.units)) < len(g.units) for g in groups.values()):
+        leaks.append("random window splits put windows of one simulation on both sides (the study's protocol): "
+                     "the split scores are optimistic" +
+                     ("; the held-out figures are not" if other is not None else
+                      "; a held-out store of other simulations (--test) gives the honest figure"))
+    return channel, groups, other, notes + leaks, leaks
+
+
+def run_mcsa(store, settings: McsaSettings, test_store=None) -> McsaResult:
+    """Run the study's protocol on ``store`` (a :class:`rvdiag.datasets.SampleStore`); see the module docstring.
+
+    Progress goes to :mod:`rvdiag.progress`, one stage per feature set (``<set>: fits``).  Notes about the
+    protocol (shared simulations) are also raised as :class:`SplitLeakWarning`.
+    """
+    channel, groups, other, notes, leaks = prepare(store, settings, test_store)
+    for note in leaks:
+        warnings.warn(note, SplitLeakWarning, stacklevel=2)
+    seeds = split_seeds(settings.seed, settings.repeats)
+    unit = speed_unit(settings.speed_column)
+    results: dict[str, dict[str, Any]] = {}
+    tsne: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = {name: {} for name in settings.feature_sets}
+    n_held = 0 if other is None else sum(1 for s in groups if s in other[1])
+    from sklearn.model_selection import train_test_split
+
+    for name in settings.feature_sets:
+        stage = f"{name}: fits"
+        total = len(groups) * settings.repeats + n_held
+        done = 0
+        report(stage, done, total)
+        for speed, g in groups.items():
+            F = None if name == "cnn" else _fixed_features(name, settings, g.X)
+            runs = []
+            for r, s in enumerate(seeds):
+                try:
+                    tr, te = train_test_split(np.arange(len(g.y)), test_size=float(settings.test_size),
+                                              stratify=g.y, random_state=s)
+                except ValueError as exc:  # pragma: no cover - _check_splittable refuses these first
+                    raise StoreError(f"{store.path} at {speed} {unit}: {exc}") from None
+                tr, te = np.sort(tr), np.sort(te)
+                kw = {} if F is None else {"Ftr": F[tr], "Fte": F[te]}
+                m, Fz = _fit_score(name, settings, s, g.X[tr], g.y[tr], g.X[te], g.y[te], **kw)
+                m["seed"] = int(s)
+                runs.append(m)
+                if r == 0:
+                    tsne[name][speed] = (Fz, g.y[te])
+                done += 1
+                report(stage, done, total)
+            entry: dict[str, Any] = {
+                "n_samples": int(len(g.y)),
+                "counts": {c: int(k) for c, k in zip(*np.unique(g.y, return_counts=True))},
+                "split": {"repeats": runs, **_summary(runs),
+                          "confusion_sum": np.sum([r["confusion"] for r in runs], axis=0).astype(int).tolist(),
+                          "labels": runs[0]["labels"]},
+                "held_out": None,
+            }
+            if other is not None and speed in other[1]:
+                h = other[1][speed]
+                kw = {} if F is None else {"Ftr": F, "Fte": _fixed_features(name, settings, h.X)}
+                m, _ = _fit_score(name, settings, seeds[0], g.X, g.y, h.X, h.y, **kw)
+                m["seed"] = int(seeds[0])
+                entry["held_out"] = m
+                done += 1
+                report(stage, done, total)
+            results.setdefault(speed, {})[name] = entry
+    out = {
+        "format": FORMAT,
+        "rvdiag_version": __version__,
+        "protocol": ("at each speed and for each feature set: stratified random splits (test_size of each class "
+                     "to the test side), StandardScaler + RBF SVC fitted on the training side; metrics on the test "
+                     "side, mean and population std over the repeats" +
+                     ("; held_out: fit on every sample of the store at that speed, score the test store's samples "
+                      "at that speed" if other is not None else "")),
+        "store": _store_info(store, channel, sum(len(g.y) for g in groups.values())),
+        "test_store": None if other is None else _store_info(test_store, other[0],
+                                                             sum(len(g.y) for g in other[1].values())),
+        "speed_column": settings.speed_column,
+        "speed_unit": unit,
+        "speeds": list(groups),
+        "feature_sets": {name: FEATURE_SETS[name] for name in settings.feature_sets},
+        "time_features": list(TIME_FEATURE_NAMES),
+        "settings": asdict(settings) | {"feature_sets": list(settings.feature_sets)},
+        "svm": {"kernel": "rbf", "C": float(settings.svm_c), "gamma": settings.svm_gamma,
+                "scaler": "StandardScaler (fitted on the training side)"},
+        "split_seeds": seeds,
+        "results": results,
+        "study": {name: STUDY_FIGURES[name] for name in settings.feature_sets},
+        "notes": notes,
+    }
+    return McsaResult(report=out, tsne=tsne)
+
+
+# ---------------------------------------------------------------------- outputs
+def _pct(v: float) -> str:
+    return f"{100 * v:.2f}"
+
+
+def markdown(report_: dict) -> str:
+    """The Markdown of ``mcsa.md``: one table speed x feature set (split protocol), and one of the held-out
+    figures when the run had a test store."""
+    unit = report_["speed_unit"]
+    st = report_["settings"]
+    lines = [
+        "# Motor-current study protocol (rvdiag mcsa)",
+        "",
+        f"Store `{report_['store']['path']}`, channel `{report_['store']['channel']}`, "
+        f"speeds from `{report_['speed_column']}`.  {st['repeats']} stratified "
+        f"{round(100 * (1 - st['test_size']))}/{round(100 * st['test_size'])} splits per speed and feature set, "
+        f"seed {st['seed']}; StandardScaler + RBF SVC (C = {st['svm_c']:g}, gamma = {st['svm_gamma']}) for every "
+        "feature set.  Accuracy as mean ± std over the splits (%); precision, recall and F1 are macro averages "
+        "(%), kappa is Cohen's; all means over the splits.",
+        "",
+        f"| speed ({unit or report_['speed_column']}) | features | accuracy | precision | recall | F1 | kappa |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for speed, sets in report_["results"].items():
+        for name, e in sets.items():
+            s = e["split"]
+            lines.append(f"| {speed} | {FEATURE_SETS[name]} | {_pct(s['accuracy']['mean'])} ± "
+                         f"{_pct(s['accuracy']['std'])} | {_pct(s['precision_macro']['mean'])} | "
+                         f"{_pct(s['recall_macro']['mean'])} | {_pct(s['f1_macro']['mean'])} | "
+                         f"{s['kappa']['mean']:.3f} |")
+    if report_.get("test_store"):
+        lines += ["", f"Held out: fitted on every sample of the store at each speed, scored on "
+                      f"`{report_['test_store']['path']}` (channel `{report_['test_store']['channel']}`).", "",
+                  f"| speed ({unit or report_['speed_column']}) | features | accuracy | precision | recall | F1 | "
+                  "kappa | test samples |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for speed, sets in report_["results"].items():
+            for name, e in sets.items():
+                h = e["held_out"]
+                if h is None:
+                    continue
+                lines.append(f"| {speed} | {FEATURE_SETS[name]} | {_pct(h['accuracy'])} | "
+                             f"{_pct(h['precision_macro'])} | {_pct(h['recall_macro'])} | {_pct(h['f1_macro'])} | "
+                             f"{h['kappa']:.3f} | {h['n_test']} |")
+    study = "; ".join(f"{FEATURE_SETS[k]} {v}" for k, v in report_["study"].items())
+    lines += ["", f"The study (Li, Zhao et al. 2024, measured motor current, 4 states) reports: {study}."]
+    if report_["notes"]:
+        lines += [""] + [f"Note: {n}." for n in report_["notes"]]
+    return "\n".join(lines) + "\n"
+
+
+def tsne_figure(name: str, panels: dict[str, tuple[np.ndarray, np.ndarray]], unit: str, seed: int,
+                max_samples: int):
+    """One figure per feature set: a t-SNE panel per speed of the first split's test features."""
+    from rvdiag.evaluation.plots import plot_tsne_panels, tsne_embedding
+
+    items = []
+    rng = np.random.default_rng(seed)
+    for speed, (F, y) in panels.items():
+        if len(y) > max_samples:
+            keep = np.sort(rng.choice(len(y), max_samples, replace=False))
+            F, y = F[keep], y[keep]
+        emb = tsne_embedding(F, random_state=seed) if len(y) >= 4 else None
+        items.append((f"{speed} {unit}".strip(), emb, y))
+    return plot_tsne_panels(items, title=f"t-SNE of {FEATURE_SETS[name]}, test side of the first split")
+
+
+def write_outputs(result: McsaResult, out_dir: str | Path) -> list[Path]:
+    """Write ``mcsa.json``, ``mcsa.md`` and ``tsne_<set>.png`` (one per feature set) into ``out_dir``."""
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    rep = result.report
+    written = []
+    path = out / "mcsa.json"
+    path.write_text(json.dumps(rep, indent=2) + "\n", encoding="utf-8")
+    written.append(path)
+    path = out / "mcsa.md"
+    path.write_text(markdown(rep), encoding="utf-8")
+    written.append(path)
+    st = rep["settings"]
+    names = list(result.tsne)
+    for i, name in enumerate(names):
+        if st["tsne_samples"] > 0:
+            fig = tsne_figure(name, result.tsne[name], rep["speed_unit"], int(st["seed"]) % 2**31,
+                              int(st["tsne_samples"]))
+            path = out / f"tsne_{name}.png"
+            fig.savefig(path, dpi=110, bbox_inches="tight")
+            plt.close(fig)
+            written.append(path)
+        report("t-SNE", i + 1, len(names))
+    return written
+
+
+__all__ = ["DEFAULT_CHANNEL", "FEATURE_SETS", "METRICS", "McsaResult", "McsaSettings", "STUDY_FIGURES", "markdown",
+           "parse_feature_sets", "pick_channel", "prepare", "run_mcsa", "sample_channels", "speed_labels",
+           "split_seeds", "write_outputs"]
