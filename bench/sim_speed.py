@@ -27,6 +27,9 @@ With ``--workers N`` (N > 1) the same record is also simulated in N time segment
 and ``parallel_seam_error`` (relative L2 difference from that continuous run).  The headline
 ``sim_s_per_wall_s`` stays the one-core continuous figure.
 
+``motor_cost_ratio`` (and ``_cpu``): wall (CPU) time of the same run with the servo motor's electrical side on
+(``simulate(signal="both")``: PMSM, current loop, dead time, encoder) over the vibration-only run, same settings.
+
 Usage: ``python bench/sim_speed.py [--json] [--duration S] [--scipy-duration S] [--numpy-duration S]
 [--workers N [--segment S]]``
 """
@@ -78,6 +81,15 @@ def main() -> None:
         wall = min(wall, time.perf_counter() - t0)
         cpu = min(cpu, time.process_time() - c0)
     rate = args.duration / wall
+    # the servo motor's electrical side on (signal="both": the vibration and the current of the same run), the
+    # same operating point and settings: its cost per simulated second against the vibration-only run above
+    simulate(duration_s=0.01, settings=ModelSettings(transient_s=0.0, substeps=st.substeps), signal="both", **kw)
+    mwall = mcpu = float("inf")
+    for _ in range(max(1, args.repeat)):
+        t0, c0 = time.perf_counter(), time.process_time()
+        simulate(duration_s=args.duration, settings=st, signal="both", **kw)
+        mwall = min(mwall, time.perf_counter() - t0)
+        mcpu = min(mcpu, time.process_time() - c0)
 
     model = prepare(input_speed_rpm=1000.0, mesh_source=args.mesh_source, settings=st)
     q0 = static_equilibrium(model, 0.0)
@@ -97,7 +109,9 @@ def main() -> None:
            "sim_s_per_cpu_s": crate, "scipy_sim_s_per_cpu_s": scrate, "ratio_cpu": crate / scrate,
            "scipy_compiled_rhs_sim_s_per_wall_s": crate_c, "ratio_compiled_rhs": rate / crate_c,
            "scipy_compiled_rhs_sim_s_per_cpu_s": ccrate_c, "ratio_compiled_rhs_cpu": crate / ccrate_c,
-           "substeps": int(model.settings.substeps)}
+           "substeps": int(model.settings.substeps),
+           "motor_sim_s_per_wall_s": args.duration / mwall, "motor_cost_ratio": mwall / wall,
+           "motor_cost_ratio_cpu": mcpu / cpu}
     if args.workers > 1:
         seg = args.segment or args.duration / args.workers
         pst = dataclasses.replace(st, segment_s=seg)
@@ -120,6 +134,9 @@ def main() -> None:
         print(f"scipy solve_ivp RK45 rtol 1e-6, compiled right-hand side ({nfev_c} evaluations): {crate_c:.5f} "
               f"simulated s per wall s ({swall_c:.2f} s for {args.scipy_duration:g} s); "
               f"ratio {rate / crate_c:.0f}x")
+        print(f"with the servo motor's electrical side (signal='both'): {args.duration / mwall:.3f} simulated s per "
+              f"wall s; cost {mwall / wall:.2f}x the vibration-only run per simulated second "
+              f"({mcpu / cpu:.2f}x in CPU time)")
         print(f"per CPU second (this process; the machine may be shared): rvdiag {crate:.3f}, "
               f"scipy NumPy RHS {scrate:.5f} (ratio {crate / scrate:.0f}x), scipy compiled RHS {ccrate_c:.5f} "
               f"(ratio {crate / ccrate_c:.0f}x)")

@@ -38,20 +38,23 @@ CURRENT_CHANNELS = ("i_a", "i_b", "i_c", "i_q", "speed")
 CURRENT_UNITS = ("A", "A", "A", "A", "rpm")
 
 
-def current_record_margin(fs: float, current_fs: float) -> int:
-    """Samples recorded beyond each end of a motor-current record (at ``fs``), so that the rate change's FIR
-    filter (half length ``10 max(up, down)``, :func:`scipy.signal.resample_poly`) never reaches past the
-    simulated record: a whole number of output samples, at least 12 max(up, down) input samples."""
+def current_record_margin(fs: float, current_fs: float, n_transient: int) -> tuple[int, int]:
+    """Samples ``(lead, tail)`` recorded beyond the ends of a motor-current record (at ``fs``), so that the rate
+    change's FIR filter (half length ``10 max(up, down)``, :func:`scipy.signal.resample_poly`) does not reach past
+    the simulated record: whole numbers of output samples, at least 12 max(up, down) input samples, the lead
+    within the ``n_transient`` run-in samples (a run without run-in has filtered start-up edges)."""
     from rvdiag.motor import current_rate_ratio
 
     r = current_rate_ratio(float(fs), current_fs)
-    return r.denominator * math.ceil(12 * max(r.numerator, r.denominator) / r.denominator)
+    m = r.denominator * math.ceil(12 * max(r.numerator, r.denominator) / r.denominator)
+    return min(m, (n_transient // r.denominator) * r.denominator), m
 
 
-def motor_current_record(motor_rows: np.ndarray, fs: float, current_fs: float, margin: int = 0) -> np.ndarray:
+def motor_current_record(motor_rows: np.ndarray, fs: float, current_fs: float,
+                         margin: tuple[int, int] = (0, 0)) -> np.ndarray:
     """The drive's current record from the integrator's motor rows (i_d, i_q, electrical angle, rotor speed in
     rad/s, :data:`rvdiag.dynamics.integrate.MOTOR_CHANNELS`): i_a, i_b, i_c, i_q (A) and the speed (rpm),
-    sampled at ``current_fs`` (:func:`rvdiag.motor.sample_current`); ``margin`` input samples at each end
+    sampled at ``current_fs`` (:func:`rvdiag.motor.sample_current`); the ``margin = (lead, tail)`` input samples
     (:func:`current_record_margin`) are filtered with the record and then dropped."""
     from rvdiag.motor import current_rate_ratio, phase_currents, sample_current
 
@@ -59,8 +62,8 @@ def motor_current_record(motor_rows: np.ndarray, fs: float, current_fs: float, m
     rows = np.vstack([phase_currents(i_d, i_q, theta_e), i_q[None, :], speed[None, :] * (60.0 / (2.0 * math.pi))])
     x = sample_current(rows, fs, current_fs)
     r = current_rate_ratio(float(fs), current_fs)
-    cut = margin * r.numerator // r.denominator
-    n_out = math.ceil((motor_rows.shape[1] - 2 * margin) * r.numerator / r.denominator)
+    cut = margin[0] * r.numerator // r.denominator
+    n_out = math.ceil((motor_rows.shape[1] - margin[0] - margin[1]) * r.numerator / r.denominator)
     return np.ascontiguousarray(x[:, cut:cut + n_out])
 
 
@@ -272,10 +275,10 @@ def simulate(
         starts.append(how)
         return model.initial_state(q0, t0)
 
-    margin = current_record_margin(fs, current_fs) if model.has_pmsm else 0
+    margin = current_record_margin(fs, current_fs, n_tr) if model.has_pmsm else (0, 0)
     out, n_segments = integrate_segments(model, fs, n_samples, n_tr, start_state, workers, progress, margin)
     n_sens = model.sensor.shape[0]
-    signal = apply_path(out[:n_sens, margin:margin + n_samples], fs, params.mounting)
+    signal = apply_path(out[:n_sens, margin[0]:margin[0] + n_samples], fs, params.mounting)
     initial_state = starts[0] if len(set(starts)) == 1 else "; ".join(sorted(set(starts)))
     if noise_snr_db is not None:
         signal = add_awgn(signal, noise_snr_db, np.random.default_rng(seed))

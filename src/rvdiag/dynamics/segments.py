@@ -54,38 +54,40 @@ def integrate_segments(
     start_state: Callable[[float], np.ndarray],
     workers: int = 1,
     progress: Callable[[int, int], None] | None = None,
-    margin: int = 0,
+    margin: tuple[int, int] = (0, 0),
 ) -> tuple[np.ndarray, int]:
     """Record ``n_samples`` sensor samples in segments of ``model.settings.segment_s``.
 
     ``start_state(t)`` gives the state (displacements and zero velocities) a run starts from at time
     ``t``; each segment starts at ``first / fs - n_transient / fs``.  ``workers`` segments run at once.
     Returns ``(signal, number of segments)``; ``progress(done, total)`` counts every segment's samples,
-    run-ins included.  ``margin > 0`` also records ``margin`` samples before the first (the end of the
-    first segment's run-in) and after the last: ``signal`` then has ``n_samples + 2 margin`` columns, sample
-    ``k`` of the record at column ``k + margin`` (for filters that need their edges, such as the motor
-    current's rate change); the integration itself, and so every sample, is the same as without.
+    run-ins included.  ``margin = (lead, tail)`` also records ``lead`` samples before the first (the end of
+    the first segment's run-in, so ``lead <= n_transient``) and ``tail`` after the last: ``signal`` then has
+    ``lead + n_samples + tail`` columns, sample ``k`` of the record at column ``k + lead`` (for filters that need
+    their edges, such as the motor current's rate change); the integration itself, and so every sample, is the
+    same as without.
     """
     check_workers(workers)
+    m_lead, m_tail = margin
     seg = int(round(model.settings.segment_s * fs))
     bounds = segment_bounds(n_samples, seg)
     if len(bounds) > 1 and model.P[mdl.I_PROFILE] != 0.0:
         raise ParameterError("time-parallel segments (segment_s > 0) support the constant speed and load only: "
                              "a speed or load profile runs as one segment (segment_s = 0)")
     n_out = model.sensor.shape[0] + (len(MOTOR_CHANNELS) if model.has_pmsm else 0)
-    out = np.zeros((n_out, n_samples + 2 * margin))
-    total = 2 * margin + sum(n + n_transient for _, n in bounds)
+    out = np.zeros((n_out, m_lead + n_samples + m_tail))
+    total = m_lead + m_tail + sum(n + n_transient for _, n in bounds)
     done = [0] * len(bounds)
     lock = threading.Lock()
 
-    if margin > n_transient:
-        raise ParameterError(f"a record margin of {margin} samples needs at least as many run-in samples "
+    if m_lead > n_transient:
+        raise ParameterError(f"a record margin of {m_lead} samples needs at least as many run-in samples "
                              f"(transient_s), got {n_transient}")
 
     def run(i: int) -> None:
         first, count = bounds[i]
-        lead = margin if i == 0 else 0
-        tail = margin if i == len(bounds) - 1 else 0
+        lead = m_lead if i == 0 else 0
+        tail = m_tail if i == len(bounds) - 1 else 0
 
         def seg_progress(d: int, _t: int) -> None:
             if progress is not None:
@@ -96,7 +98,7 @@ def integrate_segments(
         y0 = start_state((first - n_transient) / fs)
         sig, _ = integrate(model, y0, fs, count + lead + tail, n_transient - lead, seg_progress,
                            first_sample=first - lead)
-        out[:, margin + first - lead:margin + first + count + tail] = sig
+        out[:, m_lead + first - lead:m_lead + first + count + tail] = sig
 
     if workers == 1 or len(bounds) == 1:
         for i in range(len(bounds)):

@@ -387,11 +387,17 @@ def default_workers() -> int:
 
 def stored_config(cfg: LibraryConfig, params: Any) -> dict[str, Any]:
     """The config the store keeps (and hashes): the canonical library config plus the parameters' hash and the
-    simulator's physics revision."""
+    simulator's physics revision.  The ``[motor]`` parameters enter the hash only when the simulations use the
+    motor's electrical model (``[model] signal = "current"`` or ``electrical = true``): the vibration-only model
+    does not read them, so a store built before they existed still resumes."""
     from rvdiag.dynamics import PHYSICS_REVISION
 
     out = cfg.to_dict()
-    out[PARAMS_HASH_KEY] = config_hash(params.to_dict())
+    pd = params.to_dict()
+    model = dict(cfg.model or {})
+    if model.get("signal", "vibration") != "current" and not model.get("electrical", False):
+        pd.pop("motor", None)
+    out[PARAMS_HASH_KEY] = config_hash(pd)
     out[PHYSICS_KEY] = PHYSICS_REVISION
     return out
 

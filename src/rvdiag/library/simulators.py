@@ -32,11 +32,31 @@ from typing import Any, Mapping
 from rvdiag.errors import ConfigError, ParameterError
 
 
+#: keys of a ``[model]`` table that are not ModelSettings fields: what the dynamic model records
+#: (``signal``: "vibration", the default, or "current", the servo motor's phase currents at ``[signal] fs``) and the
+#: rate it integrates at when it records the current (``integration_fs``, Hz; default 48 kHz, or the next multiple
+#: of ``[signal] fs`` above it)
+RECORD_KEYS = ("signal", "integration_fs")
+
+
+def _record_options(model: Mapping[str, Any] | None, fs: float) -> tuple[str, float]:
+    """``(signal, integration_fs)`` of a ``[model]`` table (see :data:`RECORD_KEYS`)."""
+    m = dict(model or {})
+    signal = m.get("signal", "vibration")
+    if signal not in ("vibration", "current"):
+        raise ConfigError(f"[model] signal: must be \"vibration\" or \"current\", got {signal!r}")
+    default = fs * max(1, -(-48000.0 // fs)) if fs > 0 else 48000.0
+    f_int = m.get("integration_fs", default)
+    if isinstance(f_int, bool) or not isinstance(f_int, (int, float)) or not f_int >= fs:
+        raise ConfigError(f"[model] integration_fs: must be a number >= [signal] fs = {fs:g} Hz, got {f_int!r}")
+    return signal, float(f_int)
+
+
 def _settings(model: Mapping[str, Any] | None, transient_s: float) -> Any:
     from rvdiag.dynamics import ModelSettings
 
     opts = {k: (tuple(tuple(x) if isinstance(x, list) else x for x in v) if isinstance(v, list) else v)
-            for k, v in dict(model or {}).items()}
+            for k, v in dict(model or {}).items() if k not in RECORD_KEYS}
     if "transient_s" in opts:
         raise ConfigError("[model] transient_s: set the transient in [signal] transient_s")
     try:
@@ -48,8 +68,10 @@ def _settings(model: Mapping[str, Any] | None, transient_s: float) -> Any:
 
 
 def check_options(model: Mapping[str, Any] | None) -> None:
-    """Validate a ``[model]`` table as :class:`rvdiag.dynamics.ModelSettings` keyword arguments."""
+    """Validate a ``[model]`` table: :class:`rvdiag.dynamics.ModelSettings` keyword arguments and
+    :data:`RECORD_KEYS`."""
     _settings(model, 0.0)
+    _record_options(model, 0.0)
 
 
 def dynamics(
@@ -67,9 +89,15 @@ def dynamics(
 
     ``operating`` holds the speed (``input_speed_rpm`` or ``output_speed_deg_s``) and ``load_Nm``, and with a
     ``[profile]`` table the ``profile`` and ``load_profile`` of the simulation.
-    Returns a :class:`rvdiag.dynamics.SimulationResult` (two housing-acceleration channels, x and y).
+    Returns a :class:`rvdiag.dynamics.SimulationResult`: two housing-acceleration channels, x and y, or with
+    ``[model] signal = "current"`` the servo motor's ``i_a, i_b, i_c, i_q, speed`` at ``fs`` (integrated at
+    ``integration_fs``, :data:`RECORD_KEYS`).
     """
     from rvdiag.dynamics import simulate
 
-    return simulate(params, fault, duration_s=duration_s, fs=fs, seed=seed,
-                    settings=_settings(model, transient_s), **operating)
+    signal, f_int = _record_options(model, fs)
+    settings = _settings(model, transient_s)
+    if signal == "current":
+        return simulate(params, fault, duration_s=duration_s, fs=f_int, seed=seed, settings=settings,
+                        signal="current", current_fs=fs, **operating)
+    return simulate(params, fault, duration_s=duration_s, fs=fs, seed=seed, settings=settings, **operating)
