@@ -33,9 +33,10 @@ def _line_db(x, fs, f0, half=6):
 # ------------------------------------------------------------------------------ design side
 def test_gains_follow_pole_zero_cancellation_and_the_torque_constant():
     m = ReducerParams.default().motor
-    g = controller_gains(m)
+    pp = ReducerParams.default().operation.motor_pole_pairs
+    g = controller_gains(m, pp)
     w_cc = 2 * math.pi * m.current_loop_bandwidth_hz
-    assert g.torque_constant == pytest.approx(1.5 * m.pole_pairs * m.flux_linkage)
+    assert g.torque_constant == pytest.approx(1.5 * pp * m.flux_linkage)
     assert g.kp_current == pytest.approx(m.inductance_q * w_cc)
     assert g.ki_current == pytest.approx(m.resistance * w_cc)
     assert g.ki_current / g.kp_current == pytest.approx(m.resistance / m.inductance_q)  # the zero cancels R/L
@@ -43,7 +44,7 @@ def test_gains_follow_pole_zero_cancellation_and_the_torque_constant():
     assert g.dead_time_voltage == pytest.approx(m.dead_time_s * m.pwm_frequency_hz * m.dc_link_voltage)
     # the datasheet figures the defaults were derived from: K_t 0.47 N m / A rms, K_E ~28 V rms (l-l) per krpm
     assert g.torque_constant * math.sqrt(2) == pytest.approx(0.47, rel=0.01)
-    w_e = m.pole_pairs * 1000 * 2 * math.pi / 60
+    w_e = pp * 1000 * 2 * math.pi / 60
     assert w_e * m.flux_linkage * math.sqrt(3) / math.sqrt(2) == pytest.approx(28.4, rel=0.01)
 
 
@@ -73,11 +74,11 @@ def test_sample_current_keeps_a_line_below_the_new_nyquist_and_refuses_odd_rates
 
 def test_operating_point_checks_name_the_limit():
     m = ReducerParams.default().motor
-    check_operating_point(m, 3000 * 2 * math.pi / 60, 2.39)  # the motor's rated point
+    check_operating_point(m, 5, 3000 * 2 * math.pi / 60, 2.39)  # the motor's rated point
     with pytest.raises(ParameterError, match=r"max_current = 21.6 A"):
-        check_operating_point(m, 100.0, 10.0)
+        check_operating_point(m, 5, 100.0, 10.0)
     with pytest.raises(ParameterError, match=r"cannot reach 8000 rpm.*dc_link_voltage = 310 V"):
-        check_operating_point(m, 8000 * 2 * math.pi / 60, 1.0)
+        check_operating_point(m, 5, 8000 * 2 * math.pi / 60, 1.0)
 
 
 def test_bad_motor_parameters_give_one_clear_error():
@@ -135,14 +136,14 @@ def test_coupled_run_holds_the_speed_and_carries_the_load(coupled_30):
     assert r.current_names == ["i_a", "i_b", "i_c", "i_q", "speed"]
     rpm = 30.0 * p.ratio / 6.0
     assert np.mean(speed) == pytest.approx(rpm, rel=1e-4)
-    kt = controller_gains(p.motor).torque_constant
+    kt = controller_gains(p.motor, p.operation.motor_pole_pairs).torque_constant
     load = 120.0 / p.ratio + p.motor.viscous_friction * rpm * 2 * math.pi / 60
     assert np.mean(i_q) == pytest.approx(load / kt, rel=2e-3)
     # balanced phases whose rms is i_q / sqrt(2); their fundamental at f_e = p n / 60
     assert np.max(np.abs(i_a + i_b + i_c)) < 0.05  # the sensors' noise only
     assert np.std(i_a) == pytest.approx(np.mean(i_q) / math.sqrt(2), rel=0.01)
     X = np.abs(np.fft.rfft(i_a * np.hanning(i_a.size)))
-    assert np.fft.rfftfreq(i_a.size, 1e-3)[np.argmax(X)] == pytest.approx(p.motor.pole_pairs * rpm / 60, abs=1.0)
+    assert np.fft.rfftfreq(i_a.size, 1e-3)[np.argmax(X)] == pytest.approx(p.operation.motor_pole_pairs * rpm / 60, abs=1.0)
 
 
 def test_the_coupling_is_two_way(coupled_30):
@@ -193,3 +194,27 @@ def test_dead_time_gives_the_5fe_line_and_the_encoder_error_the_f1_sidebands():
     for f in (fe - f1, fe + f1):
         assert _line_db(on, 1000.0, f)[1] > 10.0
         assert _line_db(off, 1000.0, f)[1] < 10.0
+
+
+# ------------------------------------------------------------------------------ a motor-current library
+def test_a_current_library_stores_the_phase_current(tmp_path):
+    from rvdiag.datasets import SampleStore
+    from rvdiag.library import LibraryConfig, build_library
+    from rvdiag.library.simulators import check_options
+
+    cfg = LibraryConfig.from_dict({
+        "mode": "independent", "seed": 3, "channel": "i_a",
+        "model": {"signal": "current", "substeps": 4},
+        "signal": {"fs": 1000.0, "duration_s": 0.256, "transient_s": 0.05, "segment_length": 128, "hop": 128},
+        "operation": {"output_speed_deg_s": [30.0, 60.0], "load_Nm": 100.0, "noise_snr_db": 60.0},
+        "split": {"simulations_per_state": 2, "test_simulations_per_state": 1},
+        "states": {"T1": {}, "T2": {"broken_fraction": 1.0}},
+    }, source="current.toml")
+    build_library(cfg, tmp_path / "cur.zarr", workers=0, progress=False)
+    data = SampleStore.open(tmp_path / "cur.zarr").load()
+    assert data.X.shape == (8, 128)
+    # phase currents whose amplitude is the load's i_q = T_L / (i K_t) (100 N m: 2.49 A)
+    amp = np.sqrt(2) * data.X.std(axis=1)
+    assert amp == pytest.approx(np.full(8, 100.0 / 121.0 / (1.5 * 5 * 0.0443)), rel=0.03)
+    with pytest.raises(ConfigError, match="signal"):
+        check_options({"signal": "torque"})

@@ -48,7 +48,7 @@ guard_kernel_module(__file__)
 #: the motor's entries of ``P``, in order (appended to ``kernels.P_FIELDS``; ``b`` = index of the first)
 MOTOR_P_FIELDS = (
     "PMSM",           # 1.0: the electrical states are on
-    "M_P",            # pole pairs p
+    "M_P",            # pole pairs p ([operation] motor_pole_pairs)
     "M_R", "M_LD", "M_LQ", "M_PSI",  # R, L_d, L_q, psi_f
     "M_B",            # viscous friction of the rotor, N m s/rad
     "M_KPC", "M_KIC",  # current PI gains

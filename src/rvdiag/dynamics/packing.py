@@ -295,14 +295,15 @@ def _pack_motor(P: np.ndarray, params: ReducerParams, has_rotor: bool, Omega: fl
         raise ParameterError("the motor's electrical model needs the motor rotor: set [drive] "
                              "speed_loop_bandwidth_hz > 0")
     m = params.motor
-    g = controller_gains(m)
+    pp = params.operation.motor_pole_pairs
+    g = controller_gains(m, pp)
     acc = 0.0 if profile.is_constant else abs(profile.segments(duration_s)[3])
     arm = float(load.arm_mass_kg) * float(load.arm_length_m)
     torque = ((abs(load_Nm) + arm * G + arm * float(load.arm_length_m) * acc) / params.ratio
               + P[kn.I_JREF_I] * acc + m.viscous_friction * params.ratio * Omega)
-    check_operating_point(m, params.ratio * Omega, torque)
+    check_operating_point(m, pp, params.ratio * Omega, torque)
     P[kn.I_PMSM] = 1.0
-    P[kn.I_M_P], P[kn.I_M_R], P[kn.I_M_LD], P[kn.I_M_LQ] = m.pole_pairs, m.resistance, m.inductance_d, m.inductance_q
+    P[kn.I_M_P], P[kn.I_M_R], P[kn.I_M_LD], P[kn.I_M_LQ] = pp, m.resistance, m.inductance_d, m.inductance_q
     P[kn.I_M_PSI], P[kn.I_M_B] = m.flux_linkage, m.viscous_friction
     P[kn.I_M_KPC], P[kn.I_M_KIC], P[kn.I_M_VMAX] = g.kp_current, g.ki_current, g.voltage_limit
     P[kn.I_M_UDT], P[kn.I_M_IDT] = g.dead_time_voltage, m.dead_time_current

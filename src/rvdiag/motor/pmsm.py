@@ -40,12 +40,12 @@ class ControllerGains:
     observer_l2: float  #: 1/s^2
 
 
-def controller_gains(motor: Motor) -> ControllerGains:
-    """The gains and limits of the drive for ``motor`` (module docstring)."""
+def controller_gains(motor: Motor, pole_pairs: int) -> ControllerGains:
+    """The gains and limits of the drive for ``motor`` with ``pole_pairs`` pole pairs (module docstring)."""
     w_cc = 2.0 * math.pi * motor.current_loop_bandwidth_hz
     w_o = 2.0 * math.pi * motor.speed_observer_hz
     return ControllerGains(
-        torque_constant=1.5 * motor.pole_pairs * motor.flux_linkage,
+        torque_constant=1.5 * pole_pairs * motor.flux_linkage,
         kp_current=max(motor.inductance_d, motor.inductance_q) * w_cc,
         ki_current=motor.resistance * w_cc,
         voltage_limit=motor.dc_link_voltage / math.sqrt(3.0),
@@ -56,7 +56,7 @@ def controller_gains(motor: Motor) -> ControllerGains:
     )
 
 
-def check_operating_point(motor: Motor, rotor_speed_rad_s: float, rotor_torque_Nm: float) -> None:
+def check_operating_point(motor: Motor, pole_pairs: int, rotor_speed_rad_s: float, rotor_torque_Nm: float) -> None:
     """Refuse an operating point the motor and its drive cannot hold (one line naming the limit).
 
     ``rotor_speed_rad_s`` and ``rotor_torque_Nm`` are the largest speed and torque the rotor must give (the
@@ -64,7 +64,7 @@ def check_operating_point(motor: Motor, rotor_speed_rad_s: float, rotor_torque_N
     ``v_d = -w_e L_q i_q``, ``v_q = R i_q + w_e psi_f``; it must stay inside the inverter's linear range with
     the dead-time loss as margin (Krause et al. 2002, eq. 15.4-1 to 15.4-3 at d/dt = 0).
     """
-    g = controller_gains(motor)
+    g = controller_gains(motor, pole_pairs)
     if motor.dead_time_s * motor.pwm_frequency_hz >= 0.25:
         raise ParameterError(f"[motor] dead_time_s = {motor.dead_time_s:g} s is a quarter or more of the PWM period "
                              f"at {motor.pwm_frequency_hz:g} Hz: the inverter could not switch")
@@ -73,7 +73,7 @@ def check_operating_point(motor: Motor, rotor_speed_rad_s: float, rotor_torque_N
         raise ParameterError(
             f"the motor current saturates: the load needs i_q = {i_q:.3g} A (torque {abs(rotor_torque_Nm):.3g} N m at "
             f"the rotor), over the limit [motor] max_current = {motor.max_current:g} A")
-    w_e = motor.pole_pairs * abs(rotor_speed_rad_s)
+    w_e = pole_pairs * abs(rotor_speed_rad_s)
     v_d = w_e * motor.inductance_q * i_q
     v_q = motor.resistance * i_q + w_e * motor.flux_linkage
     need = math.hypot(v_d, v_q) + g.dead_time_voltage

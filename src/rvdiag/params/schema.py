@@ -228,7 +228,8 @@ class Motor:
     (``simulate(signal="current" | "both")``); the rotor's inertia and the speed loop are ``[drive]``'s.
 
     The motor-current rig's motor is a 0.75 kW, 3000 rpm, 2.39 N m servo with p = 5 pole pairs and a 23-bit
-    encoder (Li, Zhao et al. 2024, docs/references.md); its R, L and flux linkage are not public.  The defaults
+    encoder (Li, Zhao et al. 2024, docs/references.md); its R, L and flux linkage are not public.  The pole pairs
+    are ``[operation] motor_pole_pairs``.  The defaults
     are derived from the published figures of 0.75 kW, 3000 rpm, 2.39 N m, 200 V-class servos of that size
     (Delta ECMA-C20807, Mitsubishi HG-KR73, Panasonic MSMF082 catalogues: torque constant 0.45-0.50 N m per
     A rms, voltage constant 26-29 V rms line-to-line per 1000 rpm, electrical time constant 4-9 ms, rated
@@ -253,7 +254,6 @@ class Motor:
       step, 3.5 mA rms of quantisation noise; Hall-effect sensors add a few mA), drawn from the run's seed.
     """
 
-    pole_pairs: int = _positive(default=5)
     resistance: float = _positive(default=0.62)
     inductance_d: float = _positive(default=3.2e-3)
     inductance_q: float = _positive(default=3.2e-3)
