@@ -42,8 +42,8 @@ def cfg_with(**changes):
     return LibraryConfig.from_dict(data, source="t.toml")
 
 
-def test_six_states_and_their_severities():
-    assert list(STATES) == ["T1", "T2", "T3", "T4", "T5", "T6"]
+def test_eight_states_and_their_severities():
+    assert list(STATES) == ["T1", "T2", "T3", "T4", "T5", "T6", "T7", "T8"]
     assert STATES["T1"].parameters == ()
     assert set(STATES["T6"].parameters) == set(STATES["T2"].parameters) | set(STATES["T3"].parameters) | set(
         STATES["T4"].parameters)
@@ -53,7 +53,7 @@ def test_six_states_and_their_severities():
     with pytest.raises(ParameterError, match="no severity parameter 'wear_depth'"):
         FaultSpec("T2", {"wear_depth": 1e-5})
     with pytest.raises(ParameterError, match="unknown health state"):
-        FaultSpec("T7")
+        FaultSpec("T9")
 
 
 def test_states_map_to_gear_faults_by_kind():

@@ -227,7 +227,9 @@ def test_demo_tvms_writes_figure_and_summary(tmp_path):
     assert (tmp_path / "tvms.png").read_bytes()[:4] == b"\x89PNG"
     assert json.loads((tmp_path / "tvms_summary.json").read_text()) == summary
     states = summary["states"]
-    assert list(states) == ["T1", "T2", "T3", "T4", "T5", "T6"]
+    assert list(states) == ["T1", "T2", "T3", "T4", "T5", "T6", "T7", "T8"]
     assert states["T2"]["min_N_per_m"] == 0.0 and states["T1"]["min_N_per_m"] > 0
     assert states["T6"]["mean_N_per_m"] < states["T5"]["mean_N_per_m"] < states["T1"]["mean_N_per_m"]
+    assert states["T2"]["mean_N_per_m"] < states["T8"]["mean_N_per_m"] < states["T7"]["mean_N_per_m"] \
+        < states["T1"]["mean_N_per_m"]
     assert states["T3"]["max_profile_error_m"] > 0 and states["T1"]["max_profile_error_m"] == 0

@@ -141,6 +141,26 @@ def option_names(names: dict[str, str]) -> Iterator[None]:
         raise type(exc)(new) from None
 
 
+#: ``typer.Option`` arguments of the pitting and spalling severities (``rvdiag tvms``, ``rvdiag simulate``), by the
+#: keyword of :func:`fault_severities`.
+SURFACE_FAULT_OPTIONS: dict[str, tuple[str, str]] = {
+    "pit_area_fraction": ("--pit-area-fraction", "Pitted fraction of the pitting band, [0, 0.785) (pitting)."),
+    "pit_radius_mm": ("--pit-radius", "Pit radius (mm) (pitting)."),
+    "pit_depth_mm": ("--pit-depth", "Pit depth (mm) (pitting)."),
+    "spall_width_fraction": ("--spall-width-fraction", "Spall width as a fraction of the face width, [0, 1) "
+                             "(spalling)."),
+    "spall_length_fraction": ("--spall-length-fraction", "Spall length as a fraction of the working flank, (0, 1] "
+                              "(spalling)."),
+    "spall_depth_mm": ("--spall-depth", "Spall depth (mm) (spalling)."),
+}
+
+
+def surface_fault(key: str) -> Any:
+    """The option of one pitting or spalling severity (:data:`SURFACE_FAULT_OPTIONS`)."""
+    name, help = SURFACE_FAULT_OPTIONS[key]
+    return typer.Option(None, name, help=help)
+
+
 def mm_to_m(name: str, value: Optional[float]) -> Optional[float]:
     """Convert a ``--name`` option given in millimetres to metres (``None`` stays ``None``)."""
     if value is None:
@@ -155,6 +175,13 @@ def fault_severities(
     crack_depth_mm: Optional[float],
     crack_angle_deg: Optional[float],
     broken_fraction: Optional[float],
+    *,
+    pit_area_fraction: Optional[float] = None,
+    pit_radius_mm: Optional[float] = None,
+    pit_depth_mm: Optional[float] = None,
+    spall_width_fraction: Optional[float] = None,
+    spall_length_fraction: Optional[float] = None,
+    spall_depth_mm: Optional[float] = None,
 ) -> dict[str, float]:
     """The fault-severity options that were given, in SI, keyed as :class:`rvdiag.gears.ToothFaults` expects."""
     values = (
@@ -162,5 +189,11 @@ def fault_severities(
         ("crack_depth", mm_to_m("crack-depth", crack_depth_mm)),
         ("crack_angle_deg", crack_angle_deg),
         ("broken_fraction", broken_fraction),
+        ("pit_area_fraction", pit_area_fraction),
+        ("pit_radius", mm_to_m("pit-radius", pit_radius_mm)),
+        ("pit_depth", mm_to_m("pit-depth", pit_depth_mm)),
+        ("spall_width_fraction", spall_width_fraction),
+        ("spall_length_fraction", spall_length_fraction),
+        ("spall_depth", mm_to_m("spall-depth", spall_depth_mm)),
     )
     return {key: value for key, value in values if value is not None}

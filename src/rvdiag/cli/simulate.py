@@ -12,9 +12,13 @@ from rvdiag.cli._options import fault_severities
 from rvdiag.errors import ParameterError
 
 
-_USES = {"wear_depth": "wear", "crack_depth": "crack", "crack_angle_deg": "crack", "broken_fraction": "broken"}
+_USES = {"wear_depth": "wear", "crack_depth": "crack", "crack_angle_deg": "crack", "broken_fraction": "broken",
+         "pit_area_fraction": "pitting", "pit_radius": "pitting", "pit_depth": "pitting",
+         "spall_width_fraction": "spalling", "spall_length_fraction": "spalling", "spall_depth": "spalling"}
 _OPTION = {"wear_depth": "--wear-depth", "crack_depth": "--crack-depth", "crack_angle_deg": "--crack-angle",
-           "broken_fraction": "--broken-fraction"}
+           "broken_fraction": "--broken-fraction", "pit_area_fraction": "--pit-area-fraction",
+           "pit_radius": "--pit-radius", "pit_depth": "--pit-depth", "spall_width_fraction": "--spall-width-fraction",
+           "spall_length_fraction": "--spall-length-fraction", "spall_depth": "--spall-depth"}
 #: Python parameters of :func:`rvdiag.dynamics.simulate` and :class:`~rvdiag.dynamics.ModelSettings` -> options.
 SIMULATE_OPTION_NAMES = {"duration_s": "--duration", "fs": "--fs", "substeps": "--substeps",
                          "transient_s": "--transient", "segment_s": "--segment", "workers": "--workers",
@@ -25,7 +29,7 @@ SIMULATE_OPTION_NAMES = {"duration_s": "--duration", "fs": "--fs", "substeps": "
 
 def _check_severities(state: str, severities: dict) -> None:
     """Validate every given severity and refuse one the state does not use (it would be ignored)."""
-    from rvdiag.gears import BrokenTooth, RootCrack, Wear
+    from rvdiag.gears import BrokenTooth, Pitting, RootCrack, Spalling, Wear
     from rvdiag.gears.faults import STATES
 
     kinds = STATES.get(state, "").split("+")
@@ -38,6 +42,15 @@ def _check_severities(state: str, severities: dict) -> None:
         RootCrack(severities.get("crack_depth", 0.0), severities.get("crack_angle_deg", 45.0))
     if "broken_fraction" in severities:
         BrokenTooth(severities["broken_fraction"])
+    pits = {k: severities[key] for k, key in (("area_fraction", "pit_area_fraction"), ("radius", "pit_radius"),
+                                              ("depth", "pit_depth")) if key in severities}
+    if pits:
+        Pitting(**pits)
+    spall = {k: severities[key] for k, key in (("width_fraction", "spall_width_fraction"),
+                                               ("length_fraction", "spall_length_fraction"),
+                                               ("depth", "spall_depth")) if key in severities}
+    if spall:
+        Spalling(**spall)
 
 
 def register(app: typer.Typer) -> None:
@@ -54,6 +67,12 @@ def register(app: typer.Typer) -> None:
         crack_depth_mm: Optional[float] = typer.Option(None, "--crack-depth", help="Crack depth (mm)."),
         crack_angle: Optional[float] = typer.Option(None, "--crack-angle", help="Crack angle from the tooth centreline (deg)."),
         broken_fraction: Optional[float] = typer.Option(None, "--broken-fraction", help="Lost fraction of the tooth height, (0, 1]."),
+        pit_area_fraction: Optional[float] = opt.surface_fault("pit_area_fraction"),
+        pit_radius_mm: Optional[float] = opt.surface_fault("pit_radius_mm"),
+        pit_depth_mm: Optional[float] = opt.surface_fault("pit_depth_mm"),
+        spall_width_fraction: Optional[float] = opt.surface_fault("spall_width_fraction"),
+        spall_length_fraction: Optional[float] = opt.surface_fault("spall_length_fraction"),
+        spall_depth_mm: Optional[float] = opt.surface_fault("spall_depth_mm"),
         params: Optional[Path] = opt.params(),
         input_speed: Optional[float] = typer.Option(None, "--input-speed", help="Motor (sun) speed, rpm."),
         output_speed: Optional[float] = typer.Option(None, "--output-speed", help="Output (carrier) speed, deg/s."),
@@ -107,7 +126,10 @@ def register(app: typer.Typer) -> None:
             raise ParameterError(f"--out must name a .npz file, got {out}")
         if not out.parent.exists():
             raise ParameterError(f"--out directory does not exist: {out.parent}")
-        severities = fault_severities(wear_depth_mm, crack_depth_mm, crack_angle, broken_fraction)
+        severities = fault_severities(
+            wear_depth_mm, crack_depth_mm, crack_angle, broken_fraction, pit_area_fraction=pit_area_fraction,
+            pit_radius_mm=pit_radius_mm, pit_depth_mm=pit_depth_mm, spall_width_fraction=spall_width_fraction,
+            spall_length_fraction=spall_length_fraction, spall_depth_mm=spall_depth_mm)
         fault = ToothFaults.for_state(state, **severities)
         _check_severities(fault.label or state.upper(), severities)
         if workers < 1:

@@ -8,7 +8,7 @@
 """
 
 from rvdiag.gears.cycloid import pin_contact_state
-from rvdiag.gears.faults import BrokenTooth, RootCrack, ToothFaults, Wear
+from rvdiag.gears.faults import BrokenTooth, Pitting, RootCrack, Spalling, ToothFaults, Wear
 from rvdiag.gears.geometry import Gear, GearPair
 from rvdiag.gears.tvms import MeshStiffnessResult, mesh_stiffness, tooth_pair_components
 
@@ -17,7 +17,9 @@ __all__ = [
     "Gear",
     "GearPair",
     "MeshStiffnessResult",
+    "Pitting",
     "RootCrack",
+    "Spalling",
     "ToothFaults",
     "Wear",
     "mesh_stiffness",

@@ -32,10 +32,20 @@ Broken tooth
     A fraction ``fraction`` of the tooth height (tip to root circle) is lost; contact points above
     the cut carry nothing (the dynamics paper, docs/references.md).  ``fraction = 1`` is a missing tooth: where it
     would be the only pair in contact the mesh stiffness is zero.
+Pitting and spalling (partial tooth-face loss)
+    Cavities in the loaded flank, on part of the face width (:class:`Pitting`, :class:`Spalling`).  A flank
+    position is the involute arc length s = rho^2 / (2 r_b) from the base circle; across the face a cavity takes
+    the width delta_L(s).  The section at the flank point s loses a delta_L(s) x d strip at its loaded edge (d the
+    cavity depth, d / cos(tau) along the section, as for wear), which lowers its area and second moment
+    (:func:`cut_section`), and a contact at s touches only L - delta_L(s) of the face, which enters the Hertz term
+    (Liang, Zhang, Liu & Zuo 2016, Mech. Mach. Theory 106, for pits; Ma, Li, Feng, Feng & Wen 2016, Eng. Fail.
+    Anal. 66, for spalls; Chaari, Baccar, Abbes & Haddar 2008, Eur. J. Mech. A/Solids 27, and Jia & Howard 2006,
+    Mech. Syst. Signal Process. 20, model a spall as the loss of contact width over its profile length).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Iterable, Mapping
@@ -139,14 +149,234 @@ class BrokenTooth:
         return gear.tip_radius - self.fraction * (gear.tip_radius - gear.root_radius)
 
 
-Fault = Wear | RootCrack | BrokenTooth
+def _fraction(name: str, value: float, lo: float, hi: float, *, open_hi: bool = False,
+              open_lo: bool = False) -> float:
+    """``value`` as a float in [lo, hi] (ends excluded where ``open_lo``/``open_hi``), else one ParameterError."""
+    v = _finite(name, value)
+    if (v < lo or (open_lo and v == lo)) or (v > hi or (open_hi and v == hi)):
+        raise ParameterError(f"{name} must lie in {'(' if open_lo else '['}{lo:g}, {hi:g}{')' if open_hi else ']'}, "
+                             f"got {v!r}")
+    return v
 
-#: physically sensible default severities for the T1..T6 states (SI)
+
+def _positive(name: str, value: float) -> float:
+    v = _finite(name, value)
+    if v <= 0:
+        raise ParameterError(f"{name} must be > 0, got {v!r} m")
+    return v
+
+
+def working_flank(pair: GearPair, gear: str) -> tuple[float, float, float]:
+    """Flank positions (m) of the lowest and the highest contact point of the ``gear`` flank and of its pitch point.
+
+    A flank position is the arc length of the involute from the base circle, s = rho^2 / (2 r_b), rho being the
+    roll length (the involute's radius of curvature); it measures distances on the flank surface, where pits and
+    spalls have their size.
+    """
+    g = pair.driver if gear == "driver" else pair.driven
+    rho1, rho2 = pair.roll_lengths(np.array([0.0, pair.path_of_contact]))
+    rho = np.sort(rho1 if gear == "driver" else rho2)
+    rho_pitch = g.base_radius * math.tan(pair.operating_pressure_angle)
+    s_lo, s_hi, s_pitch = (float(r) ** 2 / (2.0 * g.base_radius) for r in (rho[0], rho[1], rho_pitch))
+    return s_lo, s_hi, s_pitch
+
+
+def flank_zone(pair: GearPair, gear: str, length_fraction: float,
+               centre_fraction: float | None) -> tuple[float, float]:
+    """Flank positions (s_lo, s_hi) (m) of a zone covering ``length_fraction`` of the working flank, centred on its
+    pitch point (``centre_fraction = None``) or at ``centre_fraction`` of the working flank (0 its lowest contact
+    point, 1 its highest), moved as little as needed to lie on the working flank."""
+    lo, hi, pitch = working_flank(pair, gear)
+    span = length_fraction * (hi - lo)
+    centre = pitch if centre_fraction is None else lo + centre_fraction * (hi - lo)
+    start = min(max(centre - 0.5 * span, lo), hi - span)
+    return start, start + span
+
+
+@dataclass(frozen=True)
+class FlankLoss:
+    """Material missing from the loaded flank of one tooth, in flank positions s (m; :func:`working_flank`).
+
+    ``spalls`` holds rectangular cavities ``(s_lo, s_hi, width, depth)``, ``pit_rows`` rows of ``count`` cylindrical
+    pits ``(s_centre, radius, count, depth)`` (m).  Across the face a spall takes its ``width``, and a row of pits
+    the sum of its chords, count * 2 sqrt(radius^2 - (s - s_centre)^2) (Liang, Zhang, Liu & Zuo 2016: circular
+    pits cut the face width of a section by their chords).  Cavities are taken side by side, not overlapping.
+    """
+
+    spalls: tuple[tuple[float, float, float, float], ...] = ()
+    pit_rows: tuple[tuple[float, float, int, float], ...] = ()
+
+    def __bool__(self) -> bool:
+        return bool(self.spalls or self.pit_rows)
+
+    def __add__(self, other: "FlankLoss") -> "FlankLoss":
+        return FlankLoss(self.spalls + other.spalls, self.pit_rows + other.pit_rows)
+
+    def cavities(self, s: np.ndarray) -> list[tuple[np.ndarray, float]]:
+        """(width lost across the face (m), depth normal to the flank (m)) of each cavity at flank positions ``s``."""
+        s = np.asarray(s, dtype=float)
+        out = [(np.where((s >= lo) & (s <= hi), width, 0.0), depth) for lo, hi, width, depth in self.spalls]
+        out += [(count * 2.0 * np.sqrt(np.maximum(radius**2 - (s - centre) ** 2, 0.0)), depth)
+                for centre, radius, count, depth in self.pit_rows]
+        return out
+
+    def width(self, s: np.ndarray) -> np.ndarray:
+        """delta_L(s): the face width (m) that cavities take at flank positions ``s``."""
+        total = np.zeros(np.shape(s))
+        for width, _ in self.cavities(s):
+            total = total + width
+        return total
+
+    def peaks(self) -> np.ndarray:
+        """Flank positions where delta_L can be largest (the spall spans and the row centres)."""
+        return np.array([p for lo, hi, _, _ in self.spalls for p in (lo, hi)]
+                        + [row[0] for row in self.pit_rows], dtype=float)
+
+
+@dataclass(frozen=True)
+class Pitting:
+    """Pitting: rows of small cylindrical pits in a band around the pitch line of the loaded flank.
+
+    Model (Liang, Zhang, Liu & Zuo 2016, Mech. Mach. Theory 106, 1-15): each pit is a cylinder of radius
+    ``radius`` and depth ``depth`` (normal to the flank).  A tooth section through a pit loses the pit's chord
+    across the face, delta_L(s), over the pit depth: its area and second moment drop accordingly
+    (:func:`cut_section`), and a contact line at s touches L - delta_L(s) of the face, so that the Hertz stiffness
+    is k_h = pi E (L - delta_L) / (4 (1 - nu^2)) there.
+
+    Severity
+    --------
+    area_fraction : float
+        Fraction of the band's flank area covered by pits, in [0, pi/4) (0: no pits, healthy).  Default 0.15
+        (``DEFAULT_PIT_AREA_FRACTION``), within the 10-20 % of a moderately pitted flank; the number of pits,
+        area_fraction x band area / (pi radius^2), is rounded to a whole number (at least one).
+    radius : float
+        Pit radius on the flank (m); default 0.15 mm, a 0.3 mm pit, about a quarter of the RV-20E module (1.25 mm).
+    depth : float
+        Pit depth normal to the flank (m); default 0.1 mm.
+    band_fraction : float
+        Height of the pitted band as a fraction of the working flank, in (0, 1]; default 0.4.
+    centre_fraction : float or None
+        Centre of the band on the working flank (0 its lowest contact point, 1 its highest); ``None`` (default)
+        the pitch point, where pitting starts (:func:`flank_zone`).
+
+    The default radius, depth and band are choices scaled to the RV-20E sun, not figures measured on one; Liang
+    et al. (2016) model several pitting severity levels, and here the pitted area fraction is the severity.
+
+    Layout: the pits sit in rows across the face, as many rows along the band as fit without overlapping
+    (floor(band / (2 radius)), evenly spaced), the pits shared evenly between the rows and the remainder given
+    to the rows nearest the band centre.  The layout is deterministic; more pits never take a pit away from a row,
+    so the stiffness falls monotonically with ``area_fraction``.
+    """
+
+    area_fraction: float = 0.15
+    radius: float = 0.15e-3
+    depth: float = 0.1e-3
+    band_fraction: float = 0.4
+    centre_fraction: float | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "area_fraction",
+                           _fraction("pitting area fraction", self.area_fraction, 0.0, math.pi / 4, open_hi=True))
+        object.__setattr__(self, "radius", _positive("pit radius", self.radius))
+        object.__setattr__(self, "depth", _positive("pit depth", self.depth))
+        object.__setattr__(self, "band_fraction",
+                           _fraction("pitting band fraction", self.band_fraction, 0.0, 1.0, open_lo=True))
+        if self.centre_fraction is not None:
+            object.__setattr__(self, "centre_fraction",
+                               _fraction("pitting band centre fraction", self.centre_fraction, 0.0, 1.0))
+
+    def flank_loss(self, pair: GearPair, gear: str) -> FlankLoss:
+        """The pit rows on the ``gear`` flank of ``pair`` (raises GeometryError when the pits do not fit)."""
+        if self.area_fraction == 0.0:
+            return FlankLoss()
+        g = pair.driver if gear == "driver" else pair.driven
+        lo, hi = flank_zone(pair, gear, self.band_fraction, self.centre_fraction)
+        band, r = hi - lo, self.radius
+        n_rows = int(band // (2.0 * r))
+        if n_rows < 1:
+            raise GeometryError(
+                f"pits of radius {r * 1e3:.3f} mm do not fit in the {band * 1e3:.3f} mm high pitting band of the "
+                f"{g.name} flank; use a smaller radius or a larger band fraction")
+        n_pits = max(1, round(self.area_fraction * band * g.face_width / (math.pi * r * r)))
+        counts = [n_pits // n_rows] * n_rows
+        nearest_centre = sorted(range(n_rows), key=lambda i: (abs(i - 0.5 * (n_rows - 1)), i))
+        for i in nearest_centre[: n_pits % n_rows]:
+            counts[i] += 1
+        if max(counts) * 2.0 * r >= g.face_width:
+            raise GeometryError(
+                f"pitting area fraction {self.area_fraction:g} is too large for pits of radius {r * 1e3:.3f} mm: "
+                f"{max(counts)} pits in a row span the whole {g.face_width * 1e3:.1f} mm face of the {g.name}")
+        pitch = band / n_rows
+        return FlankLoss(pit_rows=tuple((lo + (i + 0.5) * pitch, r, c, self.depth)
+                                        for i, c in enumerate(counts) if c > 0))
+
+
+@dataclass(frozen=True)
+class Spalling:
+    """Spalling: one rectangular spall on the loaded flank, across part of the face width.
+
+    Model: the spall is a rectangular cavity ``length_fraction`` of the working flank long (along the profile),
+    ``width_fraction`` of the face wide and ``depth`` deep.  Contact points within its profile range touch only
+    L - w of the face (w = width_fraction L), which enters the Hertz term, k_h = pi E (L - w) / (4 (1 - nu^2)),
+    and the sections it crosses lose a w x depth strip at the loaded edge (:func:`cut_section`) (Ma, Li, Feng,
+    Feng & Wen 2016, Eng. Fail. Anal. 66; the loss of contact width over the spall's profile length is the spall
+    model of Chaari, Baccar, Abbes & Haddar 2008, Eur. J. Mech. A/Solids 27, and of Jia & Howard 2006, Mech.
+    Syst. Signal Process. 20).
+
+    Severity
+    --------
+    width_fraction : float
+        Spall width across the face as a fraction of the face width, in [0, 1) (0: no spall, healthy).  Default
+        0.5 (``DEFAULT_SPALL_WIDTH_FRACTION``): a spall over half the face, in the 40-60 % of a developed spall.
+    length_fraction : float
+        Spall length along the profile as a fraction of the working flank, in (0, 1]; default 0.33 (a third).
+    depth : float
+        Spall depth normal to the flank (m); default 0.2 mm, twice the default pit depth (spalls are pits grown
+        together and deeper).
+    centre_fraction : float or None
+        Centre of the spall on the working flank (0 its lowest contact point, 1 its highest); ``None`` (default)
+        the pitch point (:func:`flank_zone`).
+    """
+
+    width_fraction: float = 0.5
+    length_fraction: float = 0.33
+    depth: float = 0.2e-3
+    centre_fraction: float | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "width_fraction",
+                           _fraction("spall width fraction", self.width_fraction, 0.0, 1.0, open_hi=True))
+        object.__setattr__(self, "length_fraction",
+                           _fraction("spall length fraction", self.length_fraction, 0.0, 1.0, open_lo=True))
+        object.__setattr__(self, "depth", _positive("spall depth", self.depth))
+        if self.centre_fraction is not None:
+            object.__setattr__(self, "centre_fraction",
+                               _fraction("spall centre fraction", self.centre_fraction, 0.0, 1.0))
+
+    def flank_loss(self, pair: GearPair, gear: str) -> FlankLoss:
+        """The spall on the ``gear`` flank of ``pair``."""
+        if self.width_fraction == 0.0:
+            return FlankLoss()
+        g = pair.driver if gear == "driver" else pair.driven
+        lo, hi = flank_zone(pair, gear, self.length_fraction, self.centre_fraction)
+        return FlankLoss(spalls=((lo, hi, self.width_fraction * g.face_width, self.depth),))
+
+
+Fault = Wear | RootCrack | BrokenTooth | Pitting | Spalling
+_FAULT_TYPES = (Wear, RootCrack, BrokenTooth, Pitting, Spalling)
+
+#: physically sensible default severities for the T1..T8 states (SI)
 DEFAULT_WEAR_DEPTH = 20e-6       # 20 um: moderate wear, about 1.5 % of the RV-20E module
 DEFAULT_CRACK_DEPTH = 0.8e-3     # 0.8 mm at 45 deg: about half way from the RV-20E sun flank to its centreline
 DEFAULT_CRACK_ANGLE_DEG = 45.0   # the angle used by Chen & Shao (2011) and Tian (2004)
 DEFAULT_BROKEN_FRACTION = 1.0    # whole tooth lost (as in the dynamics paper)
 T6_CRACK_OFFSET = 5               # T6: the crack sits this many teeth after the broken tooth
+DEFAULT_PIT_AREA_FRACTION = 0.15  # T7: 15 % of the band pitted (10-20 %: moderate pitting)
+DEFAULT_PIT_RADIUS = 0.15e-3      # T7: 0.3 mm pits, about a quarter of the RV-20E module
+DEFAULT_PIT_DEPTH = 0.1e-3        # T7
+DEFAULT_SPALL_WIDTH_FRACTION = 0.5    # T8: half the face width
+DEFAULT_SPALL_LENGTH_FRACTION = 0.33  # T8: a third of the working flank
+DEFAULT_SPALL_DEPTH = 0.2e-3          # T8
 
 #: the health states of the library (those of the dynamics-model-driven study, docs/references.md)
 STATES = {
@@ -156,7 +386,10 @@ STATES = {
     "T4": "crack",
     "T5": "broken+wear",
     "T6": "broken+wear+crack",
+    "T7": "pitting",
+    "T8": "spalling",
 }
+_STATE_RANGE = f"{next(iter(STATES))}..{next(reversed(STATES))}"
 
 
 @dataclass(frozen=True)
@@ -196,12 +429,12 @@ class ToothFaults:
         for tooth, faults in dict(self.teeth).items():
             if isinstance(tooth, bool) or not isinstance(tooth, (int, np.integer)) or tooth < 0:
                 raise ParameterError(f"tooth index must be an integer >= 0, got {tooth!r}")
-            if isinstance(faults, (Wear, RootCrack, BrokenTooth)):
+            if isinstance(faults, _FAULT_TYPES):
                 faults = (faults,)
             faults = tuple(faults)
             kinds = [type(f) for f in faults]
             for f in faults:
-                if not isinstance(f, (Wear, RootCrack, BrokenTooth)):
+                if not isinstance(f, _FAULT_TYPES):
                     raise ParameterError(f"tooth {tooth}: not a fault: {f!r}")
             if len(set(kinds)) != len(kinds):
                 raise ParameterError(f"tooth {tooth}: at most one fault of each kind")
@@ -235,10 +468,17 @@ class ToothFaults:
                   crack_depth: float = DEFAULT_CRACK_DEPTH,
                   crack_angle_deg: float = DEFAULT_CRACK_ANGLE_DEG,
                   broken_fraction: float = DEFAULT_BROKEN_FRACTION,
+                  pit_area_fraction: float = DEFAULT_PIT_AREA_FRACTION,
+                  pit_radius: float = DEFAULT_PIT_RADIUS, pit_depth: float = DEFAULT_PIT_DEPTH,
+                  spall_width_fraction: float = DEFAULT_SPALL_WIDTH_FRACTION,
+                  spall_length_fraction: float = DEFAULT_SPALL_LENGTH_FRACTION,
+                  spall_depth: float = DEFAULT_SPALL_DEPTH,
                   tooth: int = 0, crack_tooth: int | None = None,
                   gear: str = "driver") -> "ToothFaults":
         """The health states of the library: T1 healthy, T2 broken tooth, T3 wear, T4 root crack,
-        T5 broken + wear, T6 broken + wear + crack.
+        T5 broken + wear, T6 broken + wear + crack, T7 pitting, T8 spalling.
+
+        Pitting (:class:`Pitting`) and the spall (:class:`Spalling`) sit on ``tooth``, around its pitch line.
 
         Wear acts on every tooth; the broken tooth is ``tooth``; the crack is on ``tooth`` in T4
         and, in T6, on ``crack_tooth``, by default ``tooth + T6_CRACK_OFFSET`` (five teeth on: nearly
@@ -259,12 +499,16 @@ class ToothFaults:
         if "crack" in kinds:
             ct = tooth if key == "T4" else (tooth + T6_CRACK_OFFSET if crack_tooth is None else crack_tooth)
             teeth.setdefault(ct, []).append(RootCrack(crack_depth, crack_angle_deg))
+        if "pitting" in kinds:
+            teeth.setdefault(tooth, []).append(Pitting(pit_area_fraction, pit_radius, pit_depth))
+        if "spalling" in kinds:
+            teeth.setdefault(tooth, []).append(Spalling(spall_width_fraction, spall_length_fraction, spall_depth))
         return cls({k: tuple(v) for k, v in teeth.items()}, wear=wear, gear=gear, label=key)
 
     @classmethod
     def from_name(cls, name: str, **severities: float) -> "ToothFaults":
         """Build from a name ``healthy``, ``wear``, ``crack``, ``broken``, ``broken+wear``,
-        ``broken+wear+crack`` (or T1..T6)."""
+        ``broken+wear+crack``, ``pitting``, ``spalling`` (or T1..T8)."""
         lookup = {v: k for k, v in STATES.items()}
         key = str(name).strip().lower()
         if key.upper() in STATES:
@@ -274,7 +518,7 @@ class ToothFaults:
             if sorted(label.split("+")) == parts:
                 return cls.for_state(kinds, **severities)
         raise ParameterError(
-            f"unknown fault {name!r}; choose one of {', '.join(STATES.values())} or T1..T6")
+            f"unknown fault {name!r}; choose one of {', '.join(STATES.values())} or {_STATE_RANGE}")
 
     def describe(self) -> dict:
         """JSON-ready description of the faults (SI units)."""
@@ -291,12 +535,44 @@ class ToothFaults:
 @dataclass(frozen=True)
 class DamagedProfile:
     """A tooth section table after damage: loaded and unloaded half thickness over ``y``, and the
-    radius above which the flank is missing (``inf`` when whole)."""
+    radius above which the flank is missing (``inf`` when whole).
+
+    With pitting or spalling, ``flank_loss`` holds the cavities, and ``area`` and ``inertia`` the area (m^2) and
+    second moment (m^4) of the sections they cut (:func:`cut_section`), NaN where the section is the whole
+    rectangle of thickness ``x_loaded + x_other`` and the face width; all three are ``None`` without such a fault.
+    """
 
     y: np.ndarray
     x_loaded: np.ndarray
     x_other: np.ndarray
     cut_radius: float
+    flank_loss: FlankLoss | None = None
+    area: np.ndarray | None = None
+    inertia: np.ndarray | None = None
+
+
+def cut_section(thickness: np.ndarray, face_width: float,
+                cavities: Iterable[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """Area and second moment (about its own centroid) of a rectangular tooth section, ``thickness`` x
+    ``face_width``, that lost a strip ``width`` x ``depth`` at its loaded edge for each ``(width, depth)`` cavity
+    (depth along the section, widths across the face taken side by side).
+
+    With xi measured across the section from the unloaded edge: A = t L - sum w d; first moment
+    Q = t^2 L / 2 - sum w d (t - d / 2); I_0 = t^3 L / 3 - sum w (t^3 - (t - d)^3) / 3 about the unloaded edge;
+    I = I_0 - Q^2 / A about the centroid xi_c = Q / A (parallel axes).  With no cavity, I = t^3 L / 12.  This is
+    the section of Liang, Zhang, Liu & Zuo (2016) for a pitted tooth (the area and second moment of the section
+    less the pits' part, with the shifted centroid); the moment arm of the load is still taken from the tooth
+    centreline, as for wear and cracks.
+    """
+    t = np.asarray(thickness, dtype=float)
+    area = t * face_width
+    first = 0.5 * t * t * face_width
+    second = t**3 * face_width / 3.0
+    for width, depth in cavities:
+        area = area - width * depth
+        first = first - width * depth * (t - 0.5 * depth)
+        second = second - width * (t**3 - (t - depth) ** 3) / 3.0
+    return area, second - first * first / area
 
 
 def _sliding(pair: GearPair, gear: str, roll: np.ndarray) -> np.ndarray:
@@ -405,4 +681,36 @@ def damaged_profile(pair: GearPair, gear: str, faults: Iterable[Fault]) -> Damag
         raise GeometryError(
             f"{worst} deeper than the {g.name} tooth: the remaining section falls to "
             f"{max(float(thickness.min()), 0.0) * 1e3:.3f} mm")
-    return DamagedProfile(y=y, x_loaded=xl, x_other=x, cut_radius=cut)
+    loss = FlankLoss()
+    for f in faults:
+        if isinstance(f, (Pitting, Spalling)):
+            loss = loss + f.flank_loss(pair, gear)
+    if not loss:
+        return DamagedProfile(y=y, x_loaded=xl, x_other=x, cut_radius=cut)
+    return _with_flank_loss(DamagedProfile(y=y, x_loaded=xl, x_other=x, cut_radius=cut), g, prof.n_fillet, loss)
+
+
+def _with_flank_loss(prof: DamagedProfile, g: Gear, n_fillet: int, loss: FlankLoss) -> DamagedProfile:
+    """``prof`` with the sections that the cavities of ``loss`` cut (:func:`cut_section`)."""
+    y, x, thickness = prof.y, prof.x_other, prof.x_loaded + prof.x_other
+    r2 = x * x + y * y
+    rho = np.sqrt(np.maximum(r2 - g.base_radius**2, 0.0))
+    involute = np.arange(len(y)) >= n_fillet
+    s = np.where(involute, rho * rho / (2.0 * g.base_radius), -np.inf)   # flank position of each section
+    tau = rho / g.base_radius - g.base_half_angle      # flank normal vs. section, as for wear
+    if np.max(loss.width(np.concatenate([s, loss.peaks()]))) >= g.face_width:
+        raise GeometryError(f"pitting and spalling together take the whole {g.face_width * 1e3:.1f} mm face of a "
+                            f"{g.name} tooth")
+    cavities = [(width, depth / np.cos(tau)) for width, depth in loss.cavities(s)]
+    hit = np.zeros(len(y), dtype=bool)
+    names = ["spalling"] * len(loss.spalls) + ["pitting"] * len(loss.pit_rows)   # the order of loss.cavities
+    for name, (width, depth) in zip(names, cavities):
+        hit |= width > 0
+        left = np.where(width > 0, thickness - depth, np.inf)
+        if np.any(left <= 0.02 * g.module):
+            raise GeometryError(
+                f"{name} deeper than the {g.name} tooth: the section under the cavity falls to "
+                f"{max(float(left.min()), 0.0) * 1e3:.3f} mm")
+    area, inertia = cut_section(thickness, g.face_width, cavities)
+    return dataclasses.replace(prof, flank_loss=loss, area=np.where(hit, area, np.nan),
+                               inertia=np.where(hit, inertia, np.nan))

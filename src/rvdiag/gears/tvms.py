@@ -24,6 +24,13 @@ and a tooth section of area A(y) = (x_l + x_o) L and second moment I(y) = (x_l +
 The integrals run from the root circle through the trochoidal fillet to the load point, so a root
 circle below the base circle (Chen & Shao 2011) is always accounted for.
 
+Pitting and spalling (partial tooth-face loss, :class:`rvdiag.gears.faults.Pitting` and ``Spalling``) make the
+width vary along the tooth: a section that a pit or spall cuts has the area A(y) and second moment I(y) of
+:func:`rvdiag.gears.faults.cut_section` instead of the rectangle's, and a contact at flank position s touches
+L - delta_L(s) of the face, so 1/k_h = sum 2 (1 - nu_i^2) / (pi E_i (L - delta_L(s))) there (Liang, Zhang, Liu &
+Zuo 2016; Ma, Li, Feng, Feng & Wen 2016).  The foundation term keeps the full width: the gear body under the
+tooth is whole.
+
 Vectorisation: the bending integrand expands into moments of 1/I,
 [c (u_k - u) - x_k s]^2 = c^2 (u_k^2 - 2 u_k u + u^2) - 2 c s x_k (u_k - u) + s^2 x_k^2, so with the
 cumulative integrals C_n(u) = int_0^u t^n / I(t) dt (n = 0, 1, 2) and D(u) = int_0^u 1/A dt
@@ -42,7 +49,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rvdiag.errors import ModelRangeWarning, ParameterError
-from rvdiag.gears.faults import DamagedProfile, ToothFaults, Wear, archard_wear_profile, damaged_profile
+from rvdiag.gears.faults import (DamagedProfile, FlankLoss, ToothFaults, Wear, archard_wear_profile,
+                                 damaged_profile)
 from rvdiag.gears.geometry import Gear, GearPair
 
 # Sainsot, Velex & Duverger (2004), Table 1: rows L*, M*, P*, Q*;
@@ -104,7 +112,8 @@ def _warn_once(message: str) -> None:
 
 @dataclass(frozen=True)
 class _SectionTable:
-    """Cumulative compliance integrals of one tooth shape (see module docstring)."""
+    """Cumulative compliance integrals of one tooth shape (see module docstring); ``flank_loss`` holds the pits
+    and spalls of the flank (their contact width enters the Hertz term), ``None`` without."""
 
     y0: float
     u: np.ndarray
@@ -113,6 +122,7 @@ class _SectionTable:
     c2: np.ndarray
     d: np.ndarray
     cut_radius: float
+    flank_loss: FlankLoss | None = None
 
     @classmethod
     def build(cls, prof: DamagedProfile, face_width: float) -> "_SectionTable":
@@ -121,6 +131,10 @@ class _SectionTable:
         t = prof.x_loaded + prof.x_other
         inv_i = 12.0 / (t**3 * face_width)
         inv_a = 1.0 / (t * face_width)
+        if prof.area is not None:  # sections cut by pits or a spall: no longer rectangles
+            cut = ~np.isnan(prof.area)
+            inv_i[cut] = 1.0 / prof.inertia[cut]
+            inv_a[cut] = 1.0 / prof.area[cut]
 
         def cumtrapz(f: np.ndarray) -> np.ndarray:
             out = np.empty_like(f)
@@ -129,7 +143,7 @@ class _SectionTable:
             return out
 
         return cls(y0, u, cumtrapz(inv_i), cumtrapz(u * inv_i), cumtrapz(u * u * inv_i),
-                   cumtrapz(inv_a), prof.cut_radius)
+                   cumtrapz(inv_a), prof.cut_radius, prof.flank_loss)
 
     def compliance(self, gear: Gear, yk: np.ndarray, xk: np.ndarray, a1: np.ndarray) -> dict:
         """1/k_b, 1/k_s, 1/k_a (m/N) at load points (yk, xk) with load angles a1."""
@@ -169,9 +183,10 @@ def foundation_compliance(gear: Gear, yk: np.ndarray, xk: np.ndarray, a1: np.nda
         Ls * q * q + Ms * q + Ps * (1.0 + Qs * np.tan(a1) ** 2))
 
 
-def hertz_compliance(pair: GearPair) -> float:
-    """1/k_h = sum 2 (1 - nu_i^2) / (pi E_i L) (Yang & Sun 1985), L the common face width."""
-    L = min(pair.driver.face_width, pair.driven.face_width)
+def hertz_compliance(pair: GearPair, contact_width: np.ndarray | float | None = None) -> float | np.ndarray:
+    """1/k_h = sum 2 (1 - nu_i^2) / (pi E_i L) (Yang & Sun 1985), L the common face width, or the
+    ``contact_width`` (m) left by pits or a spall, L - delta_L (Liang, Zhang, Liu & Zuo 2016)."""
+    L = min(pair.driver.face_width, pair.driven.face_width) if contact_width is None else contact_width
     return sum(2.0 * (1.0 - g.poisson_ratio**2) / (math.pi * g.youngs_modulus * L)
                for g in (pair.driver, pair.driven))
 
@@ -200,13 +215,22 @@ def tooth_pair_components(pair: GearPair, roll: np.ndarray,
 
     Keys: ``hertz`` and, per gear (``driver_``/``driven_``), ``bending``, ``shear``, ``axial``,
     ``foundation``; plus ``total`` and ``stiffness`` (N/m).  Contact beyond a broken tooth's cut
-    gives zero stiffness.
+    gives zero stiffness; contact on a pitted or spalled part of a flank touches only the face width left
+    (``contact_width``, m, then among the keys).
     """
     roll = np.asarray(roll, dtype=float)
     rho1, rho2 = pair.roll_lengths(roll)
     if tables is None:
         tables = (_healthy_table(pair, "driver"), _healthy_table(pair, "driven"))
     out: dict = {"hertz": np.full(roll.shape, hertz_compliance(pair))}
+    if any(table.flank_loss for table in tables):
+        width = np.full(roll.shape, min(pair.driver.face_width, pair.driven.face_width))
+        for gear, rho, table in ((pair.driver, rho1, tables[0]), (pair.driven, rho2, tables[1])):
+            if table.flank_loss:
+                width = width - table.flank_loss.width(rho * rho / (2.0 * gear.base_radius))
+        out["contact_width"] = width
+        with np.errstate(divide="ignore"):  # no width left (a mate narrower than the spall): no stiffness
+            out["hertz"] = hertz_compliance(pair, np.maximum(width, 0.0))
     total = out["hertz"].copy()
     lost = np.zeros(roll.shape, dtype=bool)
     for name, gear, rho, table in (("driver", pair.driver, rho1, tables[0]),

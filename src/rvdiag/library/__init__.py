@@ -1,6 +1,6 @@
-"""The fault-sample library: six health states, configs, and parallel resumable builds into a sample store.
+"""The fault-sample library: eight health states, configs, and parallel resumable builds into a sample store.
 
-- :mod:`rvdiag.library.states`: the states T1..T6 and their severity parameters;
+- :mod:`rvdiag.library.states`: the states T1..T8 and their severity parameters;
 - :mod:`rvdiag.library.config`: library configs (TOML) with validation;
 - :mod:`rvdiag.library.build`: the plan of simulations and the Dask build into a
   :class:`rvdiag.datasets.SampleStore`;

@@ -63,7 +63,7 @@ class Unit:
     Attributes
     ----------
     index : unit id (row block in the store)
-    state : health state ("T1".."T6")
+    state : health state ("T1".."T8")
     sim_index : index of the simulation within its state
     seed : the unit's seed (all its random streams derive from it)
     severity : severity parameter -> value

@@ -1,6 +1,7 @@
-"""The six health states of the library (T1..T6) and their severity parameters.
+"""The eight health states of the library (T1..T8) and their severity parameters.
 
-The states are those of the dynamics-model-driven study (docs/references.md, its section 2):
+T1..T6 are the states of the dynamics-model-driven study (docs/references.md, its section 2); T7 pitting and
+T8 spalling add the sun-gear surface faults of the motor-current study (Li, Zhao et al. 2024, docs/references.md):
 
 ====  ==============================  ===============================================
 name  description                     severity parameters (SI units, angles in degrees)
@@ -11,18 +12,23 @@ T3    wear                            ``wear_depth``
 T4    root crack                      ``crack_depth``, ``crack_angle_deg``
 T5    broken tooth + wear             ``broken_fraction``, ``wear_depth``
 T6    broken tooth + wear + crack     ``broken_fraction``, ``wear_depth``, ``crack_depth``, ``crack_angle_deg``
+T7    pitting                         ``pit_area_fraction``, ``pit_radius``, ``pit_depth``
+T8    spalling                        ``spall_width_fraction``, ``spall_length_fraction``, ``spall_depth``
 ====  ==============================  ===============================================
 
 Each severity parameter has a physical validity interval (``lo``, ``hi``) that a library config must stay
 inside, and a default value used when a config names a state without giving its severities.  The mapping
 to the gear model is :func:`tooth_faults`, which calls ``rvdiag.gears.ToothFaults.for_state`` (the
 mesh-stiffness model of the faults lives there: Archard wear thins the section, Chen & Shao 2011 /
-Mohammed et al. 2013 crack model, broken tooth carries no load).
+Mohammed et al. 2013 crack model, broken tooth carries no load, pits (Liang et al. 2016) and a spall (Ma et al.
+2016; Chaari et al. 2008) take part of the face width from the flank's sections and contact).
 
 Examples
 --------
 >>> [s.name for s in STATES.values()]
-['T1', 'T2', 'T3', 'T4', 'T5', 'T6']
+['T1', 'T2', 'T3', 'T4', 'T5', 'T6', 'T7', 'T8']
+>>> STATES["T7"].parameters
+('pit_area_fraction', 'pit_radius', 'pit_depth')
 >>> STATES["T6"].parameters
 ('broken_fraction', 'wear_depth', 'crack_depth', 'crack_angle_deg')
 >>> FaultSpec("T4", {"crack_depth": 5e-4, "crack_angle_deg": 45.0}).is_healthy
@@ -77,6 +83,12 @@ class SeverityParameter:
 #: (:class:`rvdiag.gears.RootCrack`) refuses a deeper one with a GeometryError, so 2.2 mm caps the range; wear depths of
 #: 5..100 um span the mild to severe wear of Flodin & Andersson 1997 / Chen & Shao; crack angles of
 #: 30..75 deg cover the propagation paths of Chen & Shao 2011 (45 deg is their reference case).
+#: Pitting (rvdiag.gears.Pitting, Liang, Zhang, Liu & Zuo 2016) and spalling (rvdiag.gears.Spalling, Ma et al. 2016;
+#: Chaari et al. 2008): 2..35 % of the pitting band (the 40 % of the working flank around the pitch line)
+#: pitted by pits of 0.05..0.4 mm radius and 0.02..0.3 mm depth; a spall 10..90 % of the face wide, 10..80 % of
+#: the working flank long and 0.05..0.5 mm deep.  Every combination of these fits the RV-20E sun tooth (pits in a
+#: row stay narrower than the face, cavities shallower than the tooth; tests/test_pitting_spalling.py); a gear
+#: where one does not gets a GeometryError from the gear model.
 SEVERITY_PARAMETERS: dict[str, SeverityParameter] = {
     p.name: p
     for p in (
@@ -96,6 +108,30 @@ SEVERITY_PARAMETERS: dict[str, SeverityParameter] = {
             "crack_angle_deg", "deg", 15.0, 80.0, 45.0,
             "root crack angle to the tooth centreline (deg)",
         ),
+        SeverityParameter(
+            "pit_area_fraction", "1", 0.02, 0.35, 0.15,
+            "fraction of the pitting band (40 % of the working flank, around the pitch line) covered by pits",
+        ),
+        SeverityParameter(
+            "pit_radius", "m", 5.0e-5, 4.0e-4, 1.5e-4,
+            "radius of the cylindrical pits on the flank (m)",
+        ),
+        SeverityParameter(
+            "pit_depth", "m", 2.0e-5, 3.0e-4, 1.0e-4,
+            "depth of the pits normal to the flank (m)",
+        ),
+        SeverityParameter(
+            "spall_width_fraction", "1", 0.1, 0.9, 0.5,
+            "spall width across the face as a fraction of the face width",
+        ),
+        SeverityParameter(
+            "spall_length_fraction", "1", 0.1, 0.8, 0.33,
+            "spall length along the profile as a fraction of the working flank (centred on the pitch point)",
+        ),
+        SeverityParameter(
+            "spall_depth", "m", 5.0e-5, 5.0e-4, 2.0e-4,
+            "depth of the spall normal to the flank (m)",
+        ),
     )
 }
 
@@ -114,11 +150,14 @@ class HealthState:
 
 
 #: what each fault kind adds to a state: its words in the description and its severity parameters
-_KIND_WORDS = {"broken": "broken tooth", "wear": "wear", "crack": "crack"}
+_KIND_WORDS = {"broken": "broken tooth", "wear": "wear", "crack": "crack", "pitting": "pitting",
+               "spalling": "spalling"}
 _KIND_PARAMETERS = {
     "broken": ("broken_fraction",),
     "wear": ("wear_depth",),
     "crack": ("crack_depth", "crack_angle_deg"),
+    "pitting": ("pit_area_fraction", "pit_radius", "pit_depth"),
+    "spalling": ("spall_width_fraction", "spall_length_fraction", "spall_depth"),
 }
 
 
@@ -130,12 +169,12 @@ def _health_state(name: str, kinds: str) -> HealthState:
     return HealthState(name, description, tuple(p for k in parts for p in _KIND_PARAMETERS[k]))
 
 
-#: the six states, derived from the one state table of :mod:`rvdiag.gears.faults`
+#: the eight states, derived from the one state table of :mod:`rvdiag.gears.faults`
 STATES: dict[str, HealthState] = {name: _health_state(name, kinds) for name, kinds in GEAR_STATES.items()}
 
 
 def get_state(name: str) -> HealthState:
-    """The state called ``name`` ("T1".."T6"); :class:`ParameterError` otherwise."""
+    """The state called ``name`` ("T1".."T8"); :class:`ParameterError` otherwise."""
     try:
         return STATES[name]
     except KeyError:
@@ -186,7 +225,8 @@ def tooth_faults(state: str, **severity: float) -> Any:
 
     The faults sit on the sun gear (the driver of the sun-planet mesh): the broken tooth on tooth 0,
     wear on every tooth, the crack on tooth 0 (T4) or, with a broken tooth (T6), five teeth on so
-    that the broken tooth does not hide it (``ToothFaults.for_state``).  The gear model is imported
+    that the broken tooth does not hide it, the pits (T7) and the spall (T8) on tooth 0 around its pitch line
+    (``ToothFaults.for_state``).  The gear model is imported
     lazily so that configs can be validated without loading it.
     """
     spec = FaultSpec(state, severity)

@@ -10,7 +10,8 @@ Signal model (all amplitudes in m/s^2, arbitrary scale):
 - stage-1 and stage-2 mesh tones at f_sp and f_cs (and two harmonics of f_sp), amplitude growing with load;
 - wear (``wear_depth``): the 2nd and 3rd f_sp harmonics grow and are amplitude-modulated at the sun-fault
   frequency N (f_s - f_H), the classic distributed-fault signature (Randall 1982, sidebands);
-- broken tooth (``broken_fraction``) and root crack (``crack_depth``, ``crack_angle_deg``): an impulse at each
+- broken tooth (``broken_fraction``), root crack (``crack_depth``, ``crack_angle_deg``), pitting
+  (``pit_area_fraction``) and spalling (``spall_width_fraction`` x ``spall_length_fraction``): an impulse at each
   passage of the faulty sun tooth through a mesh, N (f_s - f_H), exciting a 2nd-order structural resonance
   whose frequency scales with sqrt(stiffness scale) and whose damping with the damping-ratio scale;
 - a small broadband component drawn from ``seed``, so different seeds give different signals;
@@ -93,6 +94,8 @@ def simulate(
 
     impact = 4.0 * severity.get("broken_fraction", 0.0)
     impact += 2.0 * severity.get("crack_depth", 0.0) / 1.0e-3 * np.sin(np.radians(severity.get("crack_angle_deg", 0.0)))
+    impact += 1.0 * severity.get("pit_area_fraction", 0.0)
+    impact += 3.0 * severity.get("spall_width_fraction", 0.0) * severity.get("spall_length_fraction", 0.0)
     if impact > 0.0 and duration_s + transient_s > 0:
         k_scale = params.material.youngs_modulus / 2.06e11
         zeta = 0.05 * params.damping.mesh_damping_ratio / 0.07
