@@ -12,7 +12,9 @@ Supported formats (chosen by the file name's ending, never guessed from the byte
                           ``sampling_rate``/``sample_rate`` gives fs.
 ``.npy``, ``.npz``        NumPy arrays, always with ``allow_pickle=False``.  An NPZ written by
                           ``rvdiag simulate`` holds ``signal`` (1-D, or channels x samples), ``fs`` and
-                          ``settings`` (a JSON string, kept in :attr:`MeasuredSignal.attrs`).
+                          ``settings`` (a JSON string, kept in :attr:`MeasuredSignal.attrs`); the motor
+                          current of a ``--signal both`` file (``current``, at its own ``current_fs``) is
+                          not read: ``--signal current`` writes it as the ``signal``.
 ``.wav``                  :func:`scipy.io.wavfile.read`; fs from the file; integer samples are scaled to
                           [-1, 1); channels ``ch0``, ``ch1`` ...
 ``.tdms``                 NI TDMS (:mod:`nptdms`); channels ``group/channel``; fs = 1 / ``wf_increment``
@@ -431,8 +433,8 @@ def _read_npz(path: Path) -> _Contents:
                 except ValueError:
                     attrs[name] = text
                 continue
-            if a.ndim > 2:
-                continue
+            if a.ndim > 2 or name in ("current", "current_fs", "current_names"):
+                continue  # a `--signal both` file's motor current runs at its own rate: not a channel at fs
             _split_matrix(name, a, channels, scalars)
     fs = scalars.get("fs", _fs_from_scalars(scalars))
     return _Contents(channels=channels, fs=fs, scalars=scalars, attrs=attrs, format="npz")
