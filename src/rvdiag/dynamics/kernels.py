@@ -655,6 +655,15 @@ def _euler_terms(y, P, mt, rot, dydt, N, D, n, iR):
             dydt[n + i + 1] -= dO * y[i]
 
 
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
+def speed_loop_feed_forward(P, mt):
+    """The speed PI's feed-forward torque on the rotor with the motor's electrical side on (N m): the steady drive
+    torque ``T_L / i`` (or the profile's, with its acceleration term, ``mt[N, 3]``) plus the rotor's viscous
+    friction at its nominal speed ``mt[N, 5]`` (:mod:`rvdiag.dynamics.motor_kernel`)."""
+    N = int(P[I_NPL]) & 255
+    return (mt[N, 3] if P[I_PROFILE] != 0.0 else P[I_TDRIVE]) + P[I_M_B] * mt[N, 5]
+
+
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def rhs_with_terms(y, P, inv_mass, planet, mt, geo, rot, Q, dydt):
     """First-order right-hand side dy/dt, y = [q, v] (and the motor's electrical states after them when
@@ -666,9 +675,7 @@ def rhs_with_terms(y, P, inv_mass, planet, mt, geo, rot, Q, dydt):
     accelerations(y, P, inv_mass, planet, mt, geo, rot, Q, dydt)
     if P[I_PMSM] != 0.0 and y.size > 2 * n:
         N = int(P[I_NPL]) & 255
-        w_nom = mt[N, 5]
-        t_ff = (mt[N, 3] if P[I_PROFILE] != 0.0 else P[I_TDRIVE]) + P[I_M_B] * w_nom
-        motor_rates(y, P, I_PMSM, n, mt[N, 4], w_nom, t_ff, P[I_KSL], P[I_CSL], dydt)
+        motor_rates(y, P, I_PMSM, n, mt[N, 4], mt[N, 5], speed_loop_feed_forward(P, mt), P[I_KSL], P[I_CSL], dydt)
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")

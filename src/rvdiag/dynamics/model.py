@@ -130,9 +130,7 @@ class Model:
         P = self.P
         mt = mesh_array(self)
         mesh_terms(float(t0), P, self.tables, mt)
-        N = self.n_planets
-        w_nom = mt[N, 5]
-        t_ff = (mt[N, 3] if P[kn.I_PROFILE] != 0.0 else P[kn.I_TDRIVE]) + P[kn.I_M_B] * w_nom
+        t_ff = kn.speed_loop_feed_forward(P, mt)
         qm = float(q0[-1])
         i_q = float(np.clip((t_ff - P[kn.I_KSL] * qm) / P[kn.I_M_KT], -P[kn.I_M_IMAX], P[kn.I_M_IMAX]))
         x = np.array([0.0, i_q, 0.0, P[kn.I_M_R] * i_q / P[kn.I_M_KIC], qm, 0.0])
