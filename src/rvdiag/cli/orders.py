@@ -1,11 +1,14 @@
 """``rvdiag orders FILE --shaft sun|crank|output``: order spectrum, envelope order spectrum, TSA and gear condition
 indicators of one channel (:mod:`rvdiag.features.orders`; docs/orders.md).
 
-The angle comes from the first of: ``--angle-channel`` (the input shaft's angle, rad), ``--tacho-channel`` with
-``--ppr`` (pulses per input revolution), ``--rpm`` (the analysed shaft itself, rev/min), ``--input-speed`` (rpm),
-``--output-speed`` (deg/s), the speed a simulated record states (``rvdiag simulate``'s ``sun_speed_hz``), and
-failing those the stage-1 mesh peak of the spectrum (:func:`rvdiag.features.orders.estimate_shaft_speed`, output
-speeds 1-200 deg/s).
+The angle comes from the first of (:func:`rvdiag.io.angles.input_revolutions`): ``--angle-channel`` (the input
+shaft's angle, rad, or an angle counter of ``--ppr`` counts per revolution), ``--tacho-channel`` with ``--ppr``
+(pulses per input revolution), ``--rpm`` (the analysed shaft itself, rev/min), ``--input-speed`` (rpm),
+``--output-speed`` (deg/s), ``--meta-regex`` (a group ``rpm`` or ``speed_dps`` in the file name), the input
+angle ``theta_in`` a record of ``rvdiag simulate`` stores (its true angles, any speed profile), the speed such a
+record states, and failing those the stage-1 mesh peak of the spectrum
+(:func:`rvdiag.io.angles.estimate_shaft_speed`, output speeds 1-200 deg/s).  ``--json`` names the source under
+``angle_source`` (:data:`rvdiag.io.angles.ANGLE_SOURCES`) and describes it under ``angle_detail``.
 """
 
 from __future__ import annotations
@@ -21,49 +24,26 @@ from rvdiag.cli import _options as opt
 from rvdiag.errors import ParameterError
 
 
-def _angle(sig, shaft, p, *, output_speed, input_speed, rpm, tacho_channel, ppr, angle_channel, fs):
-    """(revolutions of ``shaft`` per sample, how the angle was found)."""
+def _angle(sig, shaft, p, *, output_speed, input_speed, rpm, tacho_channel, ppr, angle_channel, meta_regex,
+           speed_range, fs):
+    """(revolutions of ``shaft`` per sample, angle source key, how the angle was found)."""
     from rvdiag.features import orders as o
-    from rvdiag.io import read_signal
+    from rvdiag.io.angles import AngleSpec, input_revolutions, parse_speed_range
 
-    n, x = sig.data.size, sig.data
     ratio = o.shaft_ratio(shaft, p)  # analysed shaft per input revolution
-    given = [v is not None for v in (output_speed, input_speed, rpm, tacho_channel, angle_channel)]
-    if sum(given) > 1:
-        raise ParameterError("give one angle source: --output-speed, --input-speed, --rpm, --tacho-channel or "
-                             "--angle-channel")
-    if ppr is not None and tacho_channel is None:
-        raise ParameterError("--ppr applies to --tacho-channel only")
-    if angle_channel is not None or tacho_channel is not None:
-        other = read_signal(sig.path, angle_channel or tacho_channel, fs)
-        if other.data.size != n:
-            raise ParameterError(f"channel {other.channel!r} has {other.data.size} samples, the signal {n}")
-        if angle_channel is not None:
-            return o.angle_from_encoder(other.data, sig.fs, ratio), f"angle channel {other.channel}"
-        times = o.tacho_pulse_times(other.data, sig.fs)
-        return (o.angle_from_tacho(times, n, sig.fs, int(ppr or 1), ratio),
-                f"tachometer {other.channel}, {int(ppr or 1)} pulses/rev")
     if rpm is not None:
-        return o.angle_from_speed(n, sig.fs, rpm / 60.0), f"{rpm:g} rev/min of the {shaft} shaft"
-    if input_speed is not None or output_speed is not None:
-        f = o.shaft_frequency(shaft, p, input_speed_rpm=input_speed, output_speed_deg_s=output_speed)
-        what = f"input {input_speed:g} rpm" if input_speed is not None else f"output {output_speed:g} deg/s"
-        return o.angle_from_speed(n, sig.fs, f), what
-    settings = sig.attrs.get("settings")
-    if isinstance(settings, str):
-        try:
-            settings = json.loads(settings)
-        except ValueError:
-            settings = None
-    if isinstance(settings, dict) and settings.get("sun_speed_hz"):
-        f = o.shaft_frequency(shaft, p, sun_speed_hz=float(settings["sun_speed_hz"]))
-        return o.angle_from_speed(n, sig.fs, f), "the simulated record's speed"
-    m1 = p.stage1.sun_teeth
-    f_sun = o.shaft_frequency("sun", p, output_speed_deg_s=1.0)  # per deg/s of output speed
-    f_rel = o.estimate_shaft_speed(x, sig.fs, m1, (1.0 * f_sun, 200.0 * f_sun))
-    f = f_rel / o.shaft_ratio("sun", p) * ratio
-    return (o.angle_from_speed(n, sig.fs, f),
-            f"estimated from the stage-1 mesh peak (order {m1} of the sun; {f_rel / f_sun:.4g} deg/s output)")
+        if any(v is not None for v in (output_speed, input_speed, tacho_channel, angle_channel, meta_regex)):
+            raise ParameterError("give one angle source: --rpm or another")
+        if not rpm > 0:
+            raise ParameterError(f"--rpm must be > 0, got {rpm}")
+        input_speed = rpm / ratio
+    spec = AngleSpec(angle_channel=angle_channel, tacho_channel=tacho_channel, ppr=ppr, input_speed_rpm=input_speed,
+                     output_speed_deg_s=output_speed, meta_regex=meta_regex,
+                     speed_range_rpm=parse_speed_range(speed_range))
+    got = input_revolutions(sig, spec, p, fs)
+    if rpm is not None:
+        return got.revs * ratio, "shaft-rpm", f"{rpm:g} rev/min of the {shaft} shaft"
+    return got.revs * ratio, got.source, got.detail
 
 
 def _plot(res, path: Path, title: str, top: float) -> None:
@@ -110,9 +90,17 @@ def register(app: typer.Typer) -> None:
         rpm: Optional[float] = typer.Option(None, "--rpm", help="Speed of the analysed shaft itself, rev/min."),
         tacho_channel: Optional[str] = typer.Option(None, "--tacho-channel",
                                                     help="Regex of a tachometer pulse channel on the input shaft."),
-        ppr: Optional[int] = typer.Option(None, "--ppr", help="Tachometer pulses per input revolution (default 1)."),
+        ppr: Optional[int] = typer.Option(None, "--ppr", help="Tachometer pulses per input revolution (default 1); "
+                                          "with --angle-channel, the counts per revolution of an angle counter."),
         angle_channel: Optional[str] = typer.Option(None, "--angle-channel",
-                                                    help="Regex of an input-shaft angle channel (rad)."),
+                                                    help="Regex of an input-shaft angle channel (rad, or counts "
+                                                         "with --ppr)."),
+        meta_regex: Optional[str] = typer.Option(None, "--meta-regex",
+                                                 help="Regex on the file name with a group (?P<rpm>...) (input "
+                                                      "rev/min) or (?P<speed_dps>...) (output deg/s)."),
+        speed_range: Optional[str] = typer.Option(None, "--speed-range",
+                                                  help="MIN:MAX plausible input speed, rev/min (default 1:10000); "
+                                                       "an angle outside it is an error."),
         channel: str = opt.channel(),
         fs: float = opt.fs("Sampling rate in Hz (overrides the file's)."),
         params: Optional[Path] = opt.params(),
@@ -133,8 +121,9 @@ def register(app: typer.Typer) -> None:
         sig = read_signal(file, channel, fs)
         if sig.fs is None:
             raise ParameterError(f"{file} states no sampling rate: give --fs")
-        revs, source = _angle(sig, shaft, p, output_speed=output_speed, input_speed=input_speed, rpm=rpm,
-                              tacho_channel=tacho_channel, ppr=ppr, angle_channel=angle_channel, fs=fs)
+        revs, source_key, source = _angle(sig, shaft, p, output_speed=output_speed, input_speed=input_speed, rpm=rpm,
+                                          tacho_channel=tacho_channel, ppr=ppr, angle_channel=angle_channel,
+                                          meta_regex=meta_regex, speed_range=speed_range, fs=fs)
         res = o.analyse(sig.data, sig.fs, revs, shaft, p, samples_per_rev)
         top = min(4.5 * res["mesh_order"], res["samples_per_rev"] * 0.45)
         keep = res["orders"] <= top
@@ -144,7 +133,8 @@ def register(app: typer.Typer) -> None:
         if as_json:
             ekeep = res["envelope_orders"] <= top
             typer.echo(json.dumps({
-                "shaft": shaft, "shaft_hz": res["shaft_hz"], "angle_source": source,
+                "shaft": shaft, "shaft_hz": res["shaft_hz"], "angle_source": source_key, "angle_detail": source,
+                "span_s": [res["span"][0] / sig.fs, res["span"][1] / sig.fs],
                 "samples_per_rev": res["samples_per_rev"], "n_revolutions": res["n_revolutions"],
                 "mesh_order": res["mesh_order"], "fault_orders": res["fault_orders"],
                 "orders": res["orders"][keep].tolist(), "amplitude": res["amplitude"][keep].tolist(),
@@ -159,6 +149,9 @@ def register(app: typer.Typer) -> None:
 
         con = Console(width=110)
         con.print(title)
+        if res["span"] != (0, sig.data.size):
+            con.print(f"analysed {res['span'][0] / sig.fs:.4g}-{res['span'][1] / sig.fs:.4g} s, where the shaft "
+                      "turns at half its peak speed or more")
         con.print(f"{res['n_revolutions']} revolutions x {res['samples_per_rev']} samples; mesh order "
                   f"{res['mesh_order']}")
         fo = Table(title="fault orders")
