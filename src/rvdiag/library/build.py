@@ -90,17 +90,22 @@ class Unit:
     mounting: Mapping[str, float] = field(default_factory=dict)
     #: colour of the added noise (PSD ~ 1 / f^beta), ``None`` = white
     noise_exponent: float | None = None
-    #: ``[profile]`` draws (empty without ``[profile]``): ``profile`` (0 constant, 1 trapezoid), ``accel_deg_s2``
-    #: (``None`` at constant speed), ``arm_mass_kg``, ``arm_length_m``, ``arm_angle_deg``
+    #: ``[profile]`` draws (empty without ``[profile]``): ``profile`` (0 constant, 1 trapezoid, 2 S-curve),
+    #: ``accel_deg_s2`` (``None`` at constant speed), ``arm_mass_kg``, ``arm_length_m``, ``arm_angle_deg``, and with
+    #: S-curves in the config ``jerk_deg_s3`` (``None`` unless an S-curve)
     profile: Mapping[str, float | None] = field(default_factory=dict)
 
     def speed_profile(self, transient_s: float) -> Any:
-        """The unit's :class:`rvdiag.dynamics.profile.SpeedProfile` (``None`` at constant speed): a trapezoid
-        from rest at the start of the run-in (``-transient_s``) to rest at the end of the record."""
-        if not self.profile.get("profile"):
+        """The unit's :class:`rvdiag.dynamics.profile.SpeedProfile` (``None`` at constant speed): a trapezoid or
+        an S-curve from rest at the start of the run-in (``-transient_s``) to rest at the end of the record."""
+        kind = self.profile.get("profile")
+        if not kind:
             return None
         from rvdiag.dynamics.profile import SpeedProfile
 
+        if kind == 2:
+            return SpeedProfile("scurve", float(self.speed), float(self.profile["accel_deg_s2"]), None,
+                                -float(transient_s), float(self.profile["jerk_deg_s3"]))
         return SpeedProfile("trapezoid", float(self.speed), float(self.profile["accel_deg_s2"]), None,
                             -float(transient_s))
 
@@ -158,11 +163,15 @@ def make_plan(cfg: LibraryConfig) -> list[Unit]:
 def _draw_profile(prof: Any, rng: np.random.Generator) -> dict[str, float | None]:
     """The ``[profile]`` draws of one unit, after every other draw and always the same number of them (the
     acceleration is drawn at constant speed too, and recorded as ``None``), so that streams stay aligned."""
-    trapezoid = bool(rng.random() < prof.trapezoid_fraction)
+    u = rng.random()  # one draw picks the kind: [0, trapezoid_fraction) a trapezoid, then the S-curve's share
+    kind = 1 if u < prof.trapezoid_fraction else (2 if u < prof.trapezoid_fraction + prof.scurve_fraction else 0)
     accel = None if prof.accel_deg_s2 is None else float(prof.accel_deg_s2.draw(rng))
-    out: dict[str, float | None] = {"profile": int(trapezoid), "accel_deg_s2": accel if trapezoid else None}
+    out: dict[str, float | None] = {"profile": kind, "accel_deg_s2": accel if kind else None}
     for key in ARM_KEYS:
         out[key] = float(prof.arm[key].draw(rng)) if key in prof.arm else 0.0
+    if prof.jerk_deg_s3 is not None:  # drawn last, and only by configs with S-curves: older ones keep their units
+        jerk = float(prof.jerk_deg_s3.draw(rng))
+        out["jerk_deg_s3"] = jerk if kind == 2 else None
     return out
 
 
