@@ -33,6 +33,7 @@ cut into segments of ``segment_length`` points every ``hop`` points.
 from __future__ import annotations
 
 import importlib
+import math
 import os
 import time
 from contextlib import contextmanager
@@ -94,6 +95,21 @@ class Unit:
     #: ``accel_deg_s2`` (``None`` at constant speed), ``arm_mass_kg``, ``arm_length_m``, ``arm_angle_deg``, and with
     #: S-curves in the config ``jerk_deg_s3`` (``None`` unless an S-curve)
     profile: Mapping[str, float | None] = field(default_factory=dict)
+    #: ``[randomise]`` draws of the accelerometer (:data:`rvdiag.library.config.SENSOR_KEYS`): ``sensor_position_deg``
+    #: and/or ``sensor_direction_deg`` (empty without them)
+    sensor: Mapping[str, float] = field(default_factory=dict)
+
+    def sensor_geometry(self, radius_m: float) -> tuple[tuple[float, float] | None, tuple[float, float]]:
+        """``(sensor point (x, y) in m or None for the model's default, unit sensing direction (dx, dy))`` of the
+        unit's drawn accelerometer on a housing of outer radius ``radius_m``: the point at the drawn position
+        angle phi on that radius, the direction at phi + the drawn direction angle psi (from the outward radial),
+        so position 0 and direction 0 / 90 deg give the model's default point and its x / y channel."""
+        phi = math.radians(float(self.sensor.get("sensor_position_deg", 0.0)))
+        psi = math.radians(float(self.sensor.get("sensor_direction_deg", 0.0)))
+        point = None
+        if "sensor_position_deg" in self.sensor:
+            point = (radius_m * math.cos(phi), radius_m * math.sin(phi))
+        return point, (math.cos(phi + psi), math.sin(phi + psi))
 
     def speed_profile(self, transient_s: float) -> Any:
         """The unit's :class:`rvdiag.dynamics.profile.SpeedProfile` (``None`` at constant speed): a trapezoid or
@@ -154,8 +170,9 @@ def make_plan(cfg: LibraryConfig) -> list[Unit]:
             mounting = {key: float(sw.draw(rng)) for key, sw in cfg.path.items()}
             colour = None if cfg.noise_colour_exponent is None else float(cfg.noise_colour_exponent.draw(rng))
             profile = {} if cfg.profile is None else _draw_profile(cfg.profile, rng)
+            sensor = {key: float(sw.draw(rng)) for key, sw in cfg.sensor.items()}  # last: older configs unchanged
             units.append(Unit(u, state, k, seeds[u], severity, speed, load, snr, scales, split,
-                              cfg.rows_per_simulation(state), mounting, colour, profile))
+                              cfg.rows_per_simulation(state), mounting, colour, profile, sensor))
             u += 1
     return units
 
@@ -255,6 +272,18 @@ def _channel(result: Any, channel: int | str) -> np.ndarray:
     return sig[channel]
 
 
+def project_sensor(result: Any, direction: tuple[float, float]) -> np.ndarray:
+    """The acceleration along the unit vector ``direction`` from the simulator's first two channels, taken as the
+    housing acceleration along x and y at the sensor point: ``dx a_x + dy a_y`` (the dynamic model's channel for
+    a sensor direction, docs/model.md section 6, is this projection; the sensor path filter is linear, so
+    projecting after it is the same)."""
+    sig = np.asarray(result.signal, dtype=np.float64)
+    if sig.ndim != 2 or sig.shape[0] < 2:
+        raise ConfigError("[randomise] sensor_direction_deg needs a simulator that returns the x and y channels "
+                          f"(2 or more), got shape {sig.shape}")
+    return float(direction[0]) * sig[0] + float(direction[1]) * sig[1]
+
+
 def segment_starts(n_points: int, length: int, hop: int) -> np.ndarray:
     """Start index of every segment of ``length`` points every ``hop`` points in ``n_points``."""
     return np.arange(0, n_points - length + 1, hop, dtype=np.int64)
@@ -298,6 +327,12 @@ def run_unit(unit: Unit, job: Job) -> UnitResult:
     fault = spec if getattr(sim, "accepts_fault_spec", False) else spec.to_tooth_faults()
     _, sim_ss, noise_ss, split_ss = _streams(unit.seed)
     sim_seed = int(sim_ss.generate_state(1, np.uint32)[0])
+    model = dict(job.model)
+    direction = None
+    if unit.sensor:
+        point, direction = unit.sensor_geometry(params.bodies.pin_wheel_outer_radius)
+        if point is not None:
+            model["sensor_point_m"] = list(point)
     profiles: dict[str, Any] = {}
     if unit.profile:  # passed only when drawn: a simulator without profiles keeps working on other configs
         speed_profile, load_profile = unit.speed_profile(job.transient_s), unit.load_profile()
@@ -307,11 +342,11 @@ def run_unit(unit: Unit, job: Job) -> UnitResult:
             profiles["load_profile"] = load_profile
     result = sim(
         params, fault, **{job.speed_key: unit.speed}, load_Nm=unit.load_Nm, duration_s=job.duration_s,
-        transient_s=job.transient_s, fs=job.fs, seed=sim_seed, model=dict(job.model), **profiles,
+        transient_s=job.transient_s, fs=job.fs, seed=sim_seed, model=model, **profiles,
     )
     if abs(float(getattr(result, "fs", job.fs)) - job.fs) > 1e-9 * job.fs:
         raise SimulationError(f"simulator returned fs = {result.fs} Hz, asked for {job.fs} Hz")
-    x = _channel(result, job.channel)
+    x = _channel(result, job.channel) if direction is None else project_sensor(result, direction)
     del result  # keep only the one channel
     if x.shape[0] < job.samples_per_signal:
         raise SimulationError(f"simulator returned {x.shape[0]} points, expected {job.samples_per_signal}")
@@ -358,6 +393,8 @@ def run_unit(unit: Unit, job: Job) -> UnitResult:
         meta["mounting." + name] = [value] * rows
     if unit.noise_exponent is not None:
         meta["noise_colour_exponent"] = [unit.noise_exponent] * rows
+    for name, value in unit.sensor.items():
+        meta[name] = [value] * rows
     if job.profile_columns:
         for key, value in unit.profile.items():
             meta[key] = [value] * rows

@@ -96,6 +96,14 @@ PATH_KEYS: dict[str, tuple[float, float]] = {
     "path_damping_ratio": (1e-3, 1.0),
     "housing_added_mass": (0.0, 200.0),
 }
+#: ``[randomise]`` keys of the housing accelerometer drawn per simulation (domain randomisation of the sensor),
+#: degrees: its position around the housing (on the pin-wheel outer radius, from the model's default point on the
+#: x axis, counter-clockwise) and its sensing direction (from the outward radial direction at that point,
+#: counter-clockwise: 0 radial, 90 tangential; at position 0 these are x and y)
+SENSOR_KEYS: dict[str, tuple[float, float]] = {
+    "sensor_position_deg": (-360.0, 360.0),
+    "sensor_direction_deg": (-360.0, 360.0),
+}
 #: Parameters scaled by ``[randomise] damping_pct``.
 DAMPING_KEYS: tuple[tuple[str, str], ...] = (
     ("damping", "mesh_damping_ratio"),
@@ -108,7 +116,7 @@ _SECTION_KEYS = {
     "signal": {"fs", "duration_s", "transient_s", "segment_length", "hop"},
     "operation": {"input_speed_rpm", "output_speed_deg_s", "load_Nm", "noise_snr_db"},
     "randomise": {"stiffness_pct", "damping_pct", "path_resonance_hz", "path_damping_ratio", "housing_added_mass",
-                  "noise_colour_exponent"},
+                  "noise_colour_exponent", "sensor_position_deg", "sensor_direction_deg"},
     "profile": {"trapezoid_fraction", "scurve_fraction", "accel_deg_s2", "jerk_deg_s3", "arm_mass_kg",
                 "arm_length_m", "arm_angle_deg"},
     "split": {"train_per_state", "test_per_state", "assign",
@@ -335,6 +343,8 @@ class LibraryConfig:
     noise_colour_exponent: Sweep | None = None
     #: the ``[profile]`` table, ``None`` when the config has none (constant speed and load)
     profile: ProfileConfig | None = None
+    #: ``[randomise]`` draws of the accelerometer's position and direction (:data:`SENSOR_KEYS`), key -> sweep
+    sensor: Mapping[str, Sweep] = field(default_factory=dict)
     train_per_state: int = 0
     test_per_state: int = 0
     assign: str = "random"
@@ -483,6 +493,20 @@ class LibraryConfig:
             if not 0.0 <= pct[key] < 100.0:
                 raise ConfigError(f"{w} {key}: must lie in [0, 100) percent, got {pct[key]:g}")
         path = _bounded_sweeps(rnd, PATH_KEYS, w)
+        sensor = _bounded_sweeps(rnd, SENSOR_KEYS, w)
+        if sensor:
+            for key in ("sensor_point_m", "sensor_directions"):
+                if key in model:
+                    raise ConfigError(f"{w} {next(iter(sensor))}: the sensor is drawn per simulation; remove [model] "
+                                      f"{key}")
+            if model.get("signal", "vibration") != "vibration":
+                raise ConfigError(f"{w} {next(iter(sensor))}: a motor-current library has no accelerometer")
+            if "channel" in data:
+                raise ConfigError(f"{w} {next(iter(sensor))}: the channel is the drawn direction (the projection of "
+                                  "the simulator's x and y channels); remove channel")
+            if "sensor_position_deg" in sensor and data.get("simulator", DEFAULT_SIMULATOR) != DEFAULT_SIMULATOR:
+                raise ConfigError(f"{w} sensor_position_deg: moves the dynamic model's sensor point ([model] "
+                                  f"sensor_point_m); the simulator must be {DEFAULT_SIMULATOR}")
         colour = None
         if "noise_colour_exponent" in rnd:
             colour = Sweep.parse(rnd["noise_colour_exponent"], f"{w} noise_colour_exponent")
@@ -577,7 +601,7 @@ class LibraryConfig:
             name=name, mode=mode, seed=seed, fs=fs, duration_s=duration_s, transient_s=transient_s,
             segment_length=segment_length, hop=hop, states=states, speed_key=speed_key, speed=speed,
             load_Nm=load, noise_snr_db=noise, stiffness_pct=pct["stiffness_pct"], damping_pct=pct["damping_pct"],
-            path=path, noise_colour_exponent=colour, profile=profile, simulator=simulator, params=params, channel=channel, model=model, source=source, **kw,
+            path=path, noise_colour_exponent=colour, profile=profile, sensor=sensor, simulator=simulator, params=params, channel=channel, model=model, source=source, **kw,
         )
 
     # ------------------------------------------------------------------ output
@@ -621,6 +645,8 @@ class LibraryConfig:
             out[key] = sweep.to_toml()
         if self.noise_colour_exponent is not None:
             out["noise_colour_exponent"] = self.noise_colour_exponent.to_toml()
+        for key, sweep in self.sensor.items():  # only when drawn: older configs keep their hash
+            out[key] = sweep.to_toml()
         return out
 
     def replace(self, **changes: Any) -> "LibraryConfig":
