@@ -46,6 +46,29 @@ def _angle(sig, shaft, p, *, output_speed, input_speed, rpm, tacho_channel, ppr,
     return got.revs * ratio, got.source, got.detail
 
 
+def _planetary(sig, input_revs, res, shaft, p, sensor_angle, planet_window):
+    """(modulation indicators and phase of the shaft's TSA, planet TSAs or None, why None) of ``rvdiag orders``."""
+    from rvdiag.features import planetary as pl
+
+    spacing = pl.sideband_spacing(shaft, p)
+    mod = pl.modulation_indicators(res["tsa"], res["mesh_order"], spacing)
+    mod.update(harmonic=1, sideband_spacing=spacing, phase=pl.phase_demodulation(res["tsa"], res["mesh_order"])[0])
+    a, b = res["span"]
+    if planet_window is not None and not 0 < planet_window <= 360:
+        raise ParameterError(f"--planet-window must lie in (0, 360] deg, got {planet_window:g}")
+    try:
+        planets = pl.planet_tsa(sig.data[a:b], sig.fs, input_revs[a:b], p, sensor_angle_deg=sensor_angle,
+                                width_deg=planet_window)
+    except ParameterError as exc:
+        return mod, None, f"the record is too short for the planets' crank ({exc})"
+    planets.update(sensor_angle_deg=float(sensor_angle),
+                   window_deg=float(planet_window if planet_window is not None else 720.0 / planets["n_planets"]))
+    missing = [q["planet"] for q in planets["planets"] if q["tsa"] is None]
+    note = (f"planet(s) {', '.join(map(str, missing))} never reach one revolution of window weight: a longer record "
+            "(the carrier must bring each planet past the sensor)") if missing else None
+    return mod, planets, note
+
+
 def _plot(res, path: Path, title: str, top: float) -> None:
     import matplotlib
 
@@ -106,6 +129,13 @@ def register(app: typer.Typer) -> None:
         params: Optional[Path] = opt.params(),
         samples_per_rev: Optional[int] = typer.Option(None, "--samples-per-rev",
                                                       help="Angular samples per revolution (default: automatic)."),
+        sensor_angle: float = typer.Option(0.0, "--sensor-angle",
+                                           help="The sensor's angle around the housing from planet 0's position at "
+                                                "the record's first sample, deg (a simulated record: from the x "
+                                                "axis), for the planet windows."),
+        planet_window: Optional[float] = typer.Option(None, "--planet-window",
+                                                      help="Width of each planet's Hann window in carrier angle, deg "
+                                                           "(default 720 / planets: the windows sum to 1)."),
         plot: Optional[Path] = typer.Option(None, "--plot", help="Write a PNG: spectra with fault orders, TSA."),
         as_json: bool = opt.json_flag("Print shaft, orders, amplitude, indicators (and more) as JSON."),
     ) -> None:
@@ -125,6 +155,8 @@ def register(app: typer.Typer) -> None:
                                           tacho_channel=tacho_channel, ppr=ppr, angle_channel=angle_channel,
                                           meta_regex=meta_regex, speed_range=speed_range, fs=fs)
         res = o.analyse(sig.data, sig.fs, revs, shaft, p, samples_per_rev)
+        mod, planets, planets_note = _planetary(sig, revs / o.shaft_ratio(shaft, p), res, shaft, p, sensor_angle,
+                                                planet_window)
         top = min(4.5 * res["mesh_order"], res["samples_per_rev"] * 0.45)
         keep = res["orders"] <= top
         title = f"{file.name} [{sig.channel}], {shaft} shaft {res['shaft_hz']:.4g} Hz ({source})"
@@ -140,12 +172,17 @@ def register(app: typer.Typer) -> None:
                 "orders": res["orders"][keep].tolist(), "amplitude": res["amplitude"][keep].tolist(),
                 "envelope_orders": res["envelope_orders"][ekeep].tolist(),
                 "envelope_amplitude": res["envelope_amplitude"][ekeep].tolist(),
-                "tsa": res["tsa"].tolist(), "indicators": res["indicators"]}))
+                "tsa": res["tsa"].tolist(), "indicators": res["indicators"],
+                "modulation": {**mod, "phase": mod["phase"].tolist()},
+                "planets": None if planets is None else {**planets, "planets": [
+                    {**q, "tsa": None if q["tsa"] is None else q["tsa"].tolist()} for q in planets["planets"]]},
+                "planets_note": planets_note}))
             return
         from rich.console import Console
         from rich.table import Table
 
         from rvdiag.features.orders import INDICATORS
+        from rvdiag.features.planetary import MODULATION_INDICATORS
 
         con = Console(width=110)
         con.print(title)
@@ -167,6 +204,23 @@ def register(app: typer.Typer) -> None:
         table.add_column("signal")
         for k, v in res["indicators"].items():
             table.add_row(k, f"{v:.4g}", INDICATORS[k])
+        for k, v in mod.items():
+            if k in MODULATION_INDICATORS:
+                table.add_row(k, f"{v:.4g}", MODULATION_INDICATORS[k] + f" (harmonic {mod['harmonic']}, +- "
+                              f"{mod['sideband_spacing']} orders)")
         con.print(table)
+        if planets is None:
+            con.print(f"no planet TSA: {planets_note}")
+        else:
+            pt = Table(title=f"planet TSA (McFadden 1994 windows; stage-1 mesh order {planets['mesh_order']} of the "
+                             f"crank, {planets['n_revolutions']} crank revolutions)")
+            shown = ("fm0", "fm4", "na4", "nb4", "m6a", "energy_ratio")  # all of them in --json
+            for col in ("planet", "passes", "weight (rev)", *shown):
+                pt.add_column(col, justify="right", no_wrap=True)
+            for q in planets["planets"]:
+                vals = ["-"] * len(shown) if q["indicators"] is None else \
+                    [f"{q['indicators'][k]:.4g}" for k in shown]
+                pt.add_row(f"planet {q['planet']}", str(q["passes"]), f"{q['weight_revs']:.3g}", *vals)
+            con.print(pt)
         if plot is not None:
             con.print(f"wrote {plot}")

@@ -39,8 +39,8 @@ diagnostics and prognostics", Proc. 54th MFPT, 2000), Zakrajsek, Townsend & Deck
 and Randall, *Vibration-based Condition Monitoring* (Wiley, 2011), ch. 5.  For a planetary stage the TSA of
 the sun relative to the carrier mixes the planets' meshes; McFadden's windowed vibration separation (McFadden,
 "Window functions for the calculation of the time domain averages of the vibration of the individual planet
-gears and sun gear in an epicyclic gearbox", J. Vib. Acoust. 116 (1994) 179-187) would give one TSA per planet;
-it is not implemented here.
+gears and sun gear in an epicyclic gearbox", J. Vib. Acoust. 116 (1994) 179-187) gives one TSA per planet:
+:func:`rvdiag.features.planetary.planet_tsa`.
 """
 
 from __future__ import annotations
@@ -223,11 +223,15 @@ def tsa(xa, samples_per_rev: int) -> np.ndarray:
     return xa[: n * samples_per_rev].reshape(n, samples_per_rev).mean(axis=0)
 
 
-def _orders_of(n: int, mesh: int, shaft_orders: int, mesh_harmonics: int | None):
-    """Index arrays of the shaft orders, mesh harmonics and first-order sidebands below the TSA's Nyquist."""
+def _orders_of(n: int, mesh: int, shaft_orders: int, mesh_harmonics: int | None, extra_meshes: Sequence[int] = ()):
+    """Index arrays of the shaft orders, mesh harmonics (of ``mesh`` and of every ``extra_meshes``) and their
+    first-order sidebands below the TSA's Nyquist."""
     top = n // 2 - (1 if n % 2 == 0 else 0)
-    H = top // mesh if mesh_harmonics is None else int(mesh_harmonics)
-    mh = np.arange(1, H + 1) * mesh
+    parts = []
+    for m in (mesh, *extra_meshes):
+        H = top // m if mesh_harmonics is None else int(mesh_harmonics)
+        parts.append(np.arange(1, H + 1) * m)
+    mh = np.unique(np.concatenate(parts))
     mh = mh[mh <= top]
     sh = np.arange(1, int(shaft_orders) + 1)
     sb = np.concatenate([mh - 1, mh + 1])
@@ -235,11 +239,13 @@ def _orders_of(n: int, mesh: int, shaft_orders: int, mesh_harmonics: int | None)
     return sh[sh <= top], mh, sb
 
 
-def gear_signals(t, mesh: int, shaft_orders: int = 2, mesh_harmonics: int | None = None) -> dict:
+def gear_signals(t, mesh: int, shaft_orders: int = 2, mesh_harmonics: int | None = None,
+                 extra_meshes: Sequence[int] = ()) -> dict:
     """The TSA ``t`` of one revolution and its regular, residual and difference signals (Lebold et al. 2000).
 
     - regular: shaft orders 1..``shaft_orders``, mesh harmonics k ``mesh`` (k = 1..``mesh_harmonics``, default all
-      below the TSA's Nyquist order) and their first-order sidebands k ``mesh`` +- 1;
+      below the TSA's Nyquist order) and their first-order sidebands k ``mesh`` +- 1, and the same for each of
+      ``extra_meshes`` (another mesh on the same shaft, e.g. the stage-2 mesh Zc on a crank);
     - residual: TSA minus the shaft orders and the mesh harmonics (the sidebands stay);
     - difference: TSA minus the regular signal.
     All have their mean removed.  Also returns the one-sided amplitude spectrum ``amplitude`` (index = order).
@@ -250,7 +256,7 @@ def gear_signals(t, mesh: int, shaft_orders: int = 2, mesh_harmonics: int | None
         raise ParameterError(f"mesh order must be an integer in 1..{n // 2 - 1} (the TSA has {n} points), got {mesh}")
     T = np.fft.rfft(t)
     T[0] = 0
-    sh, mh, sb = _orders_of(n, int(mesh), shaft_orders, mesh_harmonics)
+    sh, mh, sb = _orders_of(n, int(mesh), shaft_orders, mesh_harmonics, tuple(int(m) for m in extra_meshes))
     keep_reg = np.zeros(T.size, bool)
     keep_reg[np.concatenate([sh, mh, sb]).astype(int)] = True
     keep_sm = np.zeros(T.size, bool)
@@ -302,7 +308,7 @@ def mesh_band_envelope(t, mesh: int) -> np.ndarray:
 
 
 def condition_indicators(t, mesh: int, shaft_orders: int = 2, mesh_harmonics: int | None = None,
-                         history: dict | None = None) -> dict[str, float]:
+                         history: dict | None = None, extra_meshes: Sequence[int] = ()) -> dict[str, float]:
     """The gear condition indicators of the TSA ``t`` of one revolution (:data:`INDICATORS`).
 
     ===================== ==================================================== ======================================
@@ -322,9 +328,10 @@ def condition_indicators(t, mesh: int, shaft_orders: int = 2, mesh_harmonics: in
     d is the difference signal, r the residual signal, A(k) the one-sided amplitude of order k of the TSA, PP the
     peak-to-peak value.  ``history``: a dict carried across the records of a run (pass the same, initially empty,
     dict for each record) for the running-average denominators of NA4 and NB4; without it both are the
-    normalised kurtosis of the one record.
+    normalised kurtosis of the one record.  ``extra_meshes``: other meshes whose harmonics are regular too
+    (:func:`gear_signals`; FM0 sums the harmonics of every mesh, the sideband indicators use ``mesh``).
     """
-    s = gear_signals(t, mesh, shaft_orders, mesh_harmonics)
+    s = gear_signals(t, mesh, shaft_orders, mesh_harmonics, extra_meshes)
     A = s["amplitude"]
     tt, d, r, reg = s["tsa"], s["difference"], s["residual"], s["regular"]
     mh = A[s["mesh_harmonics"]].sum()
