@@ -262,3 +262,52 @@ def test_from_files_bad_pulses_one_line_exit_2_nothing_written(tmp_path, capsys)
     code, _, err = run_cli(["dataset", "from-files", d, "--label-regex", r"^(?P<label>[ab])", "-c", "^x$",
                             "--window", 2048, "--speed-range", "1:2", "-o", out, "-q"], capsys)
     assert code == 2 and "--speed-range and --params apply to an angle source" in err and not out.exists()
+
+
+# --------------------------------------------------------------------------- the cepstrum (unknown machine)
+def _comb(period=437.3, n=2**16, seed=3):
+    """Lines at harmonics of 1 / period samples: a mesh at order 25 with sidebands +-1, shaft orders 1, 2 and a
+    narrow pulse once per period (a local fault: every harmonic), random phases, in noise."""
+    rng = np.random.default_rng(seed)
+    k = np.arange(n) / period
+    x = 0.1 * rng.standard_normal(n)
+    for order, a in ((1, 0.2), (2, 0.1), (24, 0.3), (25, 1.0), (26, 0.3)):
+        x += a * np.cos(2 * np.pi * order * k + rng.uniform(0, 2 * np.pi))
+    d = (k - 0.4 + 0.5) % 1.0 - 0.5
+    return x + PULSE * np.exp(-0.5 * (d * period / 1.5) ** 2)
+
+
+PULSE = 2.0
+
+
+def test_cepstrum_finds_the_period_of_a_line_family():
+    for period in (437.3, 1021.77):
+        T, q0 = an.estimate_period_cepstrum(_comb(period))
+        assert abs(q0 - period) <= 1.0 and T == pytest.approx(period, abs=0.01)
+    with pytest.raises(ParameterError, match="period range"):
+        an.estimate_period_cepstrum(_comb(), (500, 400))
+    with pytest.raises(ParameterError, match="LO:HI"):
+        an.parse_period_range("64")
+    assert an.parse_period_range("64:") == (64, None) and an.parse_period_range("64:900") == (64, 900)
+
+
+def test_orders_with_the_cepstrum_and_a_mesh_order_of_another_machine(tmp_path, capsys):
+    f = tmp_path / "rig.npy"
+    np.save(f, _comb())
+    code, out, err = run_cli(["orders", f, "--fs", "1", "--cepstrum", "64:", "--mesh-order", "25", "--json"], capsys)
+    assert code == 0, err
+    res = json.loads(out)
+    assert res["angle_source"] == "cepstrum" and res["shaft_hz"] == pytest.approx(1 / 437.3, rel=3e-5)
+    assert res["mesh_order"] == 25 and res["fault_orders"] == {} and res["planets"] is None
+    tsa = np.array(res["tsa"])
+    amp = np.abs(np.fft.rfft(tsa)) * 2 / tsa.size
+    pulse = PULSE * 1.5 * np.sqrt(2 * np.pi) / 437.3 * 2  # the pulse's line at a low order, one-sided
+    assert amp[25] == pytest.approx(np.hypot(1.0, 0) + 0, abs=pulse + 0.02)
+    assert abs(amp[24] - 0.3) < pulse + 0.02 and abs(amp[3] - pulse) < 0.01
+    # the sidebands +-1 of the mesh: sideband index (A(24) + A(26)) / 2
+    assert res["indicators"]["sideband_index"] == pytest.approx(0.3, abs=pulse + 0.02)
+    for args, msg in ((["--cepstrum", "64:", "--input-speed", "900"], "--cepstrum is an angle source of its own"),
+                      (["--cepstrum", "9:3"], "expected LO:HI"),
+                      (["--cepstrum", "64:", "--mesh-order", "0"], "mesh order must be a positive integer")):
+        code, out, err = run_cli(["orders", f, "--fs", "1", *args], capsys)
+        assert code == 2 and out == "" and err.count("\n") == 1 and msg in err, (args, err)

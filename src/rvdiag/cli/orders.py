@@ -25,12 +25,23 @@ from rvdiag.errors import ParameterError
 
 
 def _angle(sig, shaft, p, *, output_speed, input_speed, rpm, tacho_channel, ppr, angle_channel, meta_regex,
-           speed_range, fs):
+           speed_range, fs, cepstrum=None):
     """(revolutions of ``shaft`` per sample, angle source key, how the angle was found)."""
     from rvdiag.features import orders as o
-    from rvdiag.io.angles import AngleSpec, input_revolutions, parse_speed_range
+    from rvdiag.io.angles import (AngleSpec, angle_from_speed, estimate_period_cepstrum, input_revolutions,
+                                  parse_period_range, parse_speed_range)
 
     ratio = o.shaft_ratio(shaft, p)  # analysed shaft per input revolution
+    if cepstrum is not None:
+        if any(v is not None for v in (output_speed, input_speed, rpm, tacho_channel, angle_channel, meta_regex,
+                                       speed_range)):
+            raise ParameterError("--cepstrum is an angle source of its own: give it alone (its period range is its "
+                                 "plausibility check)")
+        rng = parse_period_range(cepstrum)
+        period, q0 = estimate_period_cepstrum(sig.data, rng)
+        return (angle_from_speed(sig.data.size, sig.fs, sig.fs / period), "cepstrum",
+                f"one revolution = {period:.6g} samples: the real cepstrum's highest peak between {rng[0]} and "
+                f"{rng[1] or sig.data.size // 16} samples ({q0}), refined by harmonic summation")
     if rpm is not None:
         if any(v is not None for v in (output_speed, input_speed, tacho_channel, angle_channel, meta_regex)):
             raise ParameterError("give one angle source: --rpm or another")
@@ -46,16 +57,19 @@ def _angle(sig, shaft, p, *, output_speed, input_speed, rpm, tacho_channel, ppr,
     return got.revs * ratio, got.source, got.detail
 
 
-def _planetary(sig, input_revs, res, shaft, p, sensor_angle, planet_window):
-    """(modulation indicators and phase of the shaft's TSA, planet TSAs or None, why None) of ``rvdiag orders``."""
+def _planetary(sig, input_revs, res, shaft, p, sensor_angle, planet_window, generic=False):
+    """(modulation indicators and phase of the shaft's TSA, planet TSAs or None, why None) of ``rvdiag orders``;
+    ``generic``: another machine (``--mesh-order``): sidebands at +- 1 order, no planets."""
     from rvdiag.features import planetary as pl
 
-    spacing = pl.sideband_spacing(shaft, p)
+    spacing = 1 if generic else pl.sideband_spacing(shaft, p)
     mod = pl.modulation_indicators(res["tsa"], res["mesh_order"], spacing)
     mod.update(harmonic=1, sideband_spacing=spacing, phase=pl.phase_demodulation(res["tsa"], res["mesh_order"])[0])
     a, b = res["span"]
     if planet_window is not None and not 0 < planet_window <= 360:
         raise ParameterError(f"--planet-window must lie in (0, 360] deg, got {planet_window:g}")
+    if generic:
+        return mod, None, "--mesh-order: another machine than the reducer's planetary stage"
     try:
         planets = pl.planet_tsa(sig.data[a:b], sig.fs, input_revs[a:b], p, sensor_angle_deg=sensor_angle,
                                 width_deg=planet_window)
@@ -129,6 +143,15 @@ def register(app: typer.Typer) -> None:
         params: Optional[Path] = opt.params(),
         samples_per_rev: Optional[int] = typer.Option(None, "--samples-per-rev",
                                                       help="Angular samples per revolution (default: automatic)."),
+        cepstrum: Optional[str] = typer.Option(None, "--cepstrum",
+                                               help="LO:HI (or LO:) samples: the analysed shaft's period is the "
+                                                    "real cepstrum's highest peak in that range, refined by harmonic "
+                                                    "summation (a machine of unknown rate or geometry; with --fs 1 "
+                                                    "orders are cycles per sample)."),
+        mesh_order: Optional[int] = typer.Option(None, "--mesh-order",
+                                                 help="Mesh order of the analysed shaft for the indicators, instead "
+                                                      "of the reducer's (another machine: no reducer fault orders, "
+                                                      "no planets)."),
         sensor_angle: float = typer.Option(0.0, "--sensor-angle",
                                            help="The sensor's angle around the housing from planet 0's position at "
                                                 "the record's first sample, deg (a simulated record: from the x "
@@ -153,13 +176,15 @@ def register(app: typer.Typer) -> None:
             raise ParameterError(f"{file} states no sampling rate: give --fs")
         revs, source_key, source = _angle(sig, shaft, p, output_speed=output_speed, input_speed=input_speed, rpm=rpm,
                                           tacho_channel=tacho_channel, ppr=ppr, angle_channel=angle_channel,
-                                          meta_regex=meta_regex, speed_range=speed_range, fs=fs)
-        res = o.analyse(sig.data, sig.fs, revs, shaft, p, samples_per_rev)
+                                          meta_regex=meta_regex, speed_range=speed_range, fs=fs,
+                                          cepstrum=cepstrum)
+        res = o.analyse(sig.data, sig.fs, revs, shaft, p, samples_per_rev, mesh=mesh_order)
         mod, planets, planets_note = _planetary(sig, revs / o.shaft_ratio(shaft, p), res, shaft, p, sensor_angle,
-                                                planet_window)
+                                                planet_window, generic=mesh_order is not None)
         top = min(4.5 * res["mesh_order"], res["samples_per_rev"] * 0.45)
         keep = res["orders"] <= top
-        title = f"{file.name} [{sig.channel}], {shaft} shaft {res['shaft_hz']:.4g} Hz ({source})"
+        what = "the shaft" if mesh_order is not None else f"{shaft} shaft"
+        title = f"{file.name} [{sig.channel}], {what} {res['shaft_hz']:.4g} Hz ({source})"
         if plot is not None:
             _plot(res, plot, title, top)
         if as_json:
@@ -197,7 +222,8 @@ def register(app: typer.Typer) -> None:
         fo.add_column("envelope amplitude", justify="right")
         for k, v in res["fault_orders"].items():
             fo.add_row(k, f"{v:.4g}", f"{np.interp(v, res['envelope_orders'], res['envelope_amplitude']):.3g}")
-        con.print(fo)
+        if res["fault_orders"]:
+            con.print(fo)
         table = Table(title="condition indicators")
         table.add_column("indicator")
         table.add_column("value", justify="right")

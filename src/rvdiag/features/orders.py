@@ -416,13 +416,17 @@ def moving_span(revs, fs: float, fraction: float = 0.5) -> tuple[int, int]:
 
 
 def analyse(x, fs: float, revs, shaft: str = "sun", params=None, samples_per_rev: int | None = None,
-            shaft_orders: int = 2, mesh_harmonics: int | None = None, min_speed_fraction: float = 0.5) -> dict:
+            shaft_orders: int = 2, mesh_harmonics: int | None = None, min_speed_fraction: float = 0.5,
+            mesh: int | None = None) -> dict:
     """Resample, average and rate one record: the content of ``rvdiag orders`` (angle ``revs`` of ``shaft``).
 
     A record whose speed varies is first cut to its :func:`moving_span` at ``min_speed_fraction`` of the peak
-    speed (returned as ``span``, sample indices)."""
+    speed (returned as ``span``, sample indices).  ``mesh`` replaces the reducer's mesh order of ``shaft`` (another
+    machine: ``revs`` is then the revolutions of its shaft, and no reducer fault orders are listed)."""
     p = _params(params)
-    m = mesh_order(shaft, p)
+    if mesh is not None and not (isinstance(mesh, (int, np.integer)) and mesh >= 1):
+        raise ParameterError(f"the mesh order must be a positive integer, got {mesh!r}")
+    m = mesh_order(shaft, p) if mesh is None else int(mesh)
     revs = np.asarray(revs, dtype=np.float64)
     x = np.asarray(x, dtype=np.float64)
     span = moving_span(revs, fs, min_speed_fraction) if revs.size > 2 else (0, revs.size)
@@ -436,5 +440,5 @@ def analyse(x, fs: float, revs, shaft: str = "sun", params=None, samples_per_rev
     return {"shaft": shaft, "shaft_hz": float(speed), "samples_per_rev": int(spr), "n_revolutions": xa.size // spr,
             "span": span,
             "mesh_order": m, "tsa": t, "orders": orders, "amplitude": amp, "envelope_orders": eo,
-            "envelope_amplitude": ea, "fault_orders": fault_orders(shaft, p),
+            "envelope_amplitude": ea, "fault_orders": fault_orders(shaft, p) if mesh is None else {},
             "indicators": condition_indicators(t, m, shaft_orders, mesh_harmonics)}

@@ -56,7 +56,7 @@ SPEED_GROUPS = ("rpm", "speed_dps")
 #: the ``angle_source`` keys (the ``--json`` output of ``rvdiag orders``, the ``angle_source`` column of
 #: ``rvdiag dataset from-files``)
 ANGLE_SOURCES = ("angle-channel", "counter", "tacho", "stored-angle", "meta", "input-speed", "output-speed",
-                 "shaft-rpm", "record-speed", "estimate")
+                 "shaft-rpm", "record-speed", "estimate", "cepstrum")
 
 
 # --------------------------------------------------------------------------- constant speed
@@ -221,6 +221,59 @@ def estimate_shaft_speed(x, fs: float, order: float, speed_range: tuple[float, f
     den = a - 2 * b + c
     delta = 0.5 * (a - c) / den if den < 0 else 0.0
     return (k + float(np.clip(delta, -0.5, 0.5))) * df / order
+
+
+def estimate_period_cepstrum(x, period_range: tuple[int, int | None] = (64, None)) -> tuple[float, int]:
+    """``(period, cepstrum peak)`` in samples of the strongest family of equally spaced spectral lines of ``x``
+    (harmonics and sidebands of one shaft, or of the common period of several), for a machine whose sampling
+    rate or geometry is unknown.
+
+    1. The real cepstrum c(q) = IFFT(log |X(f)|) of the Hann-windowed record (Randall, *Vibration-based
+       Condition Monitoring*, Wiley 2011, chapter 3, cepstrum analysis: a family of lines spaced 1/T gives rahmonics at q = k T):
+       its highest peak q0 between ``period_range`` (default 64 samples to a 16th of the record, so that a TSA
+       averages at least 16 periods).  The peaks of a line family's cepstrum repeat at every multiple of its
+       period (rahmonics), so when one at q0 / k (k = 2..16) reaches half the highest peak, q0 / k is taken:
+       the fundamental, the shortest synchronous period.
+    2. The period refined between q0 - 1 and q0 + 1 samples (the cepstrum's resolution) by harmonic summation:
+       the T that maximises sum_m |X(m / T)| over every harmonic m below 0.45 cycles per sample (Hermes,
+       "Measurement of pitch by subharmonic summation", J. Acoust. Soc. Am. 83 (1988) 257-264), the
+       amplitude read between bins by linear interpolation; every line of the family constrains T, the high
+       orders the most."""
+    x = np.asarray(x, dtype=np.float64).ravel()
+    n = x.size
+    lo, hi = period_range
+    hi = n // 16 if hi is None else int(hi)
+    lo = int(lo)
+    if not (2 <= lo < hi <= n // 2):
+        raise ParameterError(f"the period range must be 2 <= LO < HI <= {n // 2} samples (half the record), "
+                             f"got {lo}:{hi}")
+    A = np.abs(np.fft.rfft((x - x.mean()) * np.hanning(n)))
+    if not A.max() > 0:
+        raise ParameterError("the signal is constant: no period to find")
+    c = np.fft.irfft(np.log(A + 1e-12 * A.max()), n)
+    q0 = lo + int(np.argmax(c[lo:hi + 1]))
+    for k in range(16, 1, -1):  # the fundamental of the rahmonic family: its first rahmonic at q0 / k
+        j = int(round(q0 / k))
+        if j - 1 >= lo and c[j - 1:j + 2].max() >= 0.5 * c[q0]:
+            q0 = j - 1 + int(np.argmax(c[j - 1:j + 2]))
+            break
+    T = np.linspace(q0 - 1.0, q0 + 1.0, 2001)
+    m = np.arange(1, int(0.45 * (q0 - 1)) + 1)
+    bins = np.arange(A.size)
+    score = np.array([np.interp(m / t * n, bins, A).sum() for t in T])
+    return float(T[int(np.argmax(score))]), q0
+
+
+def parse_period_range(text: str) -> tuple[int, int | None]:
+    """``"LO:HI"`` or ``"LO:"`` (samples) -> (LO, HI or None)."""
+    lo, sep, hi = str(text).partition(":")
+    try:
+        out = (int(lo), int(hi) if hi.strip() else None)
+    except ValueError:
+        out = None
+    if not sep or out is None or out[0] < 2 or (out[1] is not None and out[1] <= out[0]):
+        raise ParameterError(f"--cepstrum {text!r}: expected LO:HI (or LO:) in samples with 2 <= LO < HI, e.g. 64:")
+    return out
 
 
 # --------------------------------------------------------------------------- checks
