@@ -48,6 +48,10 @@ def register(app: typer.Typer) -> None:
         params: Optional[Path] = opt.params(
             "Reducer parameter file (TOML) to build from instead of the config's `params` (e.g. what "
             "`rvdiag update` wrote); recorded in the store."),
+        seed: Optional[int] = typer.Option(
+            None, "--seed",
+            help="Seed instead of the config's: the same library drawn anew, e.g. a held-out test store of "
+                 "unseen simulations; recorded in the store."),
     ) -> None:
         """Build (or resume) the library of CONFIG into --out, in parallel on Dask.
 
@@ -67,6 +71,8 @@ def register(app: typer.Typer) -> None:
 
             ReducerParams.load(params)  # a bad file fails here, before anything is written
             cfg = cfg.replace(params=str(Path(params).resolve()))
+        if seed is not None:
+            cfg = cfg.replace(seed=seed)  # validated there: a negative seed is one ConfigError line
         if not quiet:
             typer.echo(cfg.describe(), err=True)
         try:
