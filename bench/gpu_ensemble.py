@@ -137,7 +137,8 @@ def ptx(args) -> dict:
             t0 = time.perf_counter()
             try:
                 code, _ = cuda.compile_ptx(kern.py_func, sig, cc=cc)
-                row = {"method": method, "layout": layout, "ptx_chars": len(code), "compile_s": time.perf_counter() - t0}
+                row = {"method": method, "layout": layout, "ptx_chars": len(code),
+                       "compile_s": time.perf_counter() - t0}
             except Exception as exc:  # noqa: BLE001 - report and go on with the other kernels
                 row = {"method": method, "layout": layout, "error": " ".join(str(exc).split())[:2000]}
             res["kernels"].append(row)

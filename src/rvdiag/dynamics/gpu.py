@@ -2,10 +2,10 @@
 
 One source for the CPU and the GPU.  numba compiles the Python functions of :mod:`rvdiag.dynamics.integrate`
 and :mod:`rvdiag.dynamics.kernels` twice: with ``numba.njit`` for the CPU, and, called from the CUDA kernel
-below, as device functions by numba's CUDA target (numba-cuda compiles an njit function that a ``cuda.jit``
-kernel calls from its Python source, with the same fast-math flags).  This module adds only that kernel: thread
-``i`` takes its own views of ensemble arrays (``A[i]`` or ``A[..., i]``) and makes one call of the integrator, exactly the
-call :func:`rvdiag.dynamics.integrate.integrate` makes per chunk.  The step loop, the step grid at the mesh-table
+below, as device functions by numba's CUDA target (which compiles an njit function that a ``cuda.jit`` kernel
+calls from its Python source).  This module adds only that kernel: thread ``i`` takes its own views of the
+ensemble's arrays (``A[i]`` or ``A[..., i]``) and makes one call of the integrator, exactly the call
+:func:`rvdiag.dynamics.integrate.integrate` makes per chunk.  The step loop, the step grid at the mesh-table
 events, the right-hand side and the instability checks are the CPU's code.
 
 Two memory layouts (``layout``): ``"first"``, the ensemble index first (each thread's arrays contiguous), and

@@ -100,7 +100,8 @@ def run_ensemble(units: list[Unit], job: Job, layout: str = "last") -> list[Unit
     return outcomes
 
 
-def ensemble_task(units: list[Unit], job: Job, layout: str = "last") -> tuple[list[UnitResult | RvdiagError], str | None]:
+def ensemble_task(units: list[Unit], job: Job,
+                  layout: str = "last") -> tuple[list[UnitResult | RvdiagError], str | None]:
     """One ensemble as a (Dask) task: ``(outcomes of run_ensemble, None)``, or on a machine without a usable GPU
     the units run one by one on its CPU and the second item says why (the client warns once)."""
     from rvdiag.dynamics.gpu import unavailable_reason
