@@ -23,7 +23,8 @@ them in this process without Dask (debugging).  The client keeps at most one tas
 flight and fetches each result as soon as it completes (``as_completed``), so a worker never holds more
 than one simulation's signal; the client writes each result with :class:`rvdiag.datasets.StoreBuilder`,
 which commits the unit atomically.  Re-running the same build skips committed units (resume after a
-crash, SIGKILL or Ctrl-C); a store built from another config is refused.
+crash, SIGKILL or Ctrl-C); a store built from another config is refused.  ``device="cuda"`` integrates the units
+in ensembles on a GPU, one task per ensemble, and finishes each unit as here (:mod:`rvdiag.library.gpu`).
 
 Each unit's output: the kept signal (after ``transient_s``) of the configured channel, plus white Gaussian
 noise at the drawn SNR (``awgn(x, snr, 'measured')`` of MATLAB: noise power = mean(x^2) / 10^(SNR/10)),
