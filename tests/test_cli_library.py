@@ -157,3 +157,27 @@ def test_build_from_a_given_parameter_file_records_it(tmp_path, config_file, cap
                 "--params", str(bad)]) == 2
     assert "bad.toml" in one_error_line(capsys)
     assert not (tmp_path / "q.zarr").exists()
+
+
+def test_seed_option_draws_the_library_anew_and_is_recorded(tmp_path, config_file, capsys):
+    """``--seed`` replaces the config's seed: other draws (another store, refused as the first's resume), the
+    same draws as a config that states that seed; a bad seed is one error line."""
+    import numpy as np
+
+    from rvdiag.datasets import SampleStore
+
+    a, b = tmp_path / "a.zarr", tmp_path / "b.zarr"
+    assert run(["library", "build", str(config_file), "--out", str(a), "--workers", "0", "-q"]) == 0
+    assert run(["library", "build", str(config_file), "--out", str(b), "--workers", "0", "-q", "--seed", "4"]) == 0
+    same = tmp_path / "seed4.toml"
+    same.write_text(tomli_w.dumps({**CONFIG, "seed": 4}), encoding="utf-8")
+    c = tmp_path / "c.zarr"
+    assert run(["library", "build", str(same), "--out", str(c), "--workers", "0", "-q"]) == 0
+    xa, xb, xc = (SampleStore.open(p).load().X for p in (a, b, c))
+    assert not np.array_equal(xa, xb) and np.array_equal(xb, xc)
+    capsys.readouterr()
+    assert run(["library", "info", str(b), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["config"]["seed"] == 4
+    assert run(["library", "build", str(config_file), "--out", str(tmp_path / "d.zarr"), "--workers", "0", "-q",
+                "--seed", "-1"]) == 2
+    assert "seed" in one_error_line(capsys)

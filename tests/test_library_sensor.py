@@ -131,3 +131,34 @@ def test_a_moved_sensor_on_the_dynamic_model(tmp_path):
     want = at_top.signal[1, :240 * got.X.shape[0]].reshape(got.X.shape)
     np.testing.assert_allclose(got.X, want, rtol=1e-5, atol=1e-6 * np.abs(want).max())
     assert np.max(np.abs(at_side.signal[1] - at_top.signal[1])) > 0.01 * np.abs(at_top.signal[1]).max()
+
+
+def test_sensor_and_scurve_library_on_the_simulated_gpu_equals_the_cpu_build():
+    """The GPU path (`--device cuda`, under numba's CUDA simulator) prepares and finishes each unit as the CPU does:
+    a config with S-curves and a drawn sensor position and direction writes the CPU build's store, bit for bit."""
+    from test_gpu_ensemble import _in_simulator
+
+    data = {"mode": "independent", "seed": 5, "model": {"substeps": 4, "chunk_samples": 80},
+            "signal": {"fs": 48000.0, "duration_s": 0.004, "transient_s": 0.002, "segment_length": 64, "hop": 32},
+            "operation": {"output_speed_deg_s": {"min": 30.0, "max": 60.0}, "load_Nm": 50.0},
+            "randomise": {"sensor_position_deg": {"min": 0.0, "max": 360.0}, "sensor_direction_deg": [0.0, 90.0]},
+            "profile": {"scurve_fraction": 1.0, "accel_deg_s2": 1e5, "jerk_deg_s3": 1e8},
+            "split": {"simulations_per_state": 2}, "states": {"T1": {}, "T2": {"broken_fraction": 1.0}}}
+    res = _in_simulator(f"""
+        import json
+        import numpy as np
+        from rvdiag.datasets import SampleStore
+        from rvdiag.library import LibraryConfig, build_library
+        import tempfile, pathlib
+
+        tmp = pathlib.Path(tempfile.mkdtemp())
+        cfg = LibraryConfig.from_dict({data!r})
+        build_library(cfg, tmp / "cpu.zarr", workers=0, progress=False)
+        rep = build_library(cfg, tmp / "gpu.zarr", workers=0, progress=False, device="cuda", ensemble=4)
+        a, b = SampleStore.open(tmp / "cpu.zarr").load(), SampleStore.open(tmp / "gpu.zarr").load()
+        same = bool(np.array_equal(a.X, b.X) and sorted(a.meta) == sorted(b.meta) and all(
+            np.array_equal(a.meta[k], b.meta[k], equal_nan=a.meta[k].dtype.kind == "f") for k in a.meta))
+        print(json.dumps({{"device": rep.device, "same": same, "profiles": sorted(set(a.meta["profile"].tolist())),
+                          "positions": len(set(a.meta["sensor_position_deg"].tolist()))}}))
+    """)
+    assert res == {"device": "cuda", "same": True, "profiles": [2], "positions": 4}

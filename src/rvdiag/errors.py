@@ -56,3 +56,7 @@ class FallbackWarning(RvdiagWarning):
 
 class SplitLeakWarning(RvdiagWarning):
     """A train/test split lets one recording contribute to both sides: the test score is optimistic."""
+
+
+class DeviceWarning(RvdiagWarning):
+    """The compute device asked for cannot be used (no GPU, no CUDA support); the work runs on the CPU instead."""

@@ -17,6 +17,11 @@ the shaft, where the speed came from, the shaft frequency and the revolutions av
 first of ``--meta output_speed_deg_s=...`` (or ``input_speed_rpm=...``), the speed a simulated record states,
 and the stage-1 mesh peak of the spectrum, as ``rvdiag orders``; indicators that cannot be computed (no
 sampling rate, less than one revolution) leave ``indicators`` null and a WARNING, never a failed diagnosis.
+
+A model trained on a motor-current library (card ``training_store.signal == "current"``) reads the library's
+channel (e.g. ``i_a``) when the file has one of that name and ``--channel`` is not given, and shows the
+motor-current line table instead of the indicators (:func:`rvdiag.motor.lines.current_lines`: ``f_e``, ``f_e +- k
+f1``, ``|f_e +- f_sp|``, ``|f_e +- f_cs|``, ``5 f_e``; ``--json`` key ``current_lines``).
 """
 
 from __future__ import annotations
@@ -67,6 +72,49 @@ def file_indicators(sig, meta: dict[str, float] | None = None) -> dict:
             "indicators_source": {"shaft": "sun", "speed_source": what, "shaft_hz": res["shaft_hz"],
                                   "n_revolutions": int(res["n_revolutions"]),
                                   "samples_per_rev": int(res["samples_per_rev"])}}
+
+
+def _read_trained_channel(file: Path, channel: str | None, fs: float | None, trained_channel):
+    """A motor-current model's channel of ``file``: ``--channel`` when given, else the channel the library was
+    built from (e.g. ``i_a``) when the file has it by that exact name, else the file's only channel."""
+    import re
+
+    from rvdiag.io import read_signal
+    from rvdiag.io.readers import stated_channel
+
+    if channel is not None or not isinstance(trained_channel, str):
+        return read_signal(file, channel_regex=channel, fs=fs)
+    stated = stated_channel(file, trained_channel)  # an rvdiag simulate .npz names its rows
+    try:
+        return read_signal(file, channel_regex=f"^{re.escape(stated or trained_channel)}$", fs=fs)
+    except DataFileError:
+        try:
+            return read_signal(file, channel_regex=None, fs=fs)
+        except DataFileError as exc:
+            raise DataFileError(f"{exc}; the model was trained on the phase current {trained_channel!r}: "
+                                f"pick the file's channel with --channel") from None
+
+
+def file_current_lines(sig, meta: dict[str, float] | None = None) -> dict:
+    """The motor-current line table of ``sig`` (:func:`rvdiag.motor.lines.current_lines`): ``{"current_lines":
+    {...} or None, "current_lines_error": None or the reason}``.  The speed is ``--meta
+    output_speed_deg_s=...`` (or ``input_speed_rpm=...``), else the strongest line taken as ``f_e``."""
+    from rvdiag.errors import RvdiagError
+    from rvdiag.motor.lines import current_lines
+    from rvdiag.params import ReducerParams
+
+    meta = meta or {}
+    params = ReducerParams.default()
+    speed = meta.get(SPEED_META[0])
+    if speed is None and meta.get(SPEED_META[1]) is not None:
+        speed = float(meta[SPEED_META[1]]) / 60.0 / params.ratio * 360.0
+    try:
+        table = current_lines(np.asarray(sig.data, dtype=np.float64), sig.fs, params, output_speed_deg_s=speed)
+    except RvdiagError as exc:
+        return {"current_lines": None, "current_lines_error": str(exc)}
+    if speed is not None:
+        table["speed_source"] = "--meta " + (SPEED_META[0] if meta.get(SPEED_META[0]) is not None else SPEED_META[1])
+    return {"current_lines": table, "current_lines_error": None}
 
 
 def diagnose_signal(loaded, x: np.ndarray, fs: float | None, meta: dict[str, float] | None = None) -> dict:
@@ -130,13 +178,22 @@ def register(app: typer.Typer) -> None:
         from rvdiag.models.persistence import load_model
 
         loaded = load_model(model_dir)
-        sig = read_signal(file, channel_regex=channel, fs=fs)
+        trained = loaded.card.get("training_store") or {}
+        is_current = trained.get("signal") == "current"
+        sig = _read_trained_channel(file, channel, fs, trained.get("channel")) if is_current \
+            else read_signal(file, channel_regex=channel, fs=fs)
         values = _metadata_values(loaded, sig, meta)
         res = diagnose_signal(loaded, np.asarray(sig.data, dtype=np.float64), sig.fs, values)
-        res.update({"file": str(file), "channel": sig.channel, "model": str(model_dir)})
-        res.update(file_indicators(sig, values))
-        if res["indicators"] is None:
-            res["warnings"].append(f"WARNING: no gear condition indicators: {res['indicators_source']['error']}")
+        res.update({"file": str(file), "channel": sig.channel, "model": str(model_dir),
+                    "signal": "current" if is_current else "vibration"})
+        if is_current:
+            res.update(file_current_lines(sig, values))
+            if res["current_lines"] is None:
+                res["warnings"].append(f"WARNING: no current line table: {res['current_lines_error']}")
+        else:
+            res.update(file_indicators(sig, values))
+            if res["indicators"] is None:
+                res["warnings"].append(f"WARNING: no gear condition indicators: {res['indicators_source']['error']}")
         for w in res["warnings"]:
             typer.echo(w, err=True)
         if json_out:
@@ -195,6 +252,18 @@ def _print(res: dict) -> None:
     con.print(t)
     p = res["probabilities"][res["diagnosis"]]
     con.print(f"diagnosis: [bold]{res['diagnosis']}[/bold] (mean probability {p:.3f} over {res['n_windows']} windows)")
+    if res.get("current_lines"):
+        cl = res["current_lines"]
+        lt = Table(title=f"motor-current lines (output speed {cl['output_speed_deg_s']:.4g} deg/s from "
+                         f"{cl['speed_source']}; height over the median of the bins 6-40 away)")
+        for col in ("line", "Hz", "amplitude", "height (dB)"):
+            lt.add_column(col, justify="left" if col == "line" else "right")
+        for name, ln in cl["lines"].items():
+            if ln["amplitude"] is None:
+                lt.add_row(name, f"{ln['hz']:.2f}", "beyond the spectrum", "")
+            else:
+                lt.add_row(name, f"{ln['hz']:.2f}", f"{ln['amplitude']:.4g}", f"{ln['height_db']:.1f}")
+        con.print(lt)
     if res.get("indicators"):
         src = res["indicators_source"]
         it = Table(title=f"gear condition indicators, {src['shaft']} shaft ({src['shaft_hz']:.4g} Hz from "

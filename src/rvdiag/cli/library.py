@@ -44,10 +44,23 @@ def register(app: typer.Typer) -> None:
         scheduler: Optional[str] = typer.Option(
             None, "--scheduler", help="Address of an existing Dask scheduler (tcp://host:8786) to run on instead.",
         ),
+        device: str = typer.Option(
+            "cpu", "--device",
+            help="cpu | cuda | auto. cuda: ensembles of --ensemble simulations, one GPU thread each (needs an NVIDIA "
+                 "GPU and numba-cuda; without them: the CPU, with a warning); auto: cuda when this machine has one. "
+                 "docs/library.md, 'On a GPU'.",
+        ),
+        ensemble: int = typer.Option(
+            1024, "--ensemble", help="--device cuda: simulations per GPU launch (and per Dask task).",
+        ),
         quiet: bool = opt.quiet(),
         params: Optional[Path] = opt.params(
             "Reducer parameter file (TOML) to build from instead of the config's `params` (e.g. what "
             "`rvdiag update` wrote); recorded in the store."),
+        seed: Optional[int] = typer.Option(
+            None, "--seed",
+            help="Seed instead of the config's: the same library drawn anew, e.g. a held-out test store of "
+                 "unseen simulations; recorded in the store."),
     ) -> None:
         """Build (or resume) the library of CONFIG into --out, in parallel on Dask.
 
@@ -60,17 +73,20 @@ def register(app: typer.Typer) -> None:
         from rvdiag.library.build import build_library, check_run_options
         from rvdiag.library.config import LibraryConfig
 
-        check_run_options(workers, scheduler)
+        check_run_options(workers, scheduler, device, ensemble)
         cfg = LibraryConfig.load(config)
         if params is not None:
             from rvdiag.params import ReducerParams
 
             ReducerParams.load(params)  # a bad file fails here, before anything is written
             cfg = cfg.replace(params=str(Path(params).resolve()))
+        if seed is not None:
+            cfg = cfg.replace(seed=seed)  # validated there: a negative seed is one ConfigError line
         if not quiet:
             typer.echo(cfg.describe(), err=True)
         try:
-            report = build_library(cfg, out, workers=workers, scheduler=scheduler, progress=not quiet)
+            report = build_library(cfg, out, workers=workers, scheduler=scheduler, progress=not quiet, device=device,
+                                   ensemble=ensemble)
         except KeyboardInterrupt:
             msg = _unfinished_message(out)
             typer.echo(f"interrupted: {msg}" if msg else "interrupted", err=True)
@@ -79,9 +95,10 @@ def register(app: typer.Typer) -> None:
             typer.echo(f"{out}: already complete ({report.n_units} simulations, {report.n_samples} samples)")
         else:
             resumed = f", {report.skipped} were already committed" if report.skipped else ""
+            where = " on the GPU" if report.device == "cuda" else ""
             typer.echo(
                 f"{out}: {report.n_samples} samples from {report.n_units} simulations "
-                f"({report.built} built in {report.wall_s:.1f} s, {report.samples_per_s:.1f} samples/s{resumed})"
+                f"({report.built} built{where} in {report.wall_s:.1f} s, {report.samples_per_s:.1f} samples/s{resumed})"
             )
 
     @lib.command("info")

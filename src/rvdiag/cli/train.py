@@ -151,11 +151,26 @@ def _fit(est, X, y, quiet: bool, label: str, groups=None):
             prog.update(task, total=est.n_epochs_, completed=est.n_epochs_,
                         info=f"stopped after {est.n_epochs_} epochs, kept epoch {est.best_epoch_}")
     else:
+        _check_class_counts(est, y)
         if not quiet:
             console.print(f"{label}: fitting", soft_wrap=True)
         with progress_bars(quiet):
             est.fit(X, y)
     return est
+
+
+def _check_class_counts(est, y) -> None:
+    """Refuse, in one line, a training split too small for the classifier's internal cross-validation (the
+    SVM's probability calibration splits each class 3 ways: ``CalibratedClassifierCV(cv=3)``)."""
+    cv = getattr(est[-1] if hasattr(est, "steps") else est, "cv", None)
+    if not isinstance(cv, int):
+        return
+    classes, counts = np.unique(np.asarray(y), return_counts=True)
+    if counts.min() < cv:
+        c = classes[int(np.argmin(counts))]
+        raise ParameterError(f"class {c!r} has {int(counts.min())} training sample(s); the classifier's "
+                             f"{cv}-fold probability calibration needs at least {cv} per class: build more "
+                             "simulations or shorter samples")
 
 
 def register(app: typer.Typer) -> None:
@@ -286,7 +301,7 @@ def register(app: typer.Typer) -> None:
         est, metrics = first
         store_info = {"path": str(Path(data).resolve()),
                       "config_hash": store.attrs.get("config_hash") or _content_hash(store),
-                      "kind": store.attrs.get("kind"), "n_train": int(len(tr.y))}
+                      "kind": store.attrs.get("kind"), "n_train": int(len(tr.y)), **_signal_info(store)}
         extra = {} if snr_db is None else {"added_noise": {"snr_db": float(snr_db), "seed": [seed, 0],
                                                            "applies_to": "train and test splits"}}
         scalars = (store.attrs.get("config") or {}).get("scalars") or {}
@@ -306,6 +321,17 @@ def register(app: typer.Typer) -> None:
         if summary is not None:
             _print_repeat(summary, seed, repeat)
         echo(f"saved model to {out}" + (" (the first seed's model; repeat.json holds the summary)" if repeat > 1 else ""))
+
+
+def _signal_info(store) -> dict:
+    """What the store's samples are: ``channel`` (the library's, e.g. ``x`` or ``i_a``) and ``signal``
+    (``vibration`` or ``current``), so that ``rvdiag diagnose`` reads the same kind of channel of a file."""
+    cfg = store.attrs.get("config") or {}
+    model = cfg.get("model") if isinstance(cfg.get("model"), dict) else {}
+    info = {"signal": str(model.get("signal") or "vibration")}
+    if isinstance(cfg.get("channel"), (str, int)):
+        info["channel"] = cfg["channel"]
+    return info
 
 
 def _print_repeat(summary: dict, seed: int, n: int) -> None:

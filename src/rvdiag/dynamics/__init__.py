@@ -70,7 +70,7 @@ def motor_current_record(motor_rows: np.ndarray, fs: float, current_fs: float,
 __all__ = [
     "PHYSICS_REVISION",
     "LoadProfile", "MeshTable", "Model", "ModelSettings", "SimulationResult", "SpeedProfile", "add_awgn", "build_model",
-    "mesh_table", "prepare", "simulate",
+    "mesh_table", "prepare", "prepare_simulation", "PreparedSimulation", "simulate",
 ]
 
 
@@ -240,11 +240,150 @@ def simulate(
         ``current_fs``) with the channels ``i_a``, ``i_b``, ``i_c``, ``i_q`` (A) and ``speed`` (the rotor's, rpm);
         for ``signal="current"`` the result's ``signal``, ``fs`` and ``channel_names`` are those of the current.
     """
-    from rvdiag.dynamics.segments import check_workers, integrate_segments
+    run = prepare_simulation(params, fault, input_speed_rpm=input_speed_rpm, output_speed_deg_s=output_speed_deg_s,
+                             load_Nm=load_Nm, duration_s=duration_s, fs=fs, noise_snr_db=noise_snr_db, seed=seed,
+                             settings=settings, mesh_source=mesh_source, workers=workers, profile=profile,
+                             load_profile=load_profile, signal=signal, current_fs=current_fs,
+                             current_snr_db=current_snr_db)
+    out, n_segments = run.integrate(progress)
+    return run.finish(out, n_segments)
+
+
+@dataclasses.dataclass
+class PreparedSimulation:
+    """A :func:`simulate` call up to its integration (:func:`prepare_simulation`): the model, the record's length
+    and run-in, and what :meth:`finish` needs to turn the integrator's rows into the result.
+
+    :meth:`integrate` integrates it on the CPU (what :func:`simulate` does).  Another runner (the GPU ensemble,
+    :mod:`rvdiag.dynamics.ensemble`) makes the integrator calls of :meth:`segment_calls` itself, each from
+    ``start_state(call.t_start)``, writes each call's rows at its ``column`` of a ``(rows, columns)`` array
+    (:attr:`rows`, :attr:`columns`) and passes that to :meth:`finish`: the same rows give the same result.
+    """
+
+    model: Model
+    params: ReducerParams
+    fault: Any
+    settings: ModelSettings
+    fs: float
+    duration_s: float
+    n_samples: int
+    n_transient: int
+    margin: tuple[int, int]
+    workers: int
+    profile: SpeedProfile
+    load_profile: LoadProfile
+    #: the remaining :func:`simulate` arguments the result needs (speeds, noise, seed, signal, current rate)
+    options: dict[str, Any]
+    #: how each start state was found (:func:`initial_deflection`), one entry per :meth:`start_state` call
+    starts: list[str] = dataclasses.field(default_factory=list)
+
+    @property
+    def rows(self) -> int:
+        """Rows of the integrator's output: the sensor channels, then the motor's (with its electrical side)."""
+        from rvdiag.dynamics.integrate import MOTOR_CHANNELS
+
+        return self.model.sensor.shape[0] + (len(MOTOR_CHANNELS) if self.model.has_pmsm else 0)
+
+    @property
+    def columns(self) -> int:
+        """Columns of the integrator's output: the record with its margins (:func:`current_record_margin`)."""
+        return self.margin[0] + self.n_samples + self.margin[1]
+
+    def start_state(self, t0: float) -> np.ndarray:
+        """The state a run starts from at ``t0``: the static deflection at rest (:func:`initial_deflection`)."""
+        q0, how = initial_deflection(self.model, t0)
+        self.starts.append(how)
+        return self.model.initial_state(q0, t0)
+
+    def segment_calls(self) -> list[Any]:
+        """The integrator calls of the record (:func:`rvdiag.dynamics.segments.segment_calls`)."""
+        from rvdiag.dynamics.segments import segment_calls
+
+        return segment_calls(self.model, self.fs, self.n_samples, self.n_transient, self.margin)
+
+    def integrate(self, progress: Callable[[int, int], None] | None = None) -> tuple[np.ndarray, int]:
+        """The integrator's rows and the number of segments, on the CPU
+        (:func:`rvdiag.dynamics.segments.integrate_segments`)."""
+        from rvdiag.dynamics.segments import integrate_segments
+
+        return integrate_segments(self.model, self.fs, self.n_samples, self.n_transient, self.start_state,
+                                  self.workers, progress, self.margin)
+
+    def finish(self, out: np.ndarray, n_segments: int) -> SimulationResult:
+        """The :class:`SimulationResult` from the integrator's rows ``out`` (:attr:`rows` x :attr:`columns`)."""
+        model, params, fs, n_samples, margin = self.model, self.params, self.fs, self.n_samples, self.margin
+        opt = self.options
+        seed, current_fs, signal_kind = opt["seed"], opt["current_fs"], opt["signal"]
+        n_sens = model.sensor.shape[0]
+        signal = apply_path(out[:n_sens, margin[0]:margin[0] + n_samples], fs, params.mounting)
+        starts = self.starts
+        initial_state = starts[0] if len(set(starts)) == 1 else "; ".join(sorted(set(starts)))
+        if opt["noise_snr_db"] is not None:
+            signal = add_awgn(signal, opt["noise_snr_db"], np.random.default_rng(seed))
+        names = [f"accel[{d[0]:.3g},{d[1]:.3g}]" for d in model.sensor]
+        current = None
+        if model.has_pmsm:
+            current = motor_current_record(out[n_sens:], fs, current_fs, margin)
+            rng = np.random.default_rng([int(seed), 1])
+            current[:4] += params.motor.current_noise * rng.standard_normal(current[:4].shape)
+            if opt["current_snr_db"] is not None:
+                current = add_awgn(current, opt["current_snr_db"], rng)
+        theta_out = self.profile.state(np.arange(n_samples) / float(fs), float(model.P[5]), float(self.duration_s))[0]
+        record = {
+            "initial_state": initial_state,
+            "segments": n_segments,
+            "workers": int(self.workers),
+            "input_speed_rpm": opt["input_speed_rpm"],
+            "output_speed_deg_s": opt["output_speed_deg_s"],
+            "sun_speed_hz": float(model.P[5] + model.P[6]) / (2 * math.pi),
+            "load_Nm": float(model.P[35]),
+            "duration_s": float(self.duration_s),
+            "fs": float(fs),
+            "noise_snr_db": opt["noise_snr_db"],
+            "seed": int(seed),
+            "fault": _describe(self.fault),
+            "mesh_source": model.mesh_source,
+            "speed_profile": self.profile.to_dict(),
+            "load_profile": self.load_profile.to_dict(),
+            "model_settings": self.settings.to_dict(),
+            "params": params.to_dict(),
+        }
+        if current is None:
+            return SimulationResult(signal, float(fs), record, names, theta_out, params.ratio * theta_out)
+        record.update(signal=signal_kind, current_fs=float(current_fs), current_snr_db=opt["current_snr_db"],
+                      current_units=dict(zip(CURRENT_CHANNELS, CURRENT_UNITS)))
+        res = SimulationResult(signal, float(fs), record, names, theta_out, params.ratio * theta_out,
+                               current=current, current_fs=float(current_fs), current_names=list(CURRENT_CHANNELS))
+        return res.current_only() if signal_kind == "current" else res
+
+
+def prepare_simulation(
+    params: ReducerParams | None = None,
+    fault: Any = None,
+    *,
+    input_speed_rpm: float | None = None,
+    output_speed_deg_s: float | None = None,
+    load_Nm: float | None = None,
+    duration_s: float = 1.0,
+    fs: float = 48000.0,
+    noise_snr_db: float | None = None,
+    seed: int = 0,
+    settings: ModelSettings | None = None,
+    mesh_source: str = "auto",
+    workers: int = 1,
+    profile: SpeedProfile | None = None,
+    load_profile: LoadProfile | None = None,
+    signal: str = "vibration",
+    current_fs: float = 1000.0,
+    current_snr_db: float | None = None,
+) -> PreparedSimulation:
+    """:func:`simulate` (the same arguments, less ``progress``) up to the integration: every argument validated,
+    the model built.  ``simulate(...)`` is ``prepare_simulation(...)`` then its :meth:`~PreparedSimulation.integrate`
+    and :meth:`~PreparedSimulation.finish`."""
+    from rvdiag.dynamics.segments import check_workers
 
     if signal not in SIGNALS:
         raise ParameterError(f"signal must be one of {', '.join(SIGNALS)}, got {signal!r}")
-    signal_kind = signal
     if signal != "vibration":
         from rvdiag.motor import current_rate_ratio
 
@@ -265,55 +404,10 @@ def simulate(
     model = prepare(params, fault, input_speed_rpm=input_speed_rpm, output_speed_deg_s=output_speed_deg_s,
                     load_Nm=load_Nm, settings=st, mesh_source=mesh_source, profile=profile,
                     load_profile=load_profile, duration_s=float(duration_s))
-    profile = profile or SpeedProfile()
-    load_profile = load_profile or LoadProfile()
     n_tr = int(round(st.transient_s * fs))
-    starts: list[str] = []
-
-    def start_state(t0: float) -> np.ndarray:
-        q0, how = initial_deflection(model, t0)
-        starts.append(how)
-        return model.initial_state(q0, t0)
-
     margin = current_record_margin(fs, current_fs, n_tr) if model.has_pmsm else (0, 0)
-    out, n_segments = integrate_segments(model, fs, n_samples, n_tr, start_state, workers, progress, margin)
-    n_sens = model.sensor.shape[0]
-    signal = apply_path(out[:n_sens, margin[0]:margin[0] + n_samples], fs, params.mounting)
-    initial_state = starts[0] if len(set(starts)) == 1 else "; ".join(sorted(set(starts)))
-    if noise_snr_db is not None:
-        signal = add_awgn(signal, noise_snr_db, np.random.default_rng(seed))
-    names = [f"accel[{d[0]:.3g},{d[1]:.3g}]" for d in model.sensor]
-    current = None
-    if model.has_pmsm:
-        current = motor_current_record(out[n_sens:], fs, current_fs, margin)
-        rng = np.random.default_rng([int(seed), 1])
-        current[:4] += params.motor.current_noise * rng.standard_normal(current[:4].shape)
-        if current_snr_db is not None:
-            current = add_awgn(current, current_snr_db, rng)
-    theta_out = profile.state(np.arange(n_samples) / float(fs), float(model.P[5]), float(duration_s))[0]
-    record = {
-        "initial_state": initial_state,
-        "segments": n_segments,
-        "workers": int(workers),
-        "input_speed_rpm": input_speed_rpm,
-        "output_speed_deg_s": output_speed_deg_s,
-        "sun_speed_hz": float(model.P[5] + model.P[6]) / (2 * math.pi),
-        "load_Nm": float(model.P[35]),
-        "duration_s": float(duration_s),
-        "fs": float(fs),
-        "noise_snr_db": noise_snr_db,
-        "seed": int(seed),
-        "fault": _describe(fault),
-        "mesh_source": model.mesh_source,
-        "speed_profile": profile.to_dict(),
-        "load_profile": load_profile.to_dict(),
-        "model_settings": st.to_dict(),
-        "params": params.to_dict(),
-    }
-    if current is None:
-        return SimulationResult(signal, float(fs), record, names, theta_out, params.ratio * theta_out)
-    record.update(signal=signal_kind, current_fs=float(current_fs), current_snr_db=current_snr_db,
-                  current_units=dict(zip(CURRENT_CHANNELS, CURRENT_UNITS)))
-    res = SimulationResult(signal, float(fs), record, names, theta_out, params.ratio * theta_out,
-                           current=current, current_fs=float(current_fs), current_names=list(CURRENT_CHANNELS))
-    return res.current_only() if signal_kind == "current" else res
+    options = {"input_speed_rpm": input_speed_rpm, "output_speed_deg_s": output_speed_deg_s,
+               "noise_snr_db": noise_snr_db, "seed": seed, "signal": signal, "current_fs": current_fs,
+               "current_snr_db": current_snr_db}
+    return PreparedSimulation(model, params, fault, st, fs, duration_s, n_samples, n_tr, margin, workers,
+                              profile or SpeedProfile(), load_profile or LoadProfile(), options)

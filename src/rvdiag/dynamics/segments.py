@@ -19,6 +19,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -46,6 +47,41 @@ def segment_bounds(n_samples: int, segment_samples: int) -> list[tuple[int, int]
     return [(a, b - a) for a, b in zip(starts, ends)]
 
 
+@dataclass(frozen=True)
+class SegmentCall:
+    """One :func:`rvdiag.dynamics.integrate.integrate` call of a segmented record: from the start state at
+    ``t_start`` (s), ``n_transient`` run-in samples, then ``n_samples`` recorded from sample ``first_sample`` on,
+    whose rows go to columns ``column .. column + n_samples`` of the record."""
+
+    t_start: float
+    n_samples: int
+    n_transient: int
+    first_sample: int
+    column: int
+
+
+def segment_calls(model: mdl.Model, fs: float, n_samples: int, n_transient: int,
+                  margin: tuple[int, int] = (0, 0)) -> list[SegmentCall]:
+    """The integrator calls that record ``n_samples`` in segments of ``model.settings.segment_s`` with the record
+    ``margin`` (:func:`integrate_segments`, which makes them)."""
+    m_lead, m_tail = margin
+    seg = int(round(model.settings.segment_s * fs))
+    bounds = segment_bounds(n_samples, seg)
+    if len(bounds) > 1 and model.P[mdl.I_PROFILE] != 0.0:
+        raise ParameterError("time-parallel segments (segment_s > 0) support the constant speed and load only: "
+                             "a speed or load profile runs as one segment (segment_s = 0)")
+    if m_lead > n_transient:
+        raise ParameterError(f"a record margin of {m_lead} samples needs at least as many run-in samples "
+                             f"(transient_s), got {n_transient}")
+    calls = []
+    for i, (first, count) in enumerate(bounds):
+        lead = m_lead if i == 0 else 0
+        tail = m_tail if i == len(bounds) - 1 else 0
+        calls.append(SegmentCall((first - n_transient) / fs, count + lead + tail, n_transient - lead, first - lead,
+                                 m_lead + first - lead))
+    return calls
+
+
 def integrate_segments(
     model: mdl.Model,
     fs: float,
@@ -65,29 +101,19 @@ def integrate_segments(
     the first segment's run-in, so ``lead <= n_transient``) and ``tail`` after the last: ``signal`` then has
     ``lead + n_samples + tail`` columns, sample ``k`` of the record at column ``k + lead`` (for filters that need
     their edges, such as the motor current's rate change); the integration itself, and so every sample, is the
-    same as without.
+    same as without.  The calls are those of :func:`segment_calls`.
     """
     check_workers(workers)
     m_lead, m_tail = margin
-    seg = int(round(model.settings.segment_s * fs))
-    bounds = segment_bounds(n_samples, seg)
-    if len(bounds) > 1 and model.P[mdl.I_PROFILE] != 0.0:
-        raise ParameterError("time-parallel segments (segment_s > 0) support the constant speed and load only: "
-                             "a speed or load profile runs as one segment (segment_s = 0)")
+    calls = segment_calls(model, fs, n_samples, n_transient, margin)
     n_out = model.sensor.shape[0] + (len(MOTOR_CHANNELS) if model.has_pmsm else 0)
     out = np.zeros((n_out, m_lead + n_samples + m_tail))
-    total = m_lead + m_tail + sum(n + n_transient for _, n in bounds)
-    done = [0] * len(bounds)
+    total = m_lead + sum(c.n_samples + c.n_transient for c in calls)
+    done = [0] * len(calls)
     lock = threading.Lock()
 
-    if m_lead > n_transient:
-        raise ParameterError(f"a record margin of {m_lead} samples needs at least as many run-in samples "
-                             f"(transient_s), got {n_transient}")
-
     def run(i: int) -> None:
-        first, count = bounds[i]
-        lead = m_lead if i == 0 else 0
-        tail = m_tail if i == len(bounds) - 1 else 0
+        call = calls[i]
 
         def seg_progress(d: int, _t: int) -> None:
             if progress is not None:
@@ -95,17 +121,17 @@ def integrate_segments(
                     done[i] = d
                     progress(sum(done), total)
 
-        y0 = start_state((first - n_transient) / fs)
-        sig, _ = integrate(model, y0, fs, count + lead + tail, n_transient - lead, seg_progress,
-                           first_sample=first - lead)
-        out[:, m_lead + first - lead:m_lead + first + count + tail] = sig
+        y0 = start_state(call.t_start)
+        sig, _ = integrate(model, y0, fs, call.n_samples, call.n_transient, seg_progress,
+                           first_sample=call.first_sample)
+        out[:, call.column:call.column + call.n_samples] = sig
 
-    if workers == 1 or len(bounds) == 1:
-        for i in range(len(bounds)):
+    if workers == 1 or len(calls) == 1:
+        for i in range(len(calls)):
             run(i)
     else:
-        with ThreadPoolExecutor(max_workers=min(workers, len(bounds))) as pool:
-            futures = [pool.submit(run, i) for i in range(len(bounds))]
+        with ThreadPoolExecutor(max_workers=min(workers, len(calls))) as pool:
+            futures = [pool.submit(run, i) for i in range(len(calls))]
             try:
                 for f in futures:
                     f.result()
@@ -113,4 +139,4 @@ def integrate_segments(
                 for f in futures:
                     f.cancel()
                 raise
-    return out, len(bounds)
+    return out, len(calls)

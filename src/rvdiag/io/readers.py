@@ -139,6 +139,22 @@ def list_channels(path: str | Path) -> list[str]:
     return list(_read_contents(Path(path)).channels)
 
 
+def stated_channel(path: str | Path, name: str) -> str | None:
+    """The channel key of the row that an ``rvdiag simulate`` .npz states as ``name`` in its ``channel_names``
+    (e.g. ``"i_a"`` -> ``"signal[0]"`` of a ``--signal current`` file), or None (another format, no such name)."""
+    path = Path(path)
+    if path.suffix.lower() != ".npz":
+        return None
+    with np.load(path, allow_pickle=False) as z:
+        if "channel_names" not in z.files or "signal" not in z.files:
+            return None
+        names = [str(n) for n in np.atleast_1d(z["channel_names"])]
+        rows = np.atleast_2d(z["signal"]).shape[0]
+    if name not in names or len(names) != rows:
+        return None
+    return f"signal[{names.index(name)}]" if rows > 1 else "signal"
+
+
 def read_signal(path: str | Path, channel_regex: str | None = None, fs: float | None = None) -> MeasuredSignal:
     """Read one channel of a measured file.
 

@@ -23,7 +23,8 @@ them in this process without Dask (debugging).  The client keeps at most one tas
 flight and fetches each result as soon as it completes (``as_completed``), so a worker never holds more
 than one simulation's signal; the client writes each result with :class:`rvdiag.datasets.StoreBuilder`,
 which commits the unit atomically.  Re-running the same build skips committed units (resume after a
-crash, SIGKILL or Ctrl-C); a store built from another config is refused.
+crash, SIGKILL or Ctrl-C); a store built from another config is refused.  ``device="cuda"`` integrates the units
+in ensembles on a GPU, one task per ensemble, and finishes each unit as here (:mod:`rvdiag.library.gpu`).
 
 Each unit's output: the kept signal (after ``transient_s``) of the configured channel, plus white Gaussian
 noise at the drawn SNR (``awgn(x, snr, 'measured')`` of MATLAB: noise power = mean(x^2) / 10^(SNR/10)),
@@ -309,10 +310,17 @@ def window_angles(unit: Unit, job: Job, starts: np.ndarray) -> tuple[np.ndarray,
 
 
 def run_unit(unit: Unit, job: Job) -> UnitResult:
-    """Simulate one unit and cut it into samples (the Dask task; pure function of its arguments)."""
+    """Simulate one unit and cut it into samples (the Dask task; pure function of its arguments):
+    :func:`simulate_unit`, then :func:`finish_unit`."""
+    t0 = time.perf_counter()
+    return finish_unit(unit, job, simulate_unit(unit, job), t0)
+
+
+def simulator_call(unit: Unit, job: Job) -> tuple[Callable[..., Any], tuple[Any, ...], dict[str, Any]]:
+    """``(simulator, args, kwargs)``: the call of the simulator that simulates ``unit`` (its reducer parameters
+    scaled and mounted as drawn, its fault, speed, load, profiles and the simulator's seed)."""
     from rvdiag.params import ReducerParams
 
-    t0 = time.perf_counter()
     params = ReducerParams.from_dict(dict(job.params), source="<library>")
     if unit.scales:
         changes: dict[str, dict[str, float]] = {}
@@ -325,12 +333,11 @@ def run_unit(unit: Unit, job: Job) -> UnitResult:
     spec = FaultSpec(unit.state, unit.severity)
     sim = resolve_simulator(job.simulator)
     fault = spec if getattr(sim, "accepts_fault_spec", False) else spec.to_tooth_faults()
-    _, sim_ss, noise_ss, split_ss = _streams(unit.seed)
+    sim_ss = _streams(unit.seed)[1]
     sim_seed = int(sim_ss.generate_state(1, np.uint32)[0])
     model = dict(job.model)
-    direction = None
-    if unit.sensor:
-        point, direction = unit.sensor_geometry(params.bodies.pin_wheel_outer_radius)
+    if unit.sensor:  # a drawn sensor position moves the model's sensor point; the direction is projected after
+        point = unit.sensor_geometry(params.bodies.pin_wheel_outer_radius)[0]
         if point is not None:
             model["sensor_point_m"] = list(point)
     profiles: dict[str, Any] = {}
@@ -340,10 +347,23 @@ def run_unit(unit: Unit, job: Job) -> UnitResult:
             profiles["profile"] = speed_profile
         if load_profile is not None:
             profiles["load_profile"] = load_profile
-    result = sim(
-        params, fault, **{job.speed_key: unit.speed}, load_Nm=unit.load_Nm, duration_s=job.duration_s,
-        transient_s=job.transient_s, fs=job.fs, seed=sim_seed, model=model, **profiles,
-    )
+    kwargs = {job.speed_key: unit.speed, "load_Nm": unit.load_Nm, "duration_s": job.duration_s,
+              "transient_s": job.transient_s, "fs": job.fs, "seed": sim_seed, "model": model, **profiles}
+    return sim, (params, fault), kwargs
+
+
+def simulate_unit(unit: Unit, job: Job) -> Any:
+    """The simulation step of :func:`run_unit`: the simulator's result for ``unit`` (:func:`simulator_call`)."""
+    sim, args, kwargs = simulator_call(unit, job)
+    return sim(*args, **kwargs)
+
+
+def finish_unit(unit: Unit, job: Job, result: Any, t0: float) -> UnitResult:
+    """The post-processing step of :func:`run_unit`: the simulator's ``result`` checked, its channel kept, the
+    unit's noise added and the record cut into samples with their metadata (``t0``: when the unit started, for
+    ``wall_s``)."""
+    _, _, noise_ss, split_ss = _streams(unit.seed)
+    direction = unit.sensor_geometry(1.0)[1] if unit.sensor else None  # the point went to the simulator
     if abs(float(getattr(result, "fs", job.fs)) - job.fs) > 1e-9 * job.fs:
         raise SimulationError(f"simulator returned fs = {result.fs} Hz, asked for {job.fs} Hz")
     x = _channel(result, job.channel) if direction is None else project_sensor(result, direction)
@@ -417,6 +437,8 @@ class BuildReport:
     samples_built: int
     wall_s: float
     workers: int
+    #: where the simulations ran: "cpu" or "cuda"
+    device: str = "cpu"
 
     @property
     def samples_per_s(self) -> float:
@@ -490,8 +512,12 @@ def _dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
         cluster.close()
 
 
-def check_run_options(workers: int | None, scheduler: str | None) -> None:
-    """Validate ``--workers`` / ``--scheduler`` (:class:`ConfigError`)."""
+def check_run_options(workers: int | None, scheduler: str | None, device: str = "cpu",
+                      ensemble: int | None = None) -> None:
+    """Validate ``--workers`` / ``--scheduler`` / ``--device`` / ``--ensemble`` (:class:`ConfigError`)."""
+    from rvdiag.library.gpu import DEFAULT_ENSEMBLE, check_device
+
+    check_device(device, DEFAULT_ENSEMBLE if ensemble is None else ensemble)
     if workers is not None and workers < 0:
         raise ConfigError(f"--workers must be >= 0, got {workers}")
     if scheduler and workers is not None:
@@ -508,6 +534,8 @@ def build_library(
     simulator: str | None = None,
     progress: bool = True,
     console: Any = None,
+    device: str = "cpu",
+    ensemble: int | None = None,
 ) -> BuildReport:
     """Build (or resume, or find complete) the library of ``config`` in the store ``out``.
 
@@ -521,6 +549,11 @@ def build_library(
     simulator : ``"module:function"`` overriding the config's simulator (part of the stored config)
     progress : show a rich progress bar with simulations done and the ETA
     console : the ``rich.console.Console`` to draw on (default: stderr)
+    device : ``"cpu"`` (default), ``"cuda"`` (GPU ensembles, :mod:`rvdiag.library.gpu`; without a usable GPU the CPU,
+        with one warning) or ``"auto"`` (``cuda`` when this machine has a usable GPU, else ``cpu``).  With ``cuda``
+        and no ``scheduler``/``client`` the ensembles run in this process unless ``workers`` is given.
+    ensemble : simulations per GPU ensemble (one launch, one task; default
+        :data:`rvdiag.library.gpu.DEFAULT_ENSEMBLE`)
 
     Returns
     -------
@@ -529,9 +562,15 @@ def build_library(
     cfg = config if isinstance(config, LibraryConfig) else LibraryConfig.load(config)
     if simulator is not None:
         cfg = cfg.replace(simulator=simulator)
-    check_run_options(workers, scheduler)
+    check_run_options(workers, scheduler, device, ensemble)
     params = cfg.reducer_params()
     resolve_simulator(cfg.simulator, cfg.model)  # fail early, here, with a clear message
+    from rvdiag.library.gpu import DEFAULT_ENSEMBLE, resolve_device
+
+    local = client is None and not scheduler
+    device = resolve_device(device, cfg.simulator, check_here=local or device == "auto")
+    if device == "cuda" and workers is None and local:
+        workers = 0  # one process drives the GPU
     plan = make_plan(cfg)
     for unit in plan:  # validate every drawn severity before anything is written
         FaultSpec(unit.state, unit.severity)
@@ -562,22 +601,63 @@ def build_library(
         built += 1
         samples_built += res.X.shape[0]
 
+    if device == "cuda":
+        size = DEFAULT_ENSEMBLE if ensemble is None else ensemble
+        items: list[Any] = [todo[i:i + size] for i in range(0, len(todo), size)]
+        from rvdiag.library.gpu import ensemble_task
+
+        task: Callable[..., Any] = ensemble_task
+    else:
+        items, task = todo, _run_checked
     with _progress(progress, console, len(plan), len(done), cfg.name) as advance:
-        if todo:
+        handle = _ensemble_handler(write, advance) if device == "cuda" else _unit_handler(write, advance)
+        if items:
             if n_workers == 0:
-                for unit in todo:
-                    write(_run_checked(unit, job))
-                    advance()
+                for item in items:
+                    handle(task(item, job))
             elif client is not None:
-                n_workers = _run_on_client(client, todo, job, write, advance)
+                n_workers = _run_on_client(client, items, job, task, handle)
             else:
                 with _dask_client(n_workers, scheduler) as c:
-                    n_workers = _run_on_client(c, todo, job, write, advance)
+                    n_workers = _run_on_client(c, items, job, task, handle)
     builder.finalize()
     return BuildReport(
         path=out, n_units=len(plan), built=built, skipped=len(plan) - len(todo), n_samples=builder.n_samples,
-        samples_built=samples_built, wall_s=time.perf_counter() - t0, workers=n_workers,
+        samples_built=samples_built, wall_s=time.perf_counter() - t0, workers=n_workers, device=device,
     )
+
+
+def _unit_handler(write: Callable[[UnitResult], None], advance: Callable[[], None]) -> Callable[[UnitResult], None]:
+    def handle(res: UnitResult) -> None:
+        write(res)
+        advance()
+
+    return handle
+
+
+def _ensemble_handler(write: Callable[[UnitResult], None], advance: Callable[[], None]) -> Callable[[Any], None]:
+    """Write an ensemble's results, then raise its first error (the committed units are kept); warn once when a
+    worker had no usable GPU and ran its ensemble on its CPU."""
+    warned = []
+
+    def handle(outcome: tuple[list[Any], str | None]) -> None:
+        results, fallback = outcome
+        if fallback and not warned:
+            import warnings
+
+            from rvdiag.errors import DeviceWarning
+
+            warnings.warn(f"a worker: {fallback}; its simulations ran on its CPU", DeviceWarning, stacklevel=2)
+            warned.append(fallback)
+        errors = [r for r in results if isinstance(r, BaseException)]
+        for res in results:
+            if not isinstance(res, BaseException):
+                write(res)
+                advance()
+        if errors:
+            raise errors[0]
+
+    return handle
 
 
 def _run_checked(unit: Unit, job: Job) -> UnitResult:
@@ -587,9 +667,11 @@ def _run_checked(unit: Unit, job: Job) -> UnitResult:
         raise type(exc)(f"simulation {unit.index} ({unit.state} #{unit.sim_index}): {exc}") from None
 
 
-def _run_on_client(client: Any, todo: list[Unit], job: Job, write: Callable[[UnitResult], None],
-                   advance: Callable[[], None]) -> int:
-    """Submit units with at most one in flight per worker thread; write results as they complete."""
+def _run_on_client(client: Any, todo: list[Any], job: Job, task: Callable[..., Any],
+                   handle: Callable[[Any], None]) -> int:
+    """Submit ``task(item, job)`` for each item (a unit, or a GPU ensemble of units) with at most one in flight per
+    worker thread; ``handle`` each result as it completes.  A GPU ensemble asks for one ``GPU`` resource when the
+    cluster's workers declare that resource (``dask worker --resources GPU=1``)."""
     from distributed import KilledWorker, as_completed
 
     nthreads = sum(client.nthreads().values())
@@ -603,12 +685,17 @@ def _run_on_client(client: Any, todo: list[Unit], job: Job, write: Callable[[Uni
     pending = iter(todo)
     job_future = client.scatter(job, broadcast=True)
     futures = as_completed()
+    extra: dict[str, Any] = {}
+    if task is not _run_checked and any("GPU" in (w.get("resources") or {})
+                                        for w in client.scheduler_info().get("workers", {}).values()):
+        extra["resources"] = {"GPU": 1}
 
     def submit_next() -> bool:
-        unit = next(pending, None)
-        if unit is None:
+        item = next(pending, None)
+        if item is None:
             return False
-        futures.add(client.submit(_run_checked, unit, job_future, pure=False, key=f"rvdiag-unit-{unit.index}-{time.time_ns()}"))
+        name = f"unit-{item.index}" if isinstance(item, Unit) else f"ensemble-{item[0].index}"
+        futures.add(client.submit(task, item, job_future, pure=False, key=f"rvdiag-{name}-{time.time_ns()}", **extra))
         return True
 
     for _ in range(window):
@@ -624,9 +711,8 @@ def _run_on_client(client: Any, todo: list[Unit], job: Job, write: Callable[[Uni
                     "kept: re-run the same command to resume"
                 ) from None
             fut.release()
-            write(res)
+            handle(res)
             del res
-            advance()
             submit_next()
     except BaseException:
         for fut in list(futures.futures):

@@ -19,7 +19,10 @@ A library simulator is a module-level function ``"package.module:function"`` (na
   ``result.channel_names``.  The library adds the noise itself, so the simulator adds none.
 
 An optional attribute ``check_options(model: dict) -> None`` of the function's module validates the
-``[model]`` table on the client before anything runs (raising :class:`rvdiag.errors.ConfigError`).
+``[model]`` table on the client before anything runs (raising :class:`rvdiag.errors.ConfigError`).  An optional
+attribute ``prepare`` of the function, called like it, returns a :class:`rvdiag.dynamics.PreparedSimulation`
+instead of the result: a simulator with it can run on a GPU (``rvdiag library build --device cuda``, which
+integrates many of them at once and finishes each as :func:`rvdiag.dynamics.simulate` does).
 
 :func:`dynamics` (the default) adapts :func:`rvdiag.dynamics.simulate` (the 27-DOF model);
 ``rvdiag.library.synthetic:simulate`` is a fast analytic stand-in for tests.
@@ -74,6 +77,17 @@ def check_options(model: Mapping[str, Any] | None) -> None:
     _record_options(model, 0.0)
 
 
+def _simulate_arguments(params: Any, fault: Any, duration_s: float, transient_s: float, fs: float, seed: int,
+                        model: Mapping[str, Any] | None, operating: Mapping[str, Any]) -> dict[str, Any]:
+    """The keyword arguments of :func:`rvdiag.dynamics.simulate` for one call of :func:`dynamics`."""
+    signal, f_int = _record_options(model, fs)
+    settings = _settings(model, transient_s)
+    if signal == "current":
+        return dict(params=params, fault=fault, duration_s=duration_s, fs=f_int, seed=seed, settings=settings,
+                    signal="current", current_fs=fs, **operating)
+    return dict(params=params, fault=fault, duration_s=duration_s, fs=fs, seed=seed, settings=settings, **operating)
+
+
 def dynamics(
     params: Any,
     fault: Any = None,
@@ -95,9 +109,26 @@ def dynamics(
     """
     from rvdiag.dynamics import simulate
 
-    signal, f_int = _record_options(model, fs)
-    settings = _settings(model, transient_s)
-    if signal == "current":
-        return simulate(params, fault, duration_s=duration_s, fs=f_int, seed=seed, settings=settings,
-                        signal="current", current_fs=fs, **operating)
-    return simulate(params, fault, duration_s=duration_s, fs=fs, seed=seed, settings=settings, **operating)
+    return simulate(**_simulate_arguments(params, fault, duration_s, transient_s, fs, seed, model, operating))
+
+
+def prepare_dynamics(
+    params: Any,
+    fault: Any = None,
+    *,
+    duration_s: float,
+    transient_s: float,
+    fs: float,
+    seed: int = 0,
+    model: Mapping[str, Any] | None = None,
+    **operating: Any,
+) -> Any:
+    """:func:`dynamics` up to the integration: the :class:`rvdiag.dynamics.PreparedSimulation` whose ``finish``
+    gives what :func:`dynamics` returns (the GPU ensemble integrates it, ``rvdiag.library.gpu``)."""
+    from rvdiag.dynamics import prepare_simulation
+
+    return prepare_simulation(**_simulate_arguments(params, fault, duration_s, transient_s, fs, seed, model,
+                                                    operating))
+
+
+dynamics.prepare = prepare_dynamics  # type: ignore[attr-defined]

@@ -2,10 +2,12 @@
 
 The compiled rates of its electrical side live with the reducer's kernels (:mod:`rvdiag.dynamics.motor_kernel`);
 this package holds the design side: controller gains, operating-point checks, the phase currents
-(:mod:`rvdiag.motor.pmsm`).
+(:mod:`rvdiag.motor.pmsm`), and the line table of a measured or simulated phase current (:mod:`rvdiag.motor.lines`).
 """
 
 from rvdiag.motor.pmsm import (ControllerGains, check_operating_point, controller_gains, current_rate_ratio,
                                phase_currents, sample_current)
+from rvdiag.motor.lines import current_lines, estimate_output_speed
 
-__all__ = ["ControllerGains", "check_operating_point", "controller_gains", "current_rate_ratio", "phase_currents", "sample_current"]
+__all__ = ["ControllerGains", "check_operating_point", "controller_gains", "current_lines", "current_rate_ratio",
+           "estimate_output_speed", "phase_currents", "sample_current"]
