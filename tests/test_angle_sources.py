@@ -311,3 +311,13 @@ def test_orders_with_the_cepstrum_and_a_mesh_order_of_another_machine(tmp_path, 
                       (["--cepstrum", "64:", "--mesh-order", "0"], "mesh order must be a positive integer")):
         code, out, err = run_cli(["orders", f, "--fs", "1", *args], capsys)
         assert code == 2 and out == "" and err.count("\n") == 1 and msg in err, (args, err)
+
+
+def test_from_files_speed_out_of_range_one_line_exit_2_nothing_written(tmp_path, capsys):
+    d, _ = _folder(tmp_path)
+    out = tmp_path / "s.zarr"
+    code, stdout, err = run_cli(["dataset", "from-files", d, "--label-regex", r"^(?P<label>[ab])", "-c", "^x$",
+                                 "--window", 2048, "--tacho-channel", "tach", "--ppr", 4, "--speed-range", "5000:6000",
+                                 "-o", out, "-q"], capsys)
+    assert code == 2 and stdout == "" and err.count("\n") == 1 and not out.exists()
+    assert err.startswith("error: a_0_600rpm.npz: the input shaft turns at") and "below the plausible 5000" in err

@@ -8,7 +8,13 @@ shaft's angle, rad, or an angle counter of ``--ppr`` counts per revolution), ``-
 angle ``theta_in`` a record of ``rvdiag simulate`` stores (its true angles, any speed profile), the speed such a
 record states, and failing those the stage-1 mesh peak of the spectrum
 (:func:`rvdiag.io.angles.estimate_shaft_speed`, output speeds 1-200 deg/s).  ``--json`` names the source under
-``angle_source`` (:data:`rvdiag.io.angles.ANGLE_SOURCES`) and describes it under ``angle_detail``.
+``angle_source`` (:data:`rvdiag.io.angles.ANGLE_SOURCES`) and describes it under ``angle_detail``.  For a machine
+of unknown rate or geometry, ``--cepstrum LO:HI`` takes the analysed shaft's period from the real cepstrum
+(:func:`rvdiag.io.angles.estimate_period_cepstrum`) and ``--mesh-order`` replaces the reducer's mesh order.
+
+Besides the nine indicators, the output has the modulation of the mesh (sideband asymmetry, phase demodulation;
+``modulation``) and the windowed TSA of each stage-1 planet (McFadden 1994; ``planets``), from
+:mod:`rvdiag.features.planetary`.
 """
 
 from __future__ import annotations
