@@ -495,6 +495,22 @@ def best_of(results: list[dict]) -> dict:
     return max(results, key=lambda r: np.mean([x["acc"] for x in r["runs"]]))
 
 
+#: the page's section written by bench/angle_domain_real.py, kept as it is when this script rewrites the page
+ANGLE_HEADING = "## SpectraQuest in the angle domain"
+
+
+def kept_angle_section(path: Path) -> str:
+    """The section of ``path`` that bench/angle_domain_real.py wrote (up to the next "## "), or ""."""
+    if not path.exists():
+        return ""
+    text = path.read_text()
+    start = text.find(ANGLE_HEADING)
+    if start < 0:
+        return ""
+    end = text.find("\n## ", start + len(ANGLE_HEADING))
+    return text[start:end if end >= 0 else len(text)].rstrip("\n") + "\n"
+
+
 def write_doc(path: Path, report: dict) -> None:
     o = report["options"]
     L = []
@@ -584,6 +600,9 @@ def write_doc(path: Path, report: dict) -> None:
         L.append("")
     L.append("## Reading the figures\n")
     L.append(report["discussion"] + "\n")
+    kept = kept_angle_section(path)
+    if kept:
+        L.append(kept)
     if report.get("cli"):
         L.append(cli_section(report["cli"], report["date"]))
     L.append("## Reproduce\n")

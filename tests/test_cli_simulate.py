@@ -190,3 +190,30 @@ def test_simulate_trapezoid_that_cannot_reach_its_speed_is_one_error_line(tmp_pa
     assert not out.exists()
     code, _, err = run(["simulate", "--accel", "100", "--output-speed", "45", "-o", out], capsys)
     assert code == 2 and "--profile trapezoid" in err
+
+
+def test_simulate_scurve_records_the_shaft_angles_and_refuses_bad_values(tmp_path, capsys):
+    """``--profile scurve --jerk``: the .npz keeps the true angles of the jerk-limited move (45 deg/s, 900 deg/s^2,
+    18000 deg/s^3 over 0.2 s: T_j = 0.05 s, T_a = 0.1 s, no cruise, 4.5 deg); bad values are one error line."""
+    out = tmp_path / "s.npz"
+    code, _, err = run(["simulate", "--profile", "scurve", "--output-speed", "45", "--accel", "900", "--jerk",
+                        "18000", "--load", "50", "--duration", "0.2", "--fs", "24000", "-o", out, "-q"], capsys)
+    assert code == 0, err
+    with np.load(out, allow_pickle=False) as z:
+        th_out = z["theta_out"]
+        settings = json.loads(str(z["settings"]))
+    assert settings["speed_profile"]["kind"] == "scurve" and settings["speed_profile"]["jerk_deg_s3"] == 18000.0
+    w = np.diff(th_out) * 24000
+    assert np.all(w > 0) and np.degrees(th_out[-1]) == pytest.approx(4.5, abs=1e-3)
+    assert np.degrees(w.max()) == pytest.approx(45.0, rel=1e-3)
+    for args, msg in ((["--jerk", "100", "--output-speed", "45"], "--jerk needs --profile scurve"),
+                      (["--profile", "scurve", "--output-speed", "45", "--accel", "900"], "needs --output-speed "
+                                                                                          "DEG_S, --accel DEG_S2 and --jerk"),
+                      (["--profile", "scurve", "--output-speed", "45", "--accel", "900", "--jerk", "-5"],
+                       "jerk (deg/s^3) must be a finite number > 0"),
+                      (["--profile", "scurve", "--output-speed", "45", "--accel", "900", "--jerk", "100",
+                        "--duration", "0.2"], "an S-curve at 900 deg/s^2 and 100 deg/s^3 needs")):
+        bad = tmp_path / "bad.npz"
+        code, _, err = run(["simulate", *args, "-o", bad], capsys)
+        assert code == 2 and err.count("\n") == 1 and msg in err, (args, err)
+        assert not bad.exists()

@@ -212,3 +212,63 @@ def test_a_trapezoid_library_on_the_dynamic_model(tmp_path):
                                rtol=1e-12, atol=1e-12)
     np.testing.assert_array_equal(s.load(index=np.flatnonzero(m["unit"] == 0)).X,
                                   np.stack([res.signal[0, a: a + 960] for a in starts]).astype(np.float32))
+
+
+# ---------------------------------------------------------------------- S-curves
+SCURVE = {**PROFILE, "trapezoid_fraction": 0.3, "scurve_fraction": 0.4, "jerk_deg_s3": {"min": 8000.0, "max": 16000.0}}
+
+
+@pytest.mark.parametrize("profile, match", [
+    ({"scurve_fraction": 0.5, "accel_deg_s2": 500.0}, r"\[profile\] jerk_deg_s3: missing"),
+    ({"trapezoid_fraction": 0.7, "scurve_fraction": 0.5, "accel_deg_s2": 500.0, "jerk_deg_s3": 1e4},
+     r"\[profile\] scurve_fraction: must lie in \[0, 1 - trapezoid_fraction\]"),
+    ({"scurve_fraction": 0.5, "accel_deg_s2": 500.0, "jerk_deg_s3": {"min": 0.0, "max": 5.0}},
+     r"\[profile\] jerk_deg_s3: must be > 0"),
+    # 90 deg/s at 500 deg/s^2 and 1000 deg/s^3: T_j = 0.3 s (V J < A^2), T_a = 0.6 s; 1.2 s > 0.55 s
+    ({"scurve_fraction": 0.5, "accel_deg_s2": 500.0, "jerk_deg_s3": 1000.0},
+     r"at 500 deg/s\^2 and 1000 deg/s\^3 an S-curve needs 1\.2 s to reach 90 deg/s"),
+])
+def test_bad_scurve_tables_are_one_line_errors(profile, match):
+    with pytest.raises(ConfigError, match=match) as exc:
+        cfg_of(PROF, profile=profile)
+    assert str(exc.value).startswith("prof.toml: [profile]") and "\n" not in str(exc.value)
+
+
+def test_ramp_time_of_the_config_is_the_profiles():
+    from rvdiag.dynamics.profile import SpeedProfile
+    from rvdiag.library.config import ramp_time
+
+    for v, a, j in ((45.0, 90.0, 900.0), (45.0, 300.0, 900.0), (90.0, 500.0, 1000.0)):
+        assert ramp_time(v, a, j) == SpeedProfile("scurve", v, a, jerk_deg_s3=j).ramp_times()[1]
+        assert ramp_time(v, a) == SpeedProfile("trapezoid", v, a).ramp_times()[1]
+
+
+def test_scurve_draws_columns_and_window_speeds(tmp_path):
+    """S-curves beside trapezoids: the kind is one draw (units of a config without S-curves unchanged), the jerk
+    is recorded for S-curves only, the window speeds rise and fall with the S-curve's closed form."""
+    cfg = cfg_of(PROF, profile=SCURVE)
+    plan, old = make_plan(cfg), make_plan(cfg_of(PROF, profile={**PROFILE, "trapezoid_fraction": 0.3}))
+    kinds = [u.profile["profile"] for u in plan]
+    assert set(kinds) <= {0, 1, 2} and 2 in kinds
+    for u, o in zip(plan, old):
+        assert (u.profile["profile"] == 1) == (o.profile["profile"] == 1)  # the same draw picks a trapezoid
+        if u.profile["profile"] == 1:
+            assert u.profile["accel_deg_s2"] == o.profile["accel_deg_s2"]
+        assert all(u.profile[k] == o.profile[k] for k in ("arm_mass_kg", "arm_length_m", "arm_angle_deg"))
+        assert (u.profile["jerk_deg_s3"] is None) == (u.profile["profile"] != 2)
+    assert make_plan(cfg) == plan
+    build_library(cfg, tmp_path / "s.zarr", workers=0, progress=False)
+    m = SampleStore.open(tmp_path / "s.zarr").meta
+    for u in plan:
+        rows = m["unit"] == u.index
+        if u.profile["profile"] == 2:
+            assert np.all(m["jerk_deg_s3"][rows] == u.profile["jerk_deg_s3"])
+            prof = u.speed_profile(cfg.transient_s)
+            assert prof.kind == "scurve"
+            t0 = m["t_start_s"][rows]
+            L = cfg.segment_length / cfg.fs
+            th = prof.state(np.concatenate([t0, t0 + L]), 0.0, cfg.duration_s)[0]
+            want = np.degrees(th[t0.size:] - th[:t0.size]) / L
+            np.testing.assert_allclose(m["window_speed_deg_s"][rows], want, rtol=1e-9)
+        else:
+            assert np.all(np.isnan(m["jerk_deg_s3"][rows]))

@@ -116,3 +116,30 @@ def test_profile_terms_change_the_rhs_where_the_carrier_accelerates():
     g.kinematics = lambda t, _k=g.kinematics: _k(t)[:2] + (0.0,)
     # the sun's nominal angular acceleration alone is i dOmega/dt = 81 x 5.2 rad/s^2
     assert np.max(np.abs(g(0.05, y) - base)) > 100.0
+
+
+def test_reference_rhs_equals_compiled_rhs_on_an_scurve():
+    """The jerk-limited S-curve: the compiled kernels' closed form against the oracle's phase-by-phase integration
+    of the piecewise-constant jerk, and the right-hand sides, in each of the seven phases and at rest."""
+    from rvdiag.dynamics import LoadProfile, SpeedProfile
+
+    prof = SpeedProfile.scurve(45.0, 300.0, 3000.0, move_s=0.6, start_s=0.02)  # T_j 0.1 s, T_a 0.25 s, T_c 0.1 s
+    m = prepare(P0, profile=prof, load_profile=LoadProfile(15.0, 0.5, 30.0), load_Nm=20.0)
+    f, g = mdl.make_rhs(m), ReferenceRHS(m)
+    q0 = static_equilibrium(m, 0.0)
+    rng = np.random.default_rng(6)
+    n = m.n_dof
+    # phase: jerk +, accel held, jerk -, cruise, jerk -, decel held, jerk +, at rest
+    for t in (0.07, 0.17, 0.23, 0.32, 0.42, 0.52, 0.57, 0.7):
+        th, w, a = g.kinematics(t)
+        th_c, w_c, a_c = prof.state(np.array([t]), 0.0)
+        assert (th, w, a) == pytest.approx((th_c[0], w_c[0], a_c[0]), rel=1e-10, abs=1e-12), t
+        q = q0 + 0.5 * (np.abs(q0) + 1e-7) * rng.standard_normal(n)
+        v = 1e-3 * rng.standard_normal(n)
+        y = np.concatenate([q, v])
+        a1, b1 = f(t, y), g(t, y)
+        assert np.array_equal(a1[:n], b1[:n])
+        assert float(np.max(np.abs(a1[n:] - b1[n:])) / np.max(np.abs(a1[n:]))) < 1e-9, t
+    # in the middle of the first jerk phase: a = J t, v = J t^2 / 2 (t from the move's start)
+    _, w, a = g.kinematics(0.07)
+    assert a == pytest.approx(np.radians(3000.0) * 0.05) and w == pytest.approx(np.radians(3000.0) * 0.05**2 / 2)

@@ -78,3 +78,81 @@ def test_gravity_arm_and_angles_are_recorded(tmp_path):
     r.to_npz(tmp_path / "a.npz")
     back = SimulationResult.from_npz(tmp_path / "a.npz")
     assert np.array_equal(back.theta_out, r.theta_out) and np.array_equal(back.theta_in, r.theta_in)
+
+
+# --------------------------------------------------------------------------- the jerk-limited S-curve
+@pytest.mark.parametrize("v, a, j, reached", [(45.0, 90.0, 900.0, True),     # V J >= A^2: A reached, held
+                                               (45.0, 300.0, 900.0, False)])  # V J < A^2: A not reached
+def test_scurve_is_continuous_and_covers_its_distance(v, a, j, reached):
+    """Against an independent integration (scipy's cumulative trapezoid of the acceleration, then of the speed):
+    the speed and the acceleration are continuous, the jerk stays within J, the peak speed is V, the peak
+    acceleration A (or sqrt(V J) when A is not reached), the move covers V (T_a + T_c)."""
+    from scipy.integrate import cumulative_trapezoid
+
+    move = 2.0
+    p = SpeedProfile.scurve(v, a, j, move_s=move, start_s=0.1)
+    dt = 1e-5
+    t = np.arange(-0.05, 2.3, dt)
+    th, w, acc = (np.degrees(x) for x in p.state(t, 0.0))
+    tj, ta, alim = p.ramp_times()
+    assert alim == pytest.approx(a if reached else np.sqrt(v * j), rel=1e-12)
+    assert ta == pytest.approx(tj + v / alim, rel=1e-12) and (tj == pytest.approx(a / j)) == reached
+    # continuity: no step larger than the largest rate allows over one dt
+    assert np.max(np.abs(np.diff(w))) <= alim * dt * (1 + 1e-9)
+    assert np.max(np.abs(np.diff(acc))) <= j * dt * (1 + 1e-6)
+    # (the grid may miss the instant of a peak acceleration by dt / 2)
+    assert w.max() == pytest.approx(v, rel=1e-12) and acc.max() == pytest.approx(alim, abs=j * dt)
+    assert acc.min() == pytest.approx(-alim, abs=j * dt) and w.min() == 0.0
+    # the closed form against scipy's integration of its own acceleration
+    w_int = cumulative_trapezoid(acc, t, initial=0.0)
+    th_int = cumulative_trapezoid(w_int, t, initial=0.0)
+    assert np.max(np.abs(w_int - w)) < 1e-6 * v
+    assert np.max(np.abs((th_int - th_int[t.searchsorted(0.0)]) - th)) < 1e-6 * v
+    tc = move - 2 * ta
+    assert th[-1] - th[t.searchsorted(0.1)] == pytest.approx(v * (ta + tc), rel=1e-12)
+    assert th[t.searchsorted(0.0)] == 0.0 < th[-1]  # theta_H(0) = 0 at the first recorded sample
+
+
+def test_scurve_compiled_profile_state_equals_the_closed_form():
+    from rvdiag.dynamics import kernels as kn
+    from rvdiag.dynamics import prepare
+
+    p = SpeedProfile.scurve(45.0, 300.0, 3000.0, move_s=0.5, start_s=0.02)
+    m = prepare(ReducerParams.default(), output_speed_deg_s=45.0, load_Nm=50.0, profile=p)
+    t = np.linspace(-0.01, 0.6, 6101)
+    want = p.state(t, 0.0)
+    got = np.array([kn.profile_state(x, m.P) for x in t]).T
+    for g, w_ in zip(got, want):
+        np.testing.assert_allclose(g, w_, rtol=1e-12, atol=1e-12)
+    assert m.P[kn.I_PROFILE] == 3.0
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(jerk_deg_s3=0.0), "jerk .* must be a finite number > 0"),
+    (dict(jerk_deg_s3=None), r"jerk \(deg/s\^3\) must be a number, got None"),
+    (dict(jerk_deg_s3=100.0, move_s=1.0), r"an S-curve at 90 deg/s\^2 and 100 deg/s\^3 needs 2\.683 s"),
+])
+def test_scurve_bad_values_are_one_line_errors(kw, match):
+    args = dict(kind="scurve", output_speed_deg_s=45.0, accel_deg_s2=90.0, move_s=2.0)
+    args.update(kw)
+    with pytest.raises(ParameterError, match=match) as exc:
+        SpeedProfile(**args).validate()
+    assert "\n" not in str(exc.value)
+    with pytest.raises(ParameterError, match="jerk limit applies to the S-curve"):
+        SpeedProfile("trapezoid", 45.0, 90.0, 2.0, 0.0, 100.0).validate()
+
+
+def test_scurve_simulation_records_its_true_angles():
+    """The dynamic model on an S-curve from rest: the recorded output angle is the profile's closed form, the
+    input turns i times as far, the signal is finite; the settings name the profile and its jerk."""
+    p = SpeedProfile.scurve(45.0, 600.0, 12000.0)
+    r = simulate(profile=p, load_Nm=50.0, duration_s=0.3, fs=24000.0)
+    t = np.arange(r.theta_out.size) / 24000.0
+    np.testing.assert_array_equal(r.theta_out, p.state(t, 0.0, 0.3)[0])
+    np.testing.assert_array_equal(r.theta_in, ReducerParams.default().ratio * r.theta_out)
+    tj, ta, _ = p.ramp_times()  # T_j 0.05 s, T_a 0.125 s: up 0.125 s, cruise 0.05 s, down 0.125 s
+    assert (tj, ta) == pytest.approx((0.05, 0.125))
+    assert np.degrees(p.state(np.array([0.3]), 0.0, 0.3)[0][0]) == pytest.approx(45.0 * (0.3 - ta))
+    assert np.degrees(r.theta_out[-1]) == pytest.approx(45.0 * (0.3 - ta), rel=1e-6)
+    assert r.settings["speed_profile"]["kind"] == "scurve" and r.settings["speed_profile"]["jerk_deg_s3"] == 12000.0
+    assert np.all(np.isfinite(r.signal)) and np.std(r.signal[0]) > 0

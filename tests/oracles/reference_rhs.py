@@ -93,10 +93,13 @@ class ReferenceRHS:
 
     def kinematics(self, t: float) -> tuple[float, float, float]:
         """Carrier angle theta_H, speed Omega and acceleration dOmega/dt at t (docs/model.md section 2): Omega t at
-        constant speed; the trapezoid integrated segment by segment from its speed, theta_H(0) = 0."""
+        constant speed; the trapezoid integrated segment by segment from its speed, the S-curve from its
+        piecewise-constant jerk; theta_H(0) = 0."""
         P = self.P
         te = self._te(t)
         W = P[mdl.I_OMEGA]
+        if P[mdl.I_PROFILE] == 3.0:
+            return self._scurve(te)
         if P[mdl.I_PROFILE] != 2.0:
             return W * te, W, 0.0
         acc, t_s, t_a, t_c = P[mdl.I_PR_ACC], P[mdl.I_PR_TS], P[mdl.I_PR_TA], P[mdl.I_PR_TC]
@@ -118,6 +121,30 @@ class ReferenceRHS:
 
         th, w, a = angle(te)
         return th - angle(0.0)[0], w, a
+
+    def _scurve(self, te: float) -> tuple[float, float, float]:
+        """The S-curve's (theta_H, Omega, dOmega/dt): its jerk is J, 0, -J, 0, -J, 0, J over its seven phases
+        (Biagiotti & Melchiorri 2008, section 3.4) and 0 at rest; integrated exactly phase by phase from rest."""
+        P = self.P
+        J, tj, ta, tc, t_s = P[mdl.I_PR_JERK], P[mdl.I_PR_TJ], P[mdl.I_PR_TA], P[mdl.I_PR_TC], P[mdl.I_PR_TS]
+        d = [tj, ta - 2 * tj, tj, tc, tj, ta - 2 * tj, tj]
+        jerks = [J, 0.0, -J, 0.0, -J, 0.0, J]
+
+        def integrate(x: float) -> tuple[float, float, float]:
+            th = w = a = 0.0
+            lo = t_s
+            for dk, jk in zip(d + [np.inf], jerks + [0.0]):
+                if x <= lo:
+                    break
+                dt = min(x, lo + dk) - lo
+                th += w * dt + a * dt**2 / 2 + jk * dt**3 / 6
+                w += a * dt + jk * dt**2 / 2
+                a += jk * dt
+                lo += dk
+            return th, w, a
+
+        th, w, a = integrate(te)
+        return th - integrate(0.0)[0], w, a
 
     def load_torque(self, t: float) -> float:
         """T_L(t) = T0 + M g L cos(theta_arm0 + theta_H) + M L^2 dOmega/dt (a gravity arm; T0 without one)."""

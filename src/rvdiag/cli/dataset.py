@@ -22,6 +22,33 @@ def _parse_scalars(items: list[str]) -> dict[str, str]:
     return out
 
 
+def _angle_spec(angle_channel, tacho_channel, ppr, meta_regex, estimate_speed, speed_range, params):
+    """The :class:`rvdiag.io.angles.AngleSpec` of ``dataset from-files``' options, or None (no speed columns)."""
+    import re
+
+    from rvdiag.io.angles import SPEED_GROUPS, AngleSpec, parse_speed_range
+
+    rng = parse_speed_range(speed_range)
+    try:
+        named = set(re.compile(meta_regex).groupindex) if meta_regex is not None else set()
+    except re.error:
+        named = set()  # select_files reports the bad regex
+    meta_speed = bool(named & set(SPEED_GROUPS))
+    if angle_channel is not None or tacho_channel is not None:
+        return AngleSpec(angle_channel=angle_channel, tacho_channel=tacho_channel, ppr=ppr,
+                         speed_range_rpm=rng).validate()
+    if ppr is not None:
+        raise ParameterError("--ppr applies to --tacho-channel or --angle-channel")
+    if meta_speed:
+        return AngleSpec(meta_regex=meta_regex, speed_range_rpm=rng).validate()
+    if estimate_speed:
+        return AngleSpec(estimate=True, speed_range_rpm=rng).validate()
+    if speed_range is not None or params is not None:
+        raise ParameterError("--speed-range and --params apply to an angle source: give --angle-channel, "
+                             "--tacho-channel, --estimate-speed or --meta-regex with a group rpm or speed_dps")
+    return None
+
+
 def register(app: typer.Typer) -> None:
     ds_app = typer.Typer(help="Measured datasets: build a sample store from files, describe stores.",
                          no_args_is_help=True)
@@ -55,6 +82,23 @@ def register(app: typer.Typer) -> None:
                                                       "windows; block K goes to 'test', the others to 'train'."),
         scalar: List[str] = typer.Option([], "--scalar",
                                          help="NAME=REGEX: record the file's scalar matching REGEX as column NAME (e.g. rpm=RPM)."),
+        angle_channel: Optional[str] = typer.Option(None, "--angle-channel",
+                                                    help="Regex of each file's input-shaft angle channel (rad, or "
+                                                         "counts with --ppr): record each window's speed."),
+        tacho_channel: Optional[str] = typer.Option(None, "--tacho-channel",
+                                                    help="Regex of each file's tachometer pulse channel on the input "
+                                                         "shaft (--ppr pulses per revolution, default 1)."),
+        ppr: Optional[int] = typer.Option(None, "--ppr", help="Tachometer pulses per input revolution; with "
+                                          "--angle-channel, the counts per revolution of an angle counter."),
+        estimate_speed: bool = typer.Option(False, "--estimate-speed",
+                                            help="Without an angle channel, tachometer or speed group in "
+                                                 "--meta-regex: take each file's stored angles (rvdiag simulate "
+                                                 "records) or estimate its speed from the stage-1 mesh peak."),
+        speed_range: Optional[str] = typer.Option(None, "--speed-range",
+                                                  help="MIN:MAX plausible input speed, rev/min (default 1:10000); "
+                                                       "a file outside it is an error."),
+        params: Optional[Path] = opt.params("Reducer parameter TOML for the angle source (ratio, sun teeth; "
+                                            "default: built-in RV-20E)."),
         out: Path = opt.out("Store to write (PATH.zarr)."),
         overwrite: bool = opt.overwrite("Replace an existing store."),
         as_json: bool = opt.json_flag("Print the summary as one JSON object."),
@@ -62,13 +106,16 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Window, label and store every matching file of FOLDER (kind "measured", written atomically).
 
-        With --test-fraction, whole files go to the test split (--split-by unit, the default)."""
+        With --test-fraction, whole files go to the test split (--split-by unit, the default).  With an angle
+        source (--angle-channel, --tacho-channel, a group rpm or speed_dps in --meta-regex, --estimate-speed) every
+        window also records input_speed_rpm, output_speed_deg_s, input_rev_start and angle_source."""
         from rich.progress import Progress, TextColumn
 
         from rvdiag.cli._progress import bar_columns, stderr_console
         from rvdiag.datasets.from_files import build_from_files
 
         scalars = _parse_scalars(scalar)
+        angle = _angle_spec(angle_channel, tacho_channel, ppr, meta_regex, estimate_speed, speed_range, params)
         with Progress(TextColumn("[bold]reading[/bold]"), *bar_columns(), transient=True, console=stderr_console(),
                       disable=quiet) as bar:
             task = bar.add_task("", total=None)
@@ -80,7 +127,7 @@ def register(app: typer.Typer) -> None:
                 folder, out, label_regex=label_regex, channel=channel, window_length=window, hop=hop, fs=fs,
                 meta_regex=meta_regex, include=include, test_fraction=test_fraction, seed=seed, split_by=split_by,
                 scalars=scalars, overwrite=overwrite, progress=progress, test_include=test_include,
-                test_block=test_block,
+                test_block=test_block, angle=angle, params=params,
             )
         if as_json:
             typer.echo(json.dumps(summary))
@@ -90,6 +137,8 @@ def register(app: typer.Typer) -> None:
         typer.echo(f"wrote {summary['path']}: {summary['n_samples']} windows of {summary['length']} "
                    f"from {summary['files']} file(s), fs {fs_text}")
         typer.echo(f"classes: {counts}")
+        for name, what in summary["angle_sources"].items():
+            typer.echo(f"  {name}: angle from {what}")
         if summary["skipped"]:
             typer.echo(f"skipped {len(summary['skipped'])} file(s) not matching --label-regex: "
                        + ", ".join(summary["skipped"][:5]) + (" ..." if len(summary["skipped"]) > 5 else ""))

@@ -59,8 +59,9 @@ def file_indicators(sig, meta: dict[str, float] | None = None) -> dict:
         if not sig.fs:
             raise ParameterError("the file states no sampling rate: give --fs")
         p = ReducerParams.default()
-        revs, what = _angle(sig, "sun", p, output_speed=out_speed, input_speed=in_speed, rpm=None,
-                            tacho_channel=None, ppr=None, angle_channel=None, fs=sig.fs)
+        revs, _, what = _angle(sig, "sun", p, output_speed=out_speed, input_speed=in_speed, rpm=None,
+                               tacho_channel=None, ppr=None, angle_channel=None, meta_regex=None, speed_range=None,
+                               fs=sig.fs)
         if out_speed is not None or in_speed is not None:
             what = f"--meta {SPEED_META[0] if out_speed is not None else SPEED_META[1]}=" \
                    f"{out_speed if out_speed is not None else in_speed:g}"

@@ -1,11 +1,20 @@
 """``rvdiag orders FILE --shaft sun|crank|output``: order spectrum, envelope order spectrum, TSA and gear condition
 indicators of one channel (:mod:`rvdiag.features.orders`; docs/orders.md).
 
-The angle comes from the first of: ``--angle-channel`` (the input shaft's angle, rad), ``--tacho-channel`` with
-``--ppr`` (pulses per input revolution), ``--rpm`` (the analysed shaft itself, rev/min), ``--input-speed`` (rpm),
-``--output-speed`` (deg/s), the speed a simulated record states (``rvdiag simulate``'s ``sun_speed_hz``), and
-failing those the stage-1 mesh peak of the spectrum (:func:`rvdiag.features.orders.estimate_shaft_speed`, output
-speeds 1-200 deg/s).
+The angle comes from the first of (:func:`rvdiag.io.angles.input_revolutions`): ``--angle-channel`` (the input
+shaft's angle, rad, or an angle counter of ``--ppr`` counts per revolution), ``--tacho-channel`` with ``--ppr``
+(pulses per input revolution), ``--rpm`` (the analysed shaft itself, rev/min), ``--input-speed`` (rpm),
+``--output-speed`` (deg/s), ``--meta-regex`` (a group ``rpm`` or ``speed_dps`` in the file name), the input
+angle ``theta_in`` a record of ``rvdiag simulate`` stores (its true angles, any speed profile), the speed such a
+record states, and failing those the stage-1 mesh peak of the spectrum
+(:func:`rvdiag.io.angles.estimate_shaft_speed`, output speeds 1-200 deg/s).  ``--json`` names the source under
+``angle_source`` (:data:`rvdiag.io.angles.ANGLE_SOURCES`) and describes it under ``angle_detail``.  For a machine
+of unknown rate or geometry, ``--cepstrum LO:HI`` takes the analysed shaft's period from the real cepstrum
+(:func:`rvdiag.io.angles.estimate_period_cepstrum`) and ``--mesh-order`` replaces the reducer's mesh order.
+
+Besides the nine indicators, the output has the modulation of the mesh (sideband asymmetry, phase demodulation;
+``modulation``) and the windowed TSA of each stage-1 planet (McFadden 1994; ``planets``), from
+:mod:`rvdiag.features.planetary`.
 """
 
 from __future__ import annotations
@@ -21,49 +30,63 @@ from rvdiag.cli import _options as opt
 from rvdiag.errors import ParameterError
 
 
-def _angle(sig, shaft, p, *, output_speed, input_speed, rpm, tacho_channel, ppr, angle_channel, fs):
-    """(revolutions of ``shaft`` per sample, how the angle was found)."""
+def _angle(sig, shaft, p, *, output_speed, input_speed, rpm, tacho_channel, ppr, angle_channel, meta_regex,
+           speed_range, fs, cepstrum=None):
+    """(revolutions of ``shaft`` per sample, angle source key, how the angle was found)."""
     from rvdiag.features import orders as o
-    from rvdiag.io import read_signal
+    from rvdiag.io.angles import (AngleSpec, angle_from_speed, estimate_period_cepstrum, input_revolutions,
+                                  parse_period_range, parse_speed_range)
 
-    n, x = sig.data.size, sig.data
     ratio = o.shaft_ratio(shaft, p)  # analysed shaft per input revolution
-    given = [v is not None for v in (output_speed, input_speed, rpm, tacho_channel, angle_channel)]
-    if sum(given) > 1:
-        raise ParameterError("give one angle source: --output-speed, --input-speed, --rpm, --tacho-channel or "
-                             "--angle-channel")
-    if ppr is not None and tacho_channel is None:
-        raise ParameterError("--ppr applies to --tacho-channel only")
-    if angle_channel is not None or tacho_channel is not None:
-        other = read_signal(sig.path, angle_channel or tacho_channel, fs)
-        if other.data.size != n:
-            raise ParameterError(f"channel {other.channel!r} has {other.data.size} samples, the signal {n}")
-        if angle_channel is not None:
-            return o.angle_from_encoder(other.data, sig.fs, ratio), f"angle channel {other.channel}"
-        times = o.tacho_pulse_times(other.data, sig.fs)
-        return (o.angle_from_tacho(times, n, sig.fs, int(ppr or 1), ratio),
-                f"tachometer {other.channel}, {int(ppr or 1)} pulses/rev")
+    if cepstrum is not None:
+        if any(v is not None for v in (output_speed, input_speed, rpm, tacho_channel, angle_channel, meta_regex,
+                                       speed_range)):
+            raise ParameterError("--cepstrum is an angle source of its own: give it alone (its period range is its "
+                                 "plausibility check)")
+        rng = parse_period_range(cepstrum)
+        period, q0 = estimate_period_cepstrum(sig.data, rng)
+        return (angle_from_speed(sig.data.size, sig.fs, sig.fs / period), "cepstrum",
+                f"one revolution = {period:.6g} samples: the real cepstrum's highest peak between {rng[0]} and "
+                f"{rng[1] or sig.data.size // 16} samples ({q0}), refined by harmonic summation")
     if rpm is not None:
-        return o.angle_from_speed(n, sig.fs, rpm / 60.0), f"{rpm:g} rev/min of the {shaft} shaft"
-    if input_speed is not None or output_speed is not None:
-        f = o.shaft_frequency(shaft, p, input_speed_rpm=input_speed, output_speed_deg_s=output_speed)
-        what = f"input {input_speed:g} rpm" if input_speed is not None else f"output {output_speed:g} deg/s"
-        return o.angle_from_speed(n, sig.fs, f), what
-    settings = sig.attrs.get("settings")
-    if isinstance(settings, str):
-        try:
-            settings = json.loads(settings)
-        except ValueError:
-            settings = None
-    if isinstance(settings, dict) and settings.get("sun_speed_hz"):
-        f = o.shaft_frequency(shaft, p, sun_speed_hz=float(settings["sun_speed_hz"]))
-        return o.angle_from_speed(n, sig.fs, f), "the simulated record's speed"
-    m1 = p.stage1.sun_teeth
-    f_sun = o.shaft_frequency("sun", p, output_speed_deg_s=1.0)  # per deg/s of output speed
-    f_rel = o.estimate_shaft_speed(x, sig.fs, m1, (1.0 * f_sun, 200.0 * f_sun))
-    f = f_rel / o.shaft_ratio("sun", p) * ratio
-    return (o.angle_from_speed(n, sig.fs, f),
-            f"estimated from the stage-1 mesh peak (order {m1} of the sun; {f_rel / f_sun:.4g} deg/s output)")
+        if any(v is not None for v in (output_speed, input_speed, tacho_channel, angle_channel, meta_regex)):
+            raise ParameterError("give one angle source: --rpm or another")
+        if not rpm > 0:
+            raise ParameterError(f"--rpm must be > 0, got {rpm}")
+        input_speed = rpm / ratio
+    spec = AngleSpec(angle_channel=angle_channel, tacho_channel=tacho_channel, ppr=ppr, input_speed_rpm=input_speed,
+                     output_speed_deg_s=output_speed, meta_regex=meta_regex,
+                     speed_range_rpm=parse_speed_range(speed_range))
+    got = input_revolutions(sig, spec, p, fs)
+    if rpm is not None:
+        return got.revs * ratio, "shaft-rpm", f"{rpm:g} rev/min of the {shaft} shaft"
+    return got.revs * ratio, got.source, got.detail
+
+
+def _planetary(sig, input_revs, res, shaft, p, sensor_angle, planet_window, generic=False):
+    """(modulation indicators and phase of the shaft's TSA, planet TSAs or None, why None) of ``rvdiag orders``;
+    ``generic``: another machine (``--mesh-order``): sidebands at +- 1 order, no planets."""
+    from rvdiag.features import planetary as pl
+
+    spacing = 1 if generic else pl.sideband_spacing(shaft, p)
+    mod = pl.modulation_indicators(res["tsa"], res["mesh_order"], spacing)
+    mod.update(harmonic=1, sideband_spacing=spacing, phase=pl.phase_demodulation(res["tsa"], res["mesh_order"])[0])
+    a, b = res["span"]
+    if planet_window is not None and not 0 < planet_window <= 360:
+        raise ParameterError(f"--planet-window must lie in (0, 360] deg, got {planet_window:g}")
+    if generic:
+        return mod, None, "--mesh-order: another machine than the reducer's planetary stage"
+    try:
+        planets = pl.planet_tsa(sig.data[a:b], sig.fs, input_revs[a:b], p, sensor_angle_deg=sensor_angle,
+                                width_deg=planet_window)
+    except ParameterError as exc:
+        return mod, None, f"the record is too short for the planets' crank ({exc})"
+    planets.update(sensor_angle_deg=float(sensor_angle),
+                   window_deg=float(planet_window if planet_window is not None else 720.0 / planets["n_planets"]))
+    missing = [q["planet"] for q in planets["planets"] if q["tsa"] is None]
+    note = (f"planet(s) {', '.join(map(str, missing))} never reach one revolution of window weight: a longer record "
+            "(the carrier must bring each planet past the sensor)") if missing else None
+    return mod, planets, note
 
 
 def _plot(res, path: Path, title: str, top: float) -> None:
@@ -110,14 +133,38 @@ def register(app: typer.Typer) -> None:
         rpm: Optional[float] = typer.Option(None, "--rpm", help="Speed of the analysed shaft itself, rev/min."),
         tacho_channel: Optional[str] = typer.Option(None, "--tacho-channel",
                                                     help="Regex of a tachometer pulse channel on the input shaft."),
-        ppr: Optional[int] = typer.Option(None, "--ppr", help="Tachometer pulses per input revolution (default 1)."),
+        ppr: Optional[int] = typer.Option(None, "--ppr", help="Tachometer pulses per input revolution (default 1); "
+                                          "with --angle-channel, the counts per revolution of an angle counter."),
         angle_channel: Optional[str] = typer.Option(None, "--angle-channel",
-                                                    help="Regex of an input-shaft angle channel (rad)."),
+                                                    help="Regex of an input-shaft angle channel (rad, or counts "
+                                                         "with --ppr)."),
+        meta_regex: Optional[str] = typer.Option(None, "--meta-regex",
+                                                 help="Regex on the file name with a group (?P<rpm>...) (input "
+                                                      "rev/min) or (?P<speed_dps>...) (output deg/s)."),
+        speed_range: Optional[str] = typer.Option(None, "--speed-range",
+                                                  help="MIN:MAX plausible input speed, rev/min (default 1:10000); "
+                                                       "an angle outside it is an error."),
         channel: str = opt.channel(),
         fs: float = opt.fs("Sampling rate in Hz (overrides the file's)."),
         params: Optional[Path] = opt.params(),
         samples_per_rev: Optional[int] = typer.Option(None, "--samples-per-rev",
                                                       help="Angular samples per revolution (default: automatic)."),
+        cepstrum: Optional[str] = typer.Option(None, "--cepstrum",
+                                               help="LO:HI (or LO:) samples: the analysed shaft's period is the "
+                                                    "real cepstrum's highest peak in that range, refined by harmonic "
+                                                    "summation (a machine of unknown rate or geometry; with --fs 1 "
+                                                    "orders are cycles per sample)."),
+        mesh_order: Optional[int] = typer.Option(None, "--mesh-order",
+                                                 help="Mesh order of the analysed shaft for the indicators, instead "
+                                                      "of the reducer's (another machine: no reducer fault orders, "
+                                                      "no planets)."),
+        sensor_angle: float = typer.Option(0.0, "--sensor-angle",
+                                           help="The sensor's angle around the housing from planet 0's position at "
+                                                "the record's first sample, deg (a simulated record: from the x "
+                                                "axis), for the planet windows."),
+        planet_window: Optional[float] = typer.Option(None, "--planet-window",
+                                                      help="Width of each planet's Hann window in carrier angle, deg "
+                                                           "(default 720 / planets: the windows sum to 1)."),
         plot: Optional[Path] = typer.Option(None, "--plot", help="Write a PNG: spectra with fault orders, TSA."),
         as_json: bool = opt.json_flag("Print shaft, orders, amplitude, indicators (and more) as JSON."),
     ) -> None:
@@ -133,32 +180,46 @@ def register(app: typer.Typer) -> None:
         sig = read_signal(file, channel, fs)
         if sig.fs is None:
             raise ParameterError(f"{file} states no sampling rate: give --fs")
-        revs, source = _angle(sig, shaft, p, output_speed=output_speed, input_speed=input_speed, rpm=rpm,
-                              tacho_channel=tacho_channel, ppr=ppr, angle_channel=angle_channel, fs=fs)
-        res = o.analyse(sig.data, sig.fs, revs, shaft, p, samples_per_rev)
+        revs, source_key, source = _angle(sig, shaft, p, output_speed=output_speed, input_speed=input_speed, rpm=rpm,
+                                          tacho_channel=tacho_channel, ppr=ppr, angle_channel=angle_channel,
+                                          meta_regex=meta_regex, speed_range=speed_range, fs=fs,
+                                          cepstrum=cepstrum)
+        res = o.analyse(sig.data, sig.fs, revs, shaft, p, samples_per_rev, mesh=mesh_order)
+        mod, planets, planets_note = _planetary(sig, revs / o.shaft_ratio(shaft, p), res, shaft, p, sensor_angle,
+                                                planet_window, generic=mesh_order is not None)
         top = min(4.5 * res["mesh_order"], res["samples_per_rev"] * 0.45)
         keep = res["orders"] <= top
-        title = f"{file.name} [{sig.channel}], {shaft} shaft {res['shaft_hz']:.4g} Hz ({source})"
+        what = "the shaft" if mesh_order is not None else f"{shaft} shaft"
+        title = f"{file.name} [{sig.channel}], {what} {res['shaft_hz']:.4g} Hz ({source})"
         if plot is not None:
             _plot(res, plot, title, top)
         if as_json:
             ekeep = res["envelope_orders"] <= top
             typer.echo(json.dumps({
-                "shaft": shaft, "shaft_hz": res["shaft_hz"], "angle_source": source,
+                "shaft": shaft, "shaft_hz": res["shaft_hz"], "angle_source": source_key, "angle_detail": source,
+                "span_s": [res["span"][0] / sig.fs, res["span"][1] / sig.fs],
                 "samples_per_rev": res["samples_per_rev"], "n_revolutions": res["n_revolutions"],
                 "mesh_order": res["mesh_order"], "fault_orders": res["fault_orders"],
                 "orders": res["orders"][keep].tolist(), "amplitude": res["amplitude"][keep].tolist(),
                 "envelope_orders": res["envelope_orders"][ekeep].tolist(),
                 "envelope_amplitude": res["envelope_amplitude"][ekeep].tolist(),
-                "tsa": res["tsa"].tolist(), "indicators": res["indicators"]}))
+                "tsa": res["tsa"].tolist(), "indicators": res["indicators"],
+                "modulation": {**mod, "phase": mod["phase"].tolist()},
+                "planets": None if planets is None else {**planets, "planets": [
+                    {**q, "tsa": None if q["tsa"] is None else q["tsa"].tolist()} for q in planets["planets"]]},
+                "planets_note": planets_note}))
             return
         from rich.console import Console
         from rich.table import Table
 
         from rvdiag.features.orders import INDICATORS
+        from rvdiag.features.planetary import MODULATION_INDICATORS
 
         con = Console(width=110)
         con.print(title)
+        if res["span"] != (0, sig.data.size):
+            con.print(f"analysed {res['span'][0] / sig.fs:.4g}-{res['span'][1] / sig.fs:.4g} s, where the shaft "
+                      "turns at half its peak speed or more")
         con.print(f"{res['n_revolutions']} revolutions x {res['samples_per_rev']} samples; mesh order "
                   f"{res['mesh_order']}")
         fo = Table(title="fault orders")
@@ -167,13 +228,31 @@ def register(app: typer.Typer) -> None:
         fo.add_column("envelope amplitude", justify="right")
         for k, v in res["fault_orders"].items():
             fo.add_row(k, f"{v:.4g}", f"{np.interp(v, res['envelope_orders'], res['envelope_amplitude']):.3g}")
-        con.print(fo)
+        if res["fault_orders"]:
+            con.print(fo)
         table = Table(title="condition indicators")
         table.add_column("indicator")
         table.add_column("value", justify="right")
         table.add_column("signal")
         for k, v in res["indicators"].items():
             table.add_row(k, f"{v:.4g}", INDICATORS[k])
+        for k, v in mod.items():
+            if k in MODULATION_INDICATORS:
+                table.add_row(k, f"{v:.4g}", MODULATION_INDICATORS[k] + f" (harmonic {mod['harmonic']}, +- "
+                              f"{mod['sideband_spacing']} orders)")
         con.print(table)
+        if planets is None:
+            con.print(f"no planet TSA: {planets_note}")
+        else:
+            pt = Table(title=f"planet TSA (McFadden 1994 windows; stage-1 mesh order {planets['mesh_order']} of the "
+                             f"crank, {planets['n_revolutions']} crank revolutions)")
+            shown = ("fm0", "fm4", "na4", "nb4", "m6a", "energy_ratio")  # all of them in --json
+            for col in ("planet", "passes", "weight (rev)", *shown):
+                pt.add_column(col, justify="right", no_wrap=True)
+            for q in planets["planets"]:
+                vals = ["-"] * len(shown) if q["indicators"] is None else \
+                    [f"{q['indicators'][k]:.4g}" for k in shown]
+                pt.add_row(f"planet {q['planet']}", str(q["passes"]), f"{q['weight_revs']:.3g}", *vals)
+            con.print(pt)
         if plot is not None:
             con.print(f"wrote {plot}")

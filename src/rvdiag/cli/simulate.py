@@ -92,11 +92,13 @@ def register(app: typer.Typer) -> None:
                                                 "many seconds, each started --transient ahead and integrated "
                                                 "on its own (0: one continuous run; default 0, or 1 s with "
                                                 "--workers > 1)."),
-        profile: str = typer.Option("constant", "--profile", help="Output speed profile: constant, or trapezoid "
+        profile: str = typer.Option("constant", "--profile", help="Output speed profile: constant, trapezoid "
                                     "(from rest at --accel to --output-speed, cruise, decelerate to rest at the "
-                                    "record's end)."),
-        accel: Optional[float] = typer.Option(None, "--accel", help="Trapezoid's acceleration and deceleration, "
-                                              "deg/s^2."),
+                                    "record's end) or scurve (the same with the jerk limited to --jerk: speed and "
+                                    "acceleration continuous)."),
+        accel: Optional[float] = typer.Option(None, "--accel", help="Trapezoid's or S-curve's acceleration and "
+                                              "deceleration (limit), deg/s^2."),
+        jerk: Optional[float] = typer.Option(None, "--jerk", help="S-curve's jerk limit, deg/s^3."),
         arm_mass: float = typer.Option(0.0, "--arm-mass", help="Gravity arm on the output: point mass, kg "
                                        "(load T0 + M g L cos(angle) + M L^2 dOmega/dt)."),
         arm_length: float = typer.Option(0.0, "--arm-length", help="Gravity arm's length, m."),
@@ -143,15 +145,22 @@ def register(app: typer.Typer) -> None:
                                      **({} if transient is None else {"transient_s": transient}))
         from rvdiag.dynamics import LoadProfile, SpeedProfile
 
-        if profile not in ("constant", "trapezoid"):
-            raise ParameterError(f"--profile must be constant or trapezoid, got {profile!r}")
+        if profile not in ("constant", "trapezoid", "scurve"):
+            raise ParameterError(f"--profile must be constant, trapezoid or scurve, got {profile!r}")
+        if jerk is not None and profile != "scurve":
+            raise ParameterError("--jerk needs --profile scurve")
         if profile == "trapezoid":
             if output_speed is None or accel is None:
                 raise ParameterError("--profile trapezoid needs --output-speed DEG_S and --accel DEG_S2")
             speed_profile = SpeedProfile("trapezoid", output_speed, accel)
             speed_profile.validate(duration)
+        elif profile == "scurve":
+            if output_speed is None or accel is None or jerk is None:
+                raise ParameterError("--profile scurve needs --output-speed DEG_S, --accel DEG_S2 and --jerk DEG_S3")
+            speed_profile = SpeedProfile("scurve", output_speed, accel, jerk_deg_s3=jerk)
+            speed_profile.validate(duration)
         elif accel is not None:
-            raise ParameterError("--accel needs --profile trapezoid")
+            raise ParameterError("--accel needs --profile trapezoid or scurve")
         else:
             speed_profile = SpeedProfile()
         load_profile = LoadProfile(arm_mass, arm_length, arm_angle)

@@ -94,7 +94,7 @@ def features_kw(features: str, *, epochs: int, device: str, seed: int, lr: float
                 raise ParameterError("--features bearing-envelope needs --bearing-geometry "
                                      "N_BALLS,D_BALL_MM,D_PITCH_MM,CONTACT_DEG (e.g. 9,7.94,39.04,0 for a 6205)")
             kw[name] = {**geometry_from_mm(bearing_geometry), "fs": fs, "speed_column": rpm_column}
-        elif name in ("tsa-ci", "orders"):  # angle-domain features: the store's rate and each window's speed
+        elif name in ("tsa-ci", "tsa-mod", "orders"):  # angle-domain features: the store's rate and each window's speed
             kw[name] = {"fs": fs, "speed_column": speed_column}
     return kw if len(parts) > 1 else kw.get(features, {})
 

@@ -23,6 +23,20 @@ Metadata columns of every sample:
 ``<name>``   every ``scalars`` entry: the value of the file's one scalar matching the given regex
              (e.g. ``rpm`` from CWRU's ``X105RPM``)
 
+With an angle source (``angle``, an :class:`rvdiag.io.angles.AngleSpec`: an angle or angle-counter channel, a
+tachometer channel with its pulses per revolution, groups ``rpm`` / ``speed_dps`` of ``meta_regex``, the angles a
+record of ``rvdiag simulate`` stores, or the stage-1 mesh-peak estimate; :func:`rvdiag.io.angles.input_revolutions`),
+each window also gets
+
+``input_speed_rpm``     the input (sun) shaft's mean speed over the window, rev/min
+``output_speed_deg_s``  the same as the output (carrier) speed of the reducer ``params``, deg/s (the speed column
+                        ``rvdiag train --features tsa-ci`` reads by default)
+``input_rev_start``     the input shaft's revolutions at the window's first sample, from the file's first sample
+``angle_source``        where the angle came from (:data:`rvdiag.io.angles.ANGLE_SOURCES`)
+
+Bad angle data in any file (an angle that turns back, missing tachometer pulses, a speed out of the plausible
+range) raise one ParameterError line naming the file, and nothing is written.
+
 The store is written in one go into a temporary folder and renamed into place
 (:func:`rvdiag.datasets.store.write_store`): a failure at any file leaves nothing behind.
 """
@@ -152,6 +166,8 @@ def build_from_files(
     progress: Callable[[int, int, str], None] | None = None,
     test_include: str | None = None,
     test_block: str | None = None,
+    angle: Any = None,
+    params: Any = None,
 ) -> dict[str, Any]:
     """Read, window and label every selected file of ``folder``; write the store ``out``.
 
@@ -179,6 +195,10 @@ def build_from_files(
     overwrite : bool
         Replace an existing store at ``out``.
     progress : callable(done, total, file name), optional
+    angle : rvdiag.io.angles.AngleSpec, optional
+        Where each file's input-shaft angle comes from (None: no speed columns); see the module docstring.
+    params : ReducerParams or path, optional
+        The reducer whose ratio and sun teeth the angle source uses (default the built-in RV-20E).
 
     Returns
     -------
@@ -206,6 +226,11 @@ def build_from_files(
         _compile(v, f"scalar regex for {k!r}")
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", k):
             raise ParameterError(f"scalar column name {k!r} must be an identifier")
+    if angle is not None:
+        from rvdiag.params import ReducerParams
+
+        angle.validate()
+        params = params if isinstance(params, ReducerParams) else ReducerParams.load(params)
     entries, skipped = select_files(folder, label_regex, meta_regex, include)
     if test_fraction is not None and split_by == "unit":
         _check_files_per_class(entries)
@@ -215,6 +240,8 @@ def build_from_files(
     cols: dict[str, list[Any]] = {"unit": [], "source": [], "channel": [], "start": []}
     file_meta: dict[str, list[str]] = {k: [] for k in entries[0].meta}
     scalar_vals: dict[str, list[float]] = {k: [] for k in scalar_pats}
+    angle_cols: dict[str, list[Any]] = {k: [] for k in ANGLE_COLUMNS} if angle is not None else {}
+    sources: dict[str, str] = {}
     rows_per_file: list[int] = []
     fs_seen: float | None | str = "unset"
     first_fs_file = None
@@ -245,6 +272,8 @@ def build_from_files(
             file_meta[k].extend([v] * n)
         for k, pat in scalar_pats.items():
             scalar_vals[k].extend([sig.scalar(pat)] * n)
+        if angle is not None:
+            _angle_columns(sig, angle, params, fs, starts, int(window_length), angle_cols, sources)
         rows_per_file.append(n)
     if progress is not None:
         progress(len(entries), len(entries), "")
@@ -265,6 +294,11 @@ def build_from_files(
         if k in meta or k == "split":
             raise ParameterError(f"scalar column name {k!r} is reserved or used twice")
         meta[k] = np.asarray(v, dtype=np.float64)
+    for k, v in angle_cols.items():
+        if k in meta:
+            raise ParameterError(f"metadata column {k!r} is written by the angle source; rename the regex group or "
+                                 "scalar")
+        meta[k] = np.asarray(v, dtype=object if k == "angle_source" else np.float64)
     if test_pat is not None or block is not None:
         meta["split"] = split_by_name(meta["source"], test_pat, block)
     elif split_by == "unit":
@@ -294,6 +328,8 @@ def build_from_files(
         "test_include": test_include,
         "test_block": test_block,
     }
+    if angle is not None:
+        config["angle"] = {**angle.to_dict(), "params": params.to_dict()}
     file_fs = None if fs_seen == "unset" else fs_seen
     write_store(out, X, y.tolist(), meta, kind="measured", fs=file_fs, config=config,
                 overwrite=overwrite, extra_attrs={"params": None})
@@ -309,7 +345,31 @@ def build_from_files(
         "files": len(entries),
         "skipped": skipped,
         "rows_per_file": rows_per_file,
+        "angle_sources": sources,
     }
+
+
+#: the metadata columns an angle source adds to every window
+ANGLE_COLUMNS = ("input_speed_rpm", "output_speed_deg_s", "input_rev_start", "angle_source")
+
+
+def _angle_columns(sig, angle, params, fs, starts: np.ndarray, length: int, cols: dict, sources: dict) -> None:
+    """Append the :data:`ANGLE_COLUMNS` of one file's windows to ``cols`` (and its source to ``sources``)."""
+    from rvdiag.io.angles import input_revolutions
+
+    try:
+        got = input_revolutions(sig, angle, params, fs)
+    except (ParameterError, DataFileError) as exc:
+        msg = str(exc)
+        raise ParameterError(msg if msg.startswith((str(sig.path), sig.path.name)) else f"{sig.path.name}: {msg}") \
+            from None
+    r = got.revs
+    rpm = (r[starts + length - 1] - r[starts]) * float(sig.fs) / (length - 1) * 60.0
+    cols["input_speed_rpm"].extend(rpm.tolist())
+    cols["output_speed_deg_s"].extend((rpm * 6.0 / params.ratio).tolist())
+    cols["input_rev_start"].extend(r[starts].tolist())
+    cols["angle_source"].extend([got.source] * starts.size)
+    sources[sig.path.name] = f"{got.source}: {got.detail}, mean {got.rpm:.6g} rev/min"
 
 
 def _same_fs(a: float | None, b: float | None) -> bool:

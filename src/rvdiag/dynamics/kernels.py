@@ -60,9 +60,10 @@ P_FIELDS = (
     "MOTOR",  # 1.0: a motor rotor DOF (the last coordinate) on the input shaft, held by the speed loop
     "KSL", "CSL", "TDRIVE",  # speed-loop spring and damper on the rotor, its steady drive torque
     # speed and load profile (docs/model.md section 2; rvdiag.dynamics.profile): PROFILE 0 the constant-speed
-    # model (the kernels' original path), 1 constant speed with a time-varying load, 2 a trapezoid
+    # model (the kernels' original path), 1 constant speed with a time-varying load, 2 a trapezoid, 3 an S-curve
     "PROFILE",
     "PR_TS", "PR_TA", "PR_TC", "PR_ACC", "PR_F0",  # trapezoid: start, accel and cruise times, accel, angle at t=0
+    "PR_TJ", "PR_JERK",                         # S-curve: jerk time and jerk (PR_ACC its acceleration reached)
     "RATIO",                                    # i: sun speed / carrier speed
     "ARM_MGL", "ARM_ML2", "ARM_TH0",            # gravity arm: M g L, M L^2, its angle at t = 0
     "JREF_I",                                   # i J_ref: drive torque per unit carrier acceleration
@@ -95,11 +96,30 @@ def eval_time(t, P):
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
+def scurve_ramp(x, w, ta, tj, jerk, alim):
+    """``(angle, speed, acceleration)`` at ``x`` s into the acceleration phase of the S-curve (Biagiotti &
+    Melchiorri 2008, section 3.4; :class:`rvdiag.dynamics.profile.SpeedProfile`): jerk ``jerk`` for ``tj``, the
+    acceleration ``alim``, jerk ``-jerk`` for the last ``tj`` of ``ta``, cruise speed ``w``."""
+    if x <= 0.0:
+        return 0.0, 0.0, 0.0
+    if x < tj:
+        return jerk * x * x * x / 6.0, 0.5 * jerk * x * x, jerk * x
+    if x < ta - tj:
+        return alim * (3.0 * x * x - 3.0 * tj * x + tj * tj) / 6.0, alim * (x - 0.5 * tj), alim
+    if x < ta:
+        u = ta - x
+        return 0.5 * w * ta - w * u + jerk * u * u * u / 6.0, w - 0.5 * jerk * u * u, jerk * u
+    return 0.5 * w * ta, w, 0.0
+
+
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
 def profile_state(te, P):
     """``(theta_H, Omega, dOmega/dt)`` of the carrier at time ``te`` on the profile path (``P[I_PROFILE] != 0``):
-    constant speed (1) or the trapezoid (2) of :class:`rvdiag.dynamics.profile.SpeedProfile`, in closed form
-    (docs/model.md section 2): at rest until PR_TS, accelerating at PR_ACC for PR_TA, cruising at OMEGA for
-    PR_TC, decelerating for PR_TA, at rest; theta_H(0) = 0 (PR_F0 is the angle the move has covered at t = 0)."""
+    constant speed (1), the trapezoid (2) or the S-curve (3) of :class:`rvdiag.dynamics.profile.SpeedProfile`, in
+    closed form (docs/model.md section 2): at rest until PR_TS, accelerating at PR_ACC for PR_TA (the S-curve
+    ramping its acceleration at PR_JERK for PR_TJ at either end of PR_TA), cruising at OMEGA for PR_TC,
+    decelerating for PR_TA (the mirror image), at rest; theta_H(0) = 0 (PR_F0 is the angle the move has covered
+    at t = 0)."""
     w = P[I_OMEGA]
     if P[I_PROFILE] == 1.0:
         return w * te, w, 0.0
@@ -107,6 +127,18 @@ def profile_state(te, P):
     ta = P[I_PR_TA]
     tc = P[I_PR_TC]
     tau = te - P[I_PR_TS]
+    if P[I_PROFILE] == 3.0:
+        tj = P[I_PR_TJ]
+        jk = P[I_PR_JERK]
+        T = 2.0 * ta + tc
+        if tau <= ta:
+            F, W, A = scurve_ramp(tau, w, ta, tj, jk, ac)
+        elif tau < T - ta:
+            F, W, A = w * (0.5 * ta + (tau - ta)), w, 0.0
+        else:
+            Fd, Wd, Ad = scurve_ramp(T - tau, w, ta, tj, jk, ac)
+            F, W, A = w * (ta + tc) - Fd, Wd, -Ad
+        return F - P[I_PR_F0], W, A
     if tau <= 0.0:
         F, W, A = 0.0, 0.0, 0.0
     elif tau < ta:

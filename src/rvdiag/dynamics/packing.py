@@ -246,10 +246,11 @@ def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: floa
         if not profile.is_constant:
             ts, ta, tc, acc, w = profile.segments(duration_s)
             if abs(w - Omega) > 1e-9 * Omega:
-                raise ParameterError(f"the trapezoid's cruise speed ({profile.output_speed_deg_s} deg/s) differs from "
+                raise ParameterError(f"the {profile.kind}'s cruise speed ({profile.output_speed_deg_s} deg/s) differs from "
                                      "the operating point's output speed")
-            P[kn.I_PROFILE] = 2.0
+            P[kn.I_PROFILE] = 3.0 if profile.kind == "scurve" else 2.0
             P[kn.I_PR_TS], P[kn.I_PR_TA], P[kn.I_PR_TC], P[kn.I_PR_ACC] = ts, ta, tc, acc
+            P[kn.I_PR_TJ], P[kn.I_PR_JERK] = profile.jerk_segment()
             P[kn.I_PR_F0] = float(profile._cumulative(np.zeros(1), duration_s)[0][0])
         M, L = float(load.arm_mass_kg), float(load.arm_length_m)
         P[kn.I_ARM_MGL], P[kn.I_ARM_ML2] = M * G * L, M * L * L

@@ -18,6 +18,8 @@ wpd               :class:`WaveletPacketEnergy` (16 bands)      Li, Zhao et al. 2
 eemd              :class:`EEMDFeatures` (mean |IMF| x 6)        Tu et al. 2023
 tsa-ci            :class:`~rvdiag.features.tsa.TSAIndicatorFeatures`   Decker 2002; Lebold et al. 2000
                   (FM0, FM4, NA4, NB4, M6A, M8A... of the TSA)
+tsa-mod           the same with ``modulation=True``: + sideband   Randall 1982; McFadden & Smith 1985;
+                  asymmetry, phase modulation of the mesh         McFadden 1986
 orders            :class:`~rvdiag.features.tsa.OrderSpectrumFeatures`  Fyfe & Munck 1997 (computed order
                   (order-spectrum bands, envelope fault orders) tracking); docs/orders.md
 none              :class:`RawSignal` (the samples themselves)
@@ -73,6 +75,12 @@ def absolute_spectrum_features(**kw) -> SpectrumFeatures:
     return SpectrumFeatures(**{"relative": False, **kw})
 
 
+def modulation_indicator_features(**kw) -> TSAIndicatorFeatures:
+    """The nine TSA indicators and the four modulation indicators of :mod:`rvdiag.features.planetary` (feature
+    set ``tsa-mod``)."""
+    return TSAIndicatorFeatures(**{"modulation": True, **kw})
+
+
 _REGISTRY: dict[str, Callable[..., object]] = {
     "time": TimeDomainFeatures,
     "spectrum": SpectrumFeatures,
@@ -84,6 +92,7 @@ _REGISTRY: dict[str, Callable[..., object]] = {
     "eemd": EEMDFeatures,
     "none": RawSignal,
     "tsa-ci": TSAIndicatorFeatures,
+    "tsa-mod": modulation_indicator_features,
     "orders": OrderSpectrumFeatures,
 }
 
@@ -116,6 +125,7 @@ __all__ = [
     "BearingEnvelopeFeatures", "CharacteristicBandEnergy", "CombinedFeatures", "EEMDFeatures",
     "EnvelopeSpectrumFeatures", "OrderSpectrumFeatures", "RawSignal", "SignalTransformer", "SpectrumFeatures", "TIME_FEATURE_NAMES",
     "TSAIndicatorFeatures", "TimeDomainFeatures", "WaveletPacketEnergy", "absolute_spectrum_features", "as_signal_matrix",
+    "modulation_indicator_features",
     "bearing_defect_frequencies", "eemd", "emd", "feature_names", "input_metadata", "log_spectrum_features",
     "make_features", "register_features", "time_features", "with_metadata",
 ]

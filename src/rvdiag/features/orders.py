@@ -1,13 +1,13 @@
 """Angle-domain analysis of the reducer: computed order tracking, time-synchronous averaging (TSA) and the gear
 condition indicators (``rvdiag orders``, feature sets ``tsa-ci`` and ``orders``; docs/orders.md).
 
-Angle sources (:func:`shaft_revolutions`, best first)
-----------------------------------------------------
-- a measured angle per sample (an encoder of the input shaft, rad): :func:`angle_from_encoder`; it must be
-  monotonic, else a one-line :class:`~rvdiag.errors.ParameterError`;
+Angle sources (:mod:`rvdiag.io.angles`, re-exported here; :func:`rvdiag.io.angles.input_revolutions` picks one)
+--------------------------------------------------------------------------------------------------------------
+- a measured angle per sample (an encoder of the input shaft, rad, or an encoder counter):
+  :func:`angle_from_encoder`; it must be monotonic, else a one-line :class:`~rvdiag.errors.ParameterError`;
 - tachometer pulse times with ``ppr`` pulses per revolution: :func:`angle_from_tacho` (pulses found in a pulse
   channel by :func:`tacho_pulse_times`); missing, spurious or non-increasing pulses raise ParameterError;
-- a constant speed (a simulated record's ``sun_speed_hz``, a file's metadata, or ``--output-speed``);
+- a constant speed (given, or in the file name), or the angles a record of ``rvdiag simulate`` stores;
 - failing those, a speed estimated from the spectrum: :func:`estimate_shaft_speed` takes the highest peak of
   the amplitude spectrum (Hann window) inside the band where a known mesh order can lie, refines its frequency
   by parabolic interpolation of the log magnitude over the three bins around the peak, and divides by the
@@ -39,8 +39,8 @@ diagnostics and prognostics", Proc. 54th MFPT, 2000), Zakrajsek, Townsend & Deck
 and Randall, *Vibration-based Condition Monitoring* (Wiley, 2011), ch. 5.  For a planetary stage the TSA of
 the sun relative to the carrier mixes the planets' meshes; McFadden's windowed vibration separation (McFadden,
 "Window functions for the calculation of the time domain averages of the vibration of the individual planet
-gears and sun gear in an epicyclic gearbox", J. Vib. Acoust. 116 (1994) 179-187) would give one TSA per planet;
-it is not implemented here.
+gears and sun gear in an epicyclic gearbox", J. Vib. Acoust. 116 (1994) 179-187) gives one TSA per planet:
+:func:`rvdiag.features.planetary.planet_tsa`.
 """
 
 from __future__ import annotations
@@ -51,6 +51,9 @@ from typing import Sequence
 import numpy as np
 
 from rvdiag.errors import ParameterError
+# the angle sources live in rvdiag.io.angles (the datasets layer uses them too); re-exported here
+from rvdiag.io.angles import (angle_from_encoder, angle_from_speed, angle_from_tacho,  # noqa: F401
+                              estimate_shaft_speed, tacho_pulse_times)
 
 SHAFTS = ("sun", "crank", "output")
 
@@ -129,113 +132,6 @@ def _check_shaft(shaft):
     if shaft not in SHAFTS:
         raise ParameterError(f"unknown shaft {shaft!r}; use one of {'|'.join(SHAFTS)}")
     return shaft
-
-
-# --------------------------------------------------------------------------- angle sources
-def angle_from_speed(n: int, fs: float, rev_per_s: float) -> np.ndarray:
-    """Revolutions of a shaft turning at a constant ``rev_per_s`` at each of ``n`` samples."""
-    if not (math.isfinite(rev_per_s) and rev_per_s > 0):
-        raise ParameterError(f"shaft speed must be > 0 rev/s, got {rev_per_s}")
-    return np.arange(int(n)) * (float(rev_per_s) / float(fs))
-
-
-def angle_from_encoder(angle_rad, fs: float, ratio: float = 1.0) -> np.ndarray:
-    """Revolutions of the analysed shaft from a measured angle per sample (rad) of a shaft turning ``ratio``
-    times slower (analysed speed = ``ratio`` x measured speed).  A decreasing angle (a shaft turning backwards)
-    is taken with its sign changed; an angle that is not strictly monotonic raises ParameterError."""
-    a = np.asarray(angle_rad, dtype=np.float64).ravel()
-    if a.size < 2 or not np.all(np.isfinite(a)):
-        raise ParameterError("the angle channel must hold at least 2 finite values (rad)")
-    if a[-1] < a[0]:
-        a = -a
-    d = np.diff(a)
-    bad = np.flatnonzero(d <= 0)
-    if bad.size:
-        k = int(bad[0]) + 1
-        raise ParameterError(f"the shaft angle is not monotonic: it stops or turns back at sample {k} "
-                             f"(t = {k / fs:.6g} s, {bad.size} such steps); unwrap it, or give a tachometer")
-    return (a - a[0]) / (2 * np.pi) * float(ratio)
-
-
-def tacho_pulse_times(signal, fs: float, level: float | None = None) -> np.ndarray:
-    """Times (s) of the rising edges of a tachometer pulse channel: crossings of ``level`` (default: halfway
-    between its 1st and 99th percentiles), interpolated linearly between samples."""
-    x = np.asarray(signal, dtype=np.float64).ravel()
-    lo, hi = np.percentile(x, [1, 99])
-    if not hi > lo:
-        raise ParameterError("the tachometer channel is constant: no pulses")
-    lv = 0.5 * (lo + hi) if level is None else float(level)
-    k = np.flatnonzero((x[:-1] < lv) & (x[1:] >= lv))
-    frac = (lv - x[k]) / (x[k + 1] - x[k])
-    return (k + frac) / float(fs)
-
-
-def angle_from_tacho(pulse_times, n: int, fs: float, ppr: int = 1, ratio: float = 1.0,
-                     tolerance: float = 0.4) -> np.ndarray:
-    """Revolutions of the analysed shaft at each of ``n`` samples from tachometer pulse times (s), ``ppr`` pulses
-    per revolution of a shaft turning 1/``ratio`` times as fast as the analysed one.
-
-    Between pulses the angle is a monotone cubic (PCHIP) of time; before the first and after the last pulse it
-    goes on at the speed of the nearest interval.  An interval longer than (1 + ``tolerance``) or shorter than
-    (1 - ``tolerance``) times the median of its neighbours (a missing or a spurious pulse), pulses that do not
-    increase, or fewer than 3 pulses raise ParameterError (one line, with the time)."""
-    from scipy.interpolate import PchipInterpolator
-
-    t = np.asarray(pulse_times, dtype=np.float64).ravel()
-    if not (isinstance(ppr, (int, np.integer)) and ppr >= 1):
-        raise ParameterError(f"pulses per revolution must be a positive integer, got {ppr!r}")
-    if t.size < 3 or not np.all(np.isfinite(t)):
-        raise ParameterError(f"the tachometer gives {t.size} pulses: at least 3 finite pulse times are needed")
-    d = np.diff(t)
-    bad = np.flatnonzero(d <= 0)
-    if bad.size:
-        raise ParameterError(f"tachometer pulse times do not increase at pulse {int(bad[0]) + 1} "
-                             f"(t = {t[bad[0] + 1]:.6g} s)")
-    w = 4  # running median of the neighbouring intervals
-    pad = np.pad(d, w, mode="reflect" if d.size > w else "edge")
-    ref = np.median(np.lib.stride_tricks.sliding_window_view(pad, 2 * w + 1), axis=1)
-    r = d / ref
-    long_, short = np.flatnonzero(r > 1 + tolerance), np.flatnonzero(r < 1 - tolerance)
-    if long_.size:
-        k = int(long_[0])
-        raise ParameterError(f"missing tachometer pulse(s) between t = {t[k]:.6g} s and {t[k + 1]:.6g} s (an "
-                             f"interval {r[k]:.2g} times its neighbours'; {long_.size} such gaps)")
-    if short.size:
-        k = int(short[0])
-        raise ParameterError(f"spurious tachometer pulse near t = {t[k + 1]:.6g} s (an interval {r[k]:.2g} times "
-                             f"its neighbours'; {short.size} such)")
-    revs = np.arange(t.size) / ppr * float(ratio)
-    ts = np.arange(int(n)) / float(fs)
-    out = np.empty(ts.size)
-    inside = (ts >= t[0]) & (ts <= t[-1])
-    out[inside] = PchipInterpolator(t, revs)(ts[inside])
-    before, after = ts < t[0], ts > t[-1]
-    out[before] = revs[0] + (ts[before] - t[0]) * (revs[1] - revs[0]) / d[0]
-    out[after] = revs[-1] + (ts[after] - t[-1]) * (revs[-1] - revs[-2]) / d[-1]
-    return out
-
-
-def estimate_shaft_speed(x, fs: float, order: float, speed_range: tuple[float, float]) -> float:
-    """Shaft speed (rev/s) from the spectrum: the highest peak of the Hann-windowed amplitude spectrum of ``x``
-    between ``order`` x ``speed_range`` (rev/s), refined by parabolic interpolation of the log magnitude over
-    the peak bin and its two neighbours, divided by ``order`` (e.g. the stage-1 mesh, order Z1 of ``sun``)."""
-    x = np.asarray(x, dtype=np.float64).ravel()
-    lo, hi = (float(v) for v in speed_range)
-    if not (0 < lo < hi and order > 0):
-        raise ParameterError(f"speed range must be 0 < low < high rev/s and order > 0, got {speed_range}, {order}")
-    n = x.size
-    A = np.abs(np.fft.rfft((x - x.mean()) * np.hanning(n)))
-    df = fs / n
-    k0, k1 = int(math.ceil(order * lo / df)), int(math.floor(order * hi / df))
-    k0, k1 = max(k0, 1), min(k1, A.size - 2)
-    if k1 < k0:
-        raise ParameterError(f"the mesh band {order * lo:g}-{order * hi:g} Hz lies outside the spectrum "
-                             f"(fs {fs:g} Hz, {n} points)")
-    k = k0 + int(np.argmax(A[k0:k1 + 1]))
-    a, b, c = np.log(A[k - 1:k + 2] + 1e-300)
-    den = a - 2 * b + c
-    delta = 0.5 * (a - c) / den if den < 0 else 0.0
-    return (k + float(np.clip(delta, -0.5, 0.5))) * df / order
 
 
 # --------------------------------------------------------------------------- resampling
@@ -327,11 +223,15 @@ def tsa(xa, samples_per_rev: int) -> np.ndarray:
     return xa[: n * samples_per_rev].reshape(n, samples_per_rev).mean(axis=0)
 
 
-def _orders_of(n: int, mesh: int, shaft_orders: int, mesh_harmonics: int | None):
-    """Index arrays of the shaft orders, mesh harmonics and first-order sidebands below the TSA's Nyquist."""
+def _orders_of(n: int, mesh: int, shaft_orders: int, mesh_harmonics: int | None, extra_meshes: Sequence[int] = ()):
+    """Index arrays of the shaft orders, mesh harmonics (of ``mesh`` and of every ``extra_meshes``) and their
+    first-order sidebands below the TSA's Nyquist."""
     top = n // 2 - (1 if n % 2 == 0 else 0)
-    H = top // mesh if mesh_harmonics is None else int(mesh_harmonics)
-    mh = np.arange(1, H + 1) * mesh
+    parts = []
+    for m in (mesh, *extra_meshes):
+        H = top // m if mesh_harmonics is None else int(mesh_harmonics)
+        parts.append(np.arange(1, H + 1) * m)
+    mh = np.unique(np.concatenate(parts))
     mh = mh[mh <= top]
     sh = np.arange(1, int(shaft_orders) + 1)
     sb = np.concatenate([mh - 1, mh + 1])
@@ -339,11 +239,13 @@ def _orders_of(n: int, mesh: int, shaft_orders: int, mesh_harmonics: int | None)
     return sh[sh <= top], mh, sb
 
 
-def gear_signals(t, mesh: int, shaft_orders: int = 2, mesh_harmonics: int | None = None) -> dict:
+def gear_signals(t, mesh: int, shaft_orders: int = 2, mesh_harmonics: int | None = None,
+                 extra_meshes: Sequence[int] = ()) -> dict:
     """The TSA ``t`` of one revolution and its regular, residual and difference signals (Lebold et al. 2000).
 
     - regular: shaft orders 1..``shaft_orders``, mesh harmonics k ``mesh`` (k = 1..``mesh_harmonics``, default all
-      below the TSA's Nyquist order) and their first-order sidebands k ``mesh`` +- 1;
+      below the TSA's Nyquist order) and their first-order sidebands k ``mesh`` +- 1, and the same for each of
+      ``extra_meshes`` (another mesh on the same shaft, e.g. the stage-2 mesh Zc on a crank);
     - residual: TSA minus the shaft orders and the mesh harmonics (the sidebands stay);
     - difference: TSA minus the regular signal.
     All have their mean removed.  Also returns the one-sided amplitude spectrum ``amplitude`` (index = order).
@@ -354,7 +256,7 @@ def gear_signals(t, mesh: int, shaft_orders: int = 2, mesh_harmonics: int | None
         raise ParameterError(f"mesh order must be an integer in 1..{n // 2 - 1} (the TSA has {n} points), got {mesh}")
     T = np.fft.rfft(t)
     T[0] = 0
-    sh, mh, sb = _orders_of(n, int(mesh), shaft_orders, mesh_harmonics)
+    sh, mh, sb = _orders_of(n, int(mesh), shaft_orders, mesh_harmonics, tuple(int(m) for m in extra_meshes))
     keep_reg = np.zeros(T.size, bool)
     keep_reg[np.concatenate([sh, mh, sb]).astype(int)] = True
     keep_sm = np.zeros(T.size, bool)
@@ -406,7 +308,7 @@ def mesh_band_envelope(t, mesh: int) -> np.ndarray:
 
 
 def condition_indicators(t, mesh: int, shaft_orders: int = 2, mesh_harmonics: int | None = None,
-                         history: dict | None = None) -> dict[str, float]:
+                         history: dict | None = None, extra_meshes: Sequence[int] = ()) -> dict[str, float]:
     """The gear condition indicators of the TSA ``t`` of one revolution (:data:`INDICATORS`).
 
     ===================== ==================================================== ======================================
@@ -426,9 +328,10 @@ def condition_indicators(t, mesh: int, shaft_orders: int = 2, mesh_harmonics: in
     d is the difference signal, r the residual signal, A(k) the one-sided amplitude of order k of the TSA, PP the
     peak-to-peak value.  ``history``: a dict carried across the records of a run (pass the same, initially empty,
     dict for each record) for the running-average denominators of NA4 and NB4; without it both are the
-    normalised kurtosis of the one record.
+    normalised kurtosis of the one record.  ``extra_meshes``: other meshes whose harmonics are regular too
+    (:func:`gear_signals`; FM0 sums the harmonics of every mesh, the sideband indicators use ``mesh``).
     """
-    s = gear_signals(t, mesh, shaft_orders, mesh_harmonics)
+    s = gear_signals(t, mesh, shaft_orders, mesh_harmonics, extra_meshes)
     A = s["amplitude"]
     tt, d, r, reg = s["tsa"], s["difference"], s["residual"], s["regular"]
     mh = A[s["mesh_harmonics"]].sum()
@@ -484,12 +387,50 @@ def envelope_order_spectrum(xa, samples_per_rev: int, band: tuple[float, float] 
     return order_spectrum(a.real**2 + a.imag**2, samples_per_rev)
 
 
+def moving_span(revs, fs: float, fraction: float = 0.5) -> tuple[int, int]:
+    """``(start, stop)`` sample indices of the longest stretch of a record where the shaft turns at least
+    ``fraction`` of its peak speed, speeds averaged over blocks of :data:`rvdiag.io.angles.SPEED_BLOCK_S`: the
+    part of a run-up, cruise and run-down worth resampling (near rest the anti-alias low-pass of
+    :func:`resample_to_angle`, set by the lowest speed, would remove everything)."""
+    from rvdiag.io.angles import SPEED_BLOCK_S
+
+    r = np.asarray(revs, dtype=np.float64).ravel()
+    n = r.size
+    b = max(2, int(round(SPEED_BLOCK_S * fs)))
+    edges = np.arange(0, n, b)
+    if edges[-1] != n - 1:
+        edges = np.append(edges, n - 1)
+    v = np.diff(r[edges]) / np.diff(edges)
+    ok = v >= float(fraction) * v.max()
+    best, run, start, best_start = 0, 0, 0, 0
+    for k, good in enumerate(ok):
+        if good:
+            if run == 0:
+                start = k
+            run += 1
+            if run > best:
+                best, best_start = run, start
+        else:
+            run = 0
+    return int(edges[best_start]), int(edges[best_start + best]) + 1
+
+
 def analyse(x, fs: float, revs, shaft: str = "sun", params=None, samples_per_rev: int | None = None,
-            shaft_orders: int = 2, mesh_harmonics: int | None = None) -> dict:
-    """Resample, average and rate one record: the content of ``rvdiag orders`` (angle ``revs`` of ``shaft``)."""
+            shaft_orders: int = 2, mesh_harmonics: int | None = None, min_speed_fraction: float = 0.5,
+            mesh: int | None = None) -> dict:
+    """Resample, average and rate one record: the content of ``rvdiag orders`` (angle ``revs`` of ``shaft``).
+
+    A record whose speed varies is first cut to its :func:`moving_span` at ``min_speed_fraction`` of the peak
+    speed (returned as ``span``, sample indices).  ``mesh`` replaces the reducer's mesh order of ``shaft`` (another
+    machine: ``revs`` is then the revolutions of its shaft, and no reducer fault orders are listed)."""
     p = _params(params)
-    m = mesh_order(shaft, p)
+    if mesh is not None and not (isinstance(mesh, (int, np.integer)) and mesh >= 1):
+        raise ParameterError(f"the mesh order must be a positive integer, got {mesh!r}")
+    m = mesh_order(shaft, p) if mesh is None else int(mesh)
     revs = np.asarray(revs, dtype=np.float64)
+    x = np.asarray(x, dtype=np.float64)
+    span = moving_span(revs, fs, min_speed_fraction) if revs.size > 2 else (0, revs.size)
+    x, revs = x[span[0]:span[1]], revs[span[0]:span[1]]
     speed = (revs[-1] - revs[0]) * fs / max(revs.size - 1, 1)
     spr = samples_per_rev or default_samples_per_rev(fs, speed, m)
     xa = resample_to_angle(x, fs, revs, spr)
@@ -497,6 +438,7 @@ def analyse(x, fs: float, revs, shaft: str = "sun", params=None, samples_per_rev
     orders, amp = order_spectrum(xa, spr)
     eo, ea = envelope_order_spectrum(xa, spr)
     return {"shaft": shaft, "shaft_hz": float(speed), "samples_per_rev": int(spr), "n_revolutions": xa.size // spr,
+            "span": span,
             "mesh_order": m, "tsa": t, "orders": orders, "amplitude": amp, "envelope_orders": eo,
-            "envelope_amplitude": ea, "fault_orders": fault_orders(shaft, p),
+            "envelope_amplitude": ea, "fault_orders": fault_orders(shaft, p) if mesh is None else {},
             "indicators": condition_indicators(t, m, shaft_orders, mesh_harmonics)}

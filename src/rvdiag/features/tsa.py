@@ -17,6 +17,8 @@ from rvdiag.features._base import SignalTransformer
 from rvdiag.features import orders as _o
 
 _CI = tuple(_o.INDICATORS)
+#: indicators that may be negative: never log10
+_SIGNED = ("sideband_asymmetry", "sideband_asymmetry_db")
 
 
 def shaft_hz_from_column(shaft: str, column: str, value: float, params=None) -> float:
@@ -111,12 +113,16 @@ class TSAIndicatorFeatures(_AngleFeatures):
     params : str or None
         Reducer parameter TOML (default the built-in RV-20E).
     log : bool
-        log10 of the indicators.
+        log10 of the indicators (not of the sideband asymmetries, which may be negative).
+    modulation : bool
+        Append the modulation indicators of :mod:`rvdiag.features.planetary` (sideband asymmetry about the mesh,
+        also in dB clipped to +-60 dB, and the peak-to-peak and kurtosis of the mesh's phase modulation;
+        Randall 1982, McFadden & Smith 1985, McFadden 1986): feature set ``tsa-mod``.
     """
 
     def __init__(self, fs: float = 48000.0, shaft: str = "sun", output_speed_deg_s: float = 45.0,
                  speed_column: str | None = None, samples_per_rev: int | None = None, shaft_orders: int = 2,
-                 params: str | None = None, log: bool = True):
+                 params: str | None = None, log: bool = True, modulation: bool = False):
         self.fs = fs
         self.shaft = shaft
         self.output_speed_deg_s = output_speed_deg_s
@@ -125,17 +131,36 @@ class TSAIndicatorFeatures(_AngleFeatures):
         self.shaft_orders = shaft_orders
         self.params = params
         self.log = log
+        self.modulation = modulation
+
+    def _names(self) -> tuple[str, ...]:
+        from rvdiag.features.planetary import MODULATION_INDICATORS
+
+        return _CI + (tuple(MODULATION_INDICATORS) if getattr(self, "modulation", False) else ())
 
     def _rows(self, X, f_hz):
-        out = np.empty((X.shape[0], len(_CI)))
+        names = self._names()
+        out = np.empty((X.shape[0], len(names)))
+        mod = len(names) > len(_CI)
+        if mod:
+            from rvdiag.features import planetary as pl
+
+            spacing = pl.sideband_spacing(self.shaft, self.params)
         for i, x in enumerate(X):
             xa, spr, m = self._resampled(x, f_hz)
-            ci = _o.condition_indicators(_o.tsa(xa, spr), m, self.shaft_orders)
-            out[i] = [ci[k] for k in _CI]
-        return np.log10(np.maximum(out, 1e-12)) if self.log else out
+            t = _o.tsa(xa, spr)
+            ci = _o.condition_indicators(t, m, self.shaft_orders)
+            if mod:
+                ci.update(pl.modulation_indicators(t, m, spacing))
+                ci["sideband_asymmetry_db"] = float(np.clip(ci["sideband_asymmetry_db"], -60.0, 60.0))
+            out[i] = [ci[k] for k in names]
+        if self.log:
+            logged = [k not in _SIGNED for k in names]
+            out[:, logged] = np.log10(np.maximum(out[:, logged], 1e-12))
+        return out
 
     def _feature_names(self):
-        return [("log10_" if self.log else "") + k for k in _CI]
+        return [("log10_" if self.log and k not in _SIGNED else "") + k for k in self._names()]
 
 
 class OrderSpectrumFeatures(_AngleFeatures):

@@ -34,6 +34,7 @@ cut into segments of ``segment_length`` points every ``hop`` points.
 from __future__ import annotations
 
 import importlib
+import math
 import os
 import time
 from contextlib import contextmanager
@@ -91,17 +92,37 @@ class Unit:
     mounting: Mapping[str, float] = field(default_factory=dict)
     #: colour of the added noise (PSD ~ 1 / f^beta), ``None`` = white
     noise_exponent: float | None = None
-    #: ``[profile]`` draws (empty without ``[profile]``): ``profile`` (0 constant, 1 trapezoid), ``accel_deg_s2``
-    #: (``None`` at constant speed), ``arm_mass_kg``, ``arm_length_m``, ``arm_angle_deg``
+    #: ``[profile]`` draws (empty without ``[profile]``): ``profile`` (0 constant, 1 trapezoid, 2 S-curve),
+    #: ``accel_deg_s2`` (``None`` at constant speed), ``arm_mass_kg``, ``arm_length_m``, ``arm_angle_deg``, and with
+    #: S-curves in the config ``jerk_deg_s3`` (``None`` unless an S-curve)
     profile: Mapping[str, float | None] = field(default_factory=dict)
+    #: ``[randomise]`` draws of the accelerometer (:data:`rvdiag.library.config.SENSOR_KEYS`): ``sensor_position_deg``
+    #: and/or ``sensor_direction_deg`` (empty without them)
+    sensor: Mapping[str, float] = field(default_factory=dict)
+
+    def sensor_geometry(self, radius_m: float) -> tuple[tuple[float, float] | None, tuple[float, float]]:
+        """``(sensor point (x, y) in m or None for the model's default, unit sensing direction (dx, dy))`` of the
+        unit's drawn accelerometer on a housing of outer radius ``radius_m``: the point at the drawn position
+        angle phi on that radius, the direction at phi + the drawn direction angle psi (from the outward radial),
+        so position 0 and direction 0 / 90 deg give the model's default point and its x / y channel."""
+        phi = math.radians(float(self.sensor.get("sensor_position_deg", 0.0)))
+        psi = math.radians(float(self.sensor.get("sensor_direction_deg", 0.0)))
+        point = None
+        if "sensor_position_deg" in self.sensor:
+            point = (radius_m * math.cos(phi), radius_m * math.sin(phi))
+        return point, (math.cos(phi + psi), math.sin(phi + psi))
 
     def speed_profile(self, transient_s: float) -> Any:
-        """The unit's :class:`rvdiag.dynamics.profile.SpeedProfile` (``None`` at constant speed): a trapezoid
-        from rest at the start of the run-in (``-transient_s``) to rest at the end of the record."""
-        if not self.profile.get("profile"):
+        """The unit's :class:`rvdiag.dynamics.profile.SpeedProfile` (``None`` at constant speed): a trapezoid or
+        an S-curve from rest at the start of the run-in (``-transient_s``) to rest at the end of the record."""
+        kind = self.profile.get("profile")
+        if not kind:
             return None
         from rvdiag.dynamics.profile import SpeedProfile
 
+        if kind == 2:
+            return SpeedProfile("scurve", float(self.speed), float(self.profile["accel_deg_s2"]), None,
+                                -float(transient_s), float(self.profile["jerk_deg_s3"]))
         return SpeedProfile("trapezoid", float(self.speed), float(self.profile["accel_deg_s2"]), None,
                             -float(transient_s))
 
@@ -150,8 +171,9 @@ def make_plan(cfg: LibraryConfig) -> list[Unit]:
             mounting = {key: float(sw.draw(rng)) for key, sw in cfg.path.items()}
             colour = None if cfg.noise_colour_exponent is None else float(cfg.noise_colour_exponent.draw(rng))
             profile = {} if cfg.profile is None else _draw_profile(cfg.profile, rng)
+            sensor = {key: float(sw.draw(rng)) for key, sw in cfg.sensor.items()}  # last: older configs unchanged
             units.append(Unit(u, state, k, seeds[u], severity, speed, load, snr, scales, split,
-                              cfg.rows_per_simulation(state), mounting, colour, profile))
+                              cfg.rows_per_simulation(state), mounting, colour, profile, sensor))
             u += 1
     return units
 
@@ -159,11 +181,15 @@ def make_plan(cfg: LibraryConfig) -> list[Unit]:
 def _draw_profile(prof: Any, rng: np.random.Generator) -> dict[str, float | None]:
     """The ``[profile]`` draws of one unit, after every other draw and always the same number of them (the
     acceleration is drawn at constant speed too, and recorded as ``None``), so that streams stay aligned."""
-    trapezoid = bool(rng.random() < prof.trapezoid_fraction)
+    u = rng.random()  # one draw picks the kind: [0, trapezoid_fraction) a trapezoid, then the S-curve's share
+    kind = 1 if u < prof.trapezoid_fraction else (2 if u < prof.trapezoid_fraction + prof.scurve_fraction else 0)
     accel = None if prof.accel_deg_s2 is None else float(prof.accel_deg_s2.draw(rng))
-    out: dict[str, float | None] = {"profile": int(trapezoid), "accel_deg_s2": accel if trapezoid else None}
+    out: dict[str, float | None] = {"profile": kind, "accel_deg_s2": accel if kind else None}
     for key in ARM_KEYS:
         out[key] = float(prof.arm[key].draw(rng)) if key in prof.arm else 0.0
+    if prof.jerk_deg_s3 is not None:  # drawn last, and only by configs with S-curves: older ones keep their units
+        jerk = float(prof.jerk_deg_s3.draw(rng))
+        out["jerk_deg_s3"] = jerk if kind == 2 else None
     return out
 
 
@@ -247,6 +273,18 @@ def _channel(result: Any, channel: int | str) -> np.ndarray:
     return sig[channel]
 
 
+def project_sensor(result: Any, direction: tuple[float, float]) -> np.ndarray:
+    """The acceleration along the unit vector ``direction`` from the simulator's first two channels, taken as the
+    housing acceleration along x and y at the sensor point: ``dx a_x + dy a_y`` (the dynamic model's channel for
+    a sensor direction, docs/model.md section 6, is this projection; the sensor path filter is linear, so
+    projecting after it is the same)."""
+    sig = np.asarray(result.signal, dtype=np.float64)
+    if sig.ndim != 2 or sig.shape[0] < 2:
+        raise ConfigError("[randomise] sensor_direction_deg needs a simulator that returns the x and y channels "
+                          f"(2 or more), got shape {sig.shape}")
+    return float(direction[0]) * sig[0] + float(direction[1]) * sig[1]
+
+
 def segment_starts(n_points: int, length: int, hop: int) -> np.ndarray:
     """Start index of every segment of ``length`` points every ``hop`` points in ``n_points``."""
     return np.arange(0, n_points - length + 1, hop, dtype=np.int64)
@@ -297,6 +335,11 @@ def simulator_call(unit: Unit, job: Job) -> tuple[Callable[..., Any], tuple[Any,
     fault = spec if getattr(sim, "accepts_fault_spec", False) else spec.to_tooth_faults()
     sim_ss = _streams(unit.seed)[1]
     sim_seed = int(sim_ss.generate_state(1, np.uint32)[0])
+    model = dict(job.model)
+    if unit.sensor:  # a drawn sensor position moves the model's sensor point; the direction is projected after
+        point = unit.sensor_geometry(params.bodies.pin_wheel_outer_radius)[0]
+        if point is not None:
+            model["sensor_point_m"] = list(point)
     profiles: dict[str, Any] = {}
     if unit.profile:  # passed only when drawn: a simulator without profiles keeps working on other configs
         speed_profile, load_profile = unit.speed_profile(job.transient_s), unit.load_profile()
@@ -305,7 +348,7 @@ def simulator_call(unit: Unit, job: Job) -> tuple[Callable[..., Any], tuple[Any,
         if load_profile is not None:
             profiles["load_profile"] = load_profile
     kwargs = {job.speed_key: unit.speed, "load_Nm": unit.load_Nm, "duration_s": job.duration_s,
-              "transient_s": job.transient_s, "fs": job.fs, "seed": sim_seed, "model": dict(job.model), **profiles}
+              "transient_s": job.transient_s, "fs": job.fs, "seed": sim_seed, "model": model, **profiles}
     return sim, (params, fault), kwargs
 
 
@@ -320,9 +363,10 @@ def finish_unit(unit: Unit, job: Job, result: Any, t0: float) -> UnitResult:
     unit's noise added and the record cut into samples with their metadata (``t0``: when the unit started, for
     ``wall_s``)."""
     _, _, noise_ss, split_ss = _streams(unit.seed)
+    direction = unit.sensor_geometry(1.0)[1] if unit.sensor else None  # the point went to the simulator
     if abs(float(getattr(result, "fs", job.fs)) - job.fs) > 1e-9 * job.fs:
         raise SimulationError(f"simulator returned fs = {result.fs} Hz, asked for {job.fs} Hz")
-    x = _channel(result, job.channel)
+    x = _channel(result, job.channel) if direction is None else project_sensor(result, direction)
     del result  # keep only the one channel
     if x.shape[0] < job.samples_per_signal:
         raise SimulationError(f"simulator returned {x.shape[0]} points, expected {job.samples_per_signal}")
@@ -369,6 +413,8 @@ def finish_unit(unit: Unit, job: Job, result: Any, t0: float) -> UnitResult:
         meta["mounting." + name] = [value] * rows
     if unit.noise_exponent is not None:
         meta["noise_colour_exponent"] = [unit.noise_exponent] * rows
+    for name, value in unit.sensor.items():
+        meta[name] = [value] * rows
     if job.profile_columns:
         for key, value in unit.profile.items():
             meta[key] = [value] * rows

@@ -96,6 +96,14 @@ PATH_KEYS: dict[str, tuple[float, float]] = {
     "path_damping_ratio": (1e-3, 1.0),
     "housing_added_mass": (0.0, 200.0),
 }
+#: ``[randomise]`` keys of the housing accelerometer drawn per simulation (domain randomisation of the sensor),
+#: degrees: its position around the housing (on the pin-wheel outer radius, from the model's default point on the
+#: x axis, counter-clockwise) and its sensing direction (from the outward radial direction at that point,
+#: counter-clockwise: 0 radial, 90 tangential; at position 0 these are x and y)
+SENSOR_KEYS: dict[str, tuple[float, float]] = {
+    "sensor_position_deg": (-360.0, 360.0),
+    "sensor_direction_deg": (-360.0, 360.0),
+}
 #: Parameters scaled by ``[randomise] damping_pct``.
 DAMPING_KEYS: tuple[tuple[str, str], ...] = (
     ("damping", "mesh_damping_ratio"),
@@ -108,8 +116,9 @@ _SECTION_KEYS = {
     "signal": {"fs", "duration_s", "transient_s", "segment_length", "hop"},
     "operation": {"input_speed_rpm", "output_speed_deg_s", "load_Nm", "noise_snr_db"},
     "randomise": {"stiffness_pct", "damping_pct", "path_resonance_hz", "path_damping_ratio", "housing_added_mass",
-                  "noise_colour_exponent"},
-    "profile": {"trapezoid_fraction", "accel_deg_s2", "arm_mass_kg", "arm_length_m", "arm_angle_deg"},
+                  "noise_colour_exponent", "sensor_position_deg", "sensor_direction_deg"},
+    "profile": {"trapezoid_fraction", "scurve_fraction", "accel_deg_s2", "jerk_deg_s3", "arm_mass_kg",
+                "arm_length_m", "arm_angle_deg"},
     "split": {"train_per_state", "test_per_state", "assign",
               "simulations_per_state", "test_simulations_per_state"},
 }
@@ -215,20 +224,35 @@ ARM_KEYS: dict[str, tuple[float, float]] = {
 }
 
 
+def ramp_time(speed_deg_s: float, accel_deg_s2: float, jerk_deg_s3: float | None = None) -> float:
+    """Time (s) a trapezoid (``jerk_deg_s3`` None) or an S-curve takes from rest to ``speed_deg_s``: the
+    acceleration phase T_a of :meth:`rvdiag.dynamics.profile.SpeedProfile.ramp_times` (Biagiotti & Melchiorri
+    2008, section 3.4), here without importing the simulator."""
+    v, a = float(speed_deg_s), float(accel_deg_s2)
+    if jerk_deg_s3 is None:
+        return v / a
+    j = float(jerk_deg_s3)
+    tj = a / j if v * j >= a * a else math.sqrt(v / j)
+    return tj + v / (j * tj)
+
+
 @dataclass(frozen=True)
 class ProfileConfig:
     """The ``[profile]`` table: speed and load profiles drawn per simulation (docs/library.md).
 
     ``trapezoid_fraction`` of the simulations run a trapezoid (from rest at the start of the run-in,
     accelerating at the drawn ``accel_deg_s2`` to the simulation's drawn output speed, cruising, decelerating
-    to rest at the end of the record); the others run at constant speed.  Every simulation carries a
-    gravity arm of the drawn ``arm_mass_kg`` at ``arm_length_m``, at ``arm_angle_deg`` above the horizontal
-    at the first recorded sample (no arm when the mass or the length is 0).
+    to rest at the end of the record), ``scurve_fraction`` the same move jerk-limited at the drawn
+    ``jerk_deg_s3`` (:class:`rvdiag.dynamics.profile.SpeedProfile`, ``kind="scurve"``); the others run at
+    constant speed.  Every simulation carries a gravity arm of the drawn ``arm_mass_kg`` at ``arm_length_m``, at
+    ``arm_angle_deg`` above the horizontal at the first recorded sample (no arm when the mass or the length is 0).
     """
 
     trapezoid_fraction: float = 0.0
     accel_deg_s2: Sweep | None = None
     arm: Mapping[str, Sweep] = field(default_factory=dict)
+    scurve_fraction: float = 0.0
+    jerk_deg_s3: Sweep | None = None
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"trapezoid_fraction": self.trapezoid_fraction}
@@ -236,6 +260,10 @@ class ProfileConfig:
             out["accel_deg_s2"] = self.accel_deg_s2.to_toml()
         for key, sweep in self.arm.items():
             out[key] = sweep.to_toml()
+        if self.scurve_fraction > 0 or self.jerk_deg_s3 is not None:  # only then: older configs keep their hash
+            out["scurve_fraction"] = self.scurve_fraction
+            if self.jerk_deg_s3 is not None:
+                out["jerk_deg_s3"] = self.jerk_deg_s3.to_toml()
         return out
 
 
@@ -245,28 +273,44 @@ def _parse_profile(raw: Mapping[str, Any], w: str, *, speed_key: str, speed: Swe
     frac = _number(raw.get("trapezoid_fraction", 0.0), f"{w} trapezoid_fraction")
     if not 0.0 <= frac <= 1.0:
         raise ConfigError(f"{w} trapezoid_fraction: must lie in [0, 1], got {frac:g}")
+    sfrac = _number(raw.get("scurve_fraction", 0.0), f"{w} scurve_fraction")
+    if not 0.0 <= sfrac <= 1.0 - frac + 1e-12:
+        raise ConfigError(f"{w} scurve_fraction: must lie in [0, 1 - trapezoid_fraction] = [0, {1.0 - frac:g}], "
+                          f"got {sfrac:g}")
     accel = None
     if "accel_deg_s2" in raw:
         accel = Sweep.parse(raw["accel_deg_s2"], f"{w} accel_deg_s2")
         if accel.lo <= 0:
             raise ConfigError(f"{w} accel_deg_s2: must be > 0, got {accel.lo:g}")
-    if frac > 0:
+    jerk = None
+    if "jerk_deg_s3" in raw:
+        jerk = Sweep.parse(raw["jerk_deg_s3"], f"{w} jerk_deg_s3")
+        if jerk.lo <= 0:
+            raise ConfigError(f"{w} jerk_deg_s3: must be > 0, got {jerk.lo:g}")
+    if sfrac > 0 and jerk is None:
+        raise ConfigError(f"{w} jerk_deg_s3: missing (scurve_fraction = {sfrac:g} needs a jerk limit)")
+    for key, f_ in (("trapezoid_fraction", frac), ("scurve_fraction", sfrac)):
+        if f_ <= 0:
+            continue
+        what = "a trapezoid" if key == "trapezoid_fraction" else "an S-curve"
         if accel is None:
-            raise ConfigError(f"{w} accel_deg_s2: missing (trapezoid_fraction = {frac:g} needs an acceleration)")
+            raise ConfigError(f"{w} accel_deg_s2: missing ({key} = {f_:g} needs an acceleration)")
         if speed_key != "output_speed_deg_s":
             raise ConfigError(
-                f"{w} trapezoid_fraction: a trapezoid cruises at an output speed; give [operation] "
-                f"output_speed_deg_s instead of {speed_key}")
-        need = 2.0 * speed.hi / accel.lo
+                f"{w} {key}: {what} cruises at an output speed; give [operation] output_speed_deg_s instead of "
+                f"{speed_key}")
+        # the slowest ramp: top speed, lowest limits
+        need = 2.0 * ramp_time(speed.hi, accel.lo, jerk.lo if key == "scurve_fraction" else None)
         if need > move_s * (1.0 + 1e-12):
+            limits = f"{accel.lo:g} deg/s^2" + ("" if key == "trapezoid_fraction" else f" and {jerk.lo:g} deg/s^3")
             raise ConfigError(
-                f"{w} accel_deg_s2: at {accel.lo:g} deg/s^2 a trapezoid needs {need:.4g} s to reach "
+                f"{w} accel_deg_s2: at {limits} {what} needs {need:.4g} s to reach "
                 f"{speed.hi:g} deg/s and stop again, longer than the {move_s:.4g} s of a simulation "
-                f"(transient_s + duration_s): raise the acceleration or lengthen the simulation")
+                f"(transient_s + duration_s): raise the limits or lengthen the simulation")
     arm = _bounded_sweeps(raw, ARM_KEYS, w)
-    if (frac > 0 or arm) and float(model.get("segment_s", 0.0) or 0.0) > 0:
+    if (frac > 0 or sfrac > 0 or arm) and float(model.get("segment_s", 0.0) or 0.0) > 0:
         raise ConfigError(f"{w}: a speed or load profile runs as one segment: remove [model] segment_s")
-    return ProfileConfig(frac, accel, arm)
+    return ProfileConfig(frac, accel, arm, sfrac, jerk)
 
 
 # ---------------------------------------------------------------------- the config
@@ -299,6 +343,8 @@ class LibraryConfig:
     noise_colour_exponent: Sweep | None = None
     #: the ``[profile]`` table, ``None`` when the config has none (constant speed and load)
     profile: ProfileConfig | None = None
+    #: ``[randomise]`` draws of the accelerometer's position and direction (:data:`SENSOR_KEYS`), key -> sweep
+    sensor: Mapping[str, Sweep] = field(default_factory=dict)
     train_per_state: int = 0
     test_per_state: int = 0
     assign: str = "random"
@@ -447,6 +493,20 @@ class LibraryConfig:
             if not 0.0 <= pct[key] < 100.0:
                 raise ConfigError(f"{w} {key}: must lie in [0, 100) percent, got {pct[key]:g}")
         path = _bounded_sweeps(rnd, PATH_KEYS, w)
+        sensor = _bounded_sweeps(rnd, SENSOR_KEYS, w)
+        if sensor:
+            for key in ("sensor_point_m", "sensor_directions"):
+                if key in model:
+                    raise ConfigError(f"{w} {next(iter(sensor))}: the sensor is drawn per simulation; remove [model] "
+                                      f"{key}")
+            if model.get("signal", "vibration") != "vibration":
+                raise ConfigError(f"{w} {next(iter(sensor))}: a motor-current library has no accelerometer")
+            if "channel" in data:
+                raise ConfigError(f"{w} {next(iter(sensor))}: the channel is the drawn direction (the projection of "
+                                  "the simulator's x and y channels); remove channel")
+            if "sensor_position_deg" in sensor and data.get("simulator", DEFAULT_SIMULATOR) != DEFAULT_SIMULATOR:
+                raise ConfigError(f"{w} sensor_position_deg: moves the dynamic model's sensor point ([model] "
+                                  f"sensor_point_m); the simulator must be {DEFAULT_SIMULATOR}")
         colour = None
         if "noise_colour_exponent" in rnd:
             colour = Sweep.parse(rnd["noise_colour_exponent"], f"{w} noise_colour_exponent")
@@ -541,7 +601,7 @@ class LibraryConfig:
             name=name, mode=mode, seed=seed, fs=fs, duration_s=duration_s, transient_s=transient_s,
             segment_length=segment_length, hop=hop, states=states, speed_key=speed_key, speed=speed,
             load_Nm=load, noise_snr_db=noise, stiffness_pct=pct["stiffness_pct"], damping_pct=pct["damping_pct"],
-            path=path, noise_colour_exponent=colour, profile=profile, simulator=simulator, params=params, channel=channel, model=model, source=source, **kw,
+            path=path, noise_colour_exponent=colour, profile=profile, sensor=sensor, simulator=simulator, params=params, channel=channel, model=model, source=source, **kw,
         )
 
     # ------------------------------------------------------------------ output
@@ -585,6 +645,8 @@ class LibraryConfig:
             out[key] = sweep.to_toml()
         if self.noise_colour_exponent is not None:
             out["noise_colour_exponent"] = self.noise_colour_exponent.to_toml()
+        for key, sweep in self.sensor.items():  # only when drawn: older configs keep their hash
+            out[key] = sweep.to_toml()
         return out
 
     def replace(self, **changes: Any) -> "LibraryConfig":
