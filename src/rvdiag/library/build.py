@@ -543,26 +543,36 @@ def _run_checked(unit: Unit, job: Job) -> UnitResult:
 
 def _run_on_client(client: Any, todo: list[Unit], job: Job, write: Callable[[UnitResult], None],
                    advance: Callable[[], None]) -> int:
-    """Submit units with at most one in flight per worker thread; write results as they complete."""
+    """Submit units with at most one in flight per worker thread; write results as they complete.
+
+    The number of worker threads is read again (at most once a second) as results come in, so that workers that
+    join after the start (a batch system's jobs leaving the queue, ``cluster.scale``) get work, and the window
+    shrinks when some leave.  A worker lost in the middle of a simulation loses nothing: the scheduler gives its
+    task to another worker, up to ``distributed.scheduler.allowed-failures`` times per task (3 by default), and
+    only a task that exceeds it fails the build (every result written so far stays committed).  The job goes
+    with every task (about 3 kB), not scattered once, so no worker's death can take the only copy of it."""
     from distributed import KilledWorker, as_completed
 
-    nthreads = sum(client.nthreads().values())
+    def threads() -> int:
+        return sum(client.nthreads().values())
+
+    nthreads = threads()
     if nthreads == 0:
         try:
             client.wait_for_workers(1, timeout=60)
         except TimeoutError:
             raise RvdiagError("the Dask cluster has no workers (none joined within 60 s)") from None
-        nthreads = sum(client.nthreads().values())
+        nthreads = threads()
     window = max(1, nthreads)
+    checked = time.monotonic()
     pending = iter(todo)
-    job_future = client.scatter(job, broadcast=True)
     futures = as_completed()
 
     def submit_next() -> bool:
         unit = next(pending, None)
         if unit is None:
             return False
-        futures.add(client.submit(_run_checked, unit, job_future, pure=False, key=f"rvdiag-unit-{unit.index}-{time.time_ns()}"))
+        futures.add(client.submit(_run_checked, unit, job, pure=False, key=f"rvdiag-unit-{unit.index}-{time.time_ns()}"))
         return True
 
     for _ in range(window):
@@ -574,14 +584,17 @@ def _run_on_client(client: Any, todo: list[Unit], job: Job, write: Callable[[Uni
                 res = fut.result()
             except KilledWorker as exc:
                 raise SimulationError(
-                    f"a Dask worker died running {exc.task} (out of memory?); the committed simulations are "
-                    "kept: re-run the same command to resume"
+                    f"Dask workers died running {exc.task} (more often than distributed.scheduler.allowed-failures "
+                    "allows: out of memory?); the committed simulations are kept: re-run the same command to resume"
                 ) from None
             fut.release()
             write(res)
             del res
             advance()
-            submit_next()
+            if time.monotonic() - checked >= 1.0:
+                window, checked = max(1, threads()), time.monotonic()
+            while futures.count() < window and submit_next():
+                pass
     except BaseException:
         for fut in list(futures.futures):
             fut.cancel()
