@@ -119,6 +119,7 @@ def _store_arrays(path: Path) -> dict[str, np.ndarray]:
     return out
 
 
+@pytest.mark.slow  # 30-60 s: process start-ups and 16 simulations of 1 s on the workers
 def test_build_on_a_scheduler_takes_new_workers_and_survives_a_killed_one(tmp_path, dask_cluster, monkeypatch):
     from distributed import Client
 
@@ -192,3 +193,22 @@ def test_build_on_a_scheduler_takes_new_workers_and_survives_a_killed_one(tmp_pa
     for key, w in want.items():  # bit-identical (NaN: a severity the state does not have)
         assert got[key].dtype == w.dtype and np.array_equal(got[key], w, equal_nan=w.dtype.kind == "f"), key
     assert SampleStore.open(out).attrs["config_hash"] == SampleStore.open(tmp_path / "ref.zarr").attrs["config_hash"]
+
+
+def test_a_worker_of_another_release_or_physics_refuses_the_units(tmp_path, monkeypatch):
+    """A worker compares the client's rvdiag release and physics revision (carried by the job) with its own."""
+    import dataclasses
+
+    from rvdiag.errors import ConfigError
+    from rvdiag.library import make_plan, run_unit
+    from rvdiag.library.build import Job
+
+    monkeypatch.syspath_prepend(str(TESTS))
+    cfg = LibraryConfig.from_dict(CONFIG, source="cluster.toml")
+    job = Job.from_config(cfg, cfg.reducer_params())
+    unit = make_plan(cfg)[0]
+    assert job.rvdiag_version and job.physics_revision
+    assert run_unit(unit, job).X.shape == (5, 400)
+    for change in ({"rvdiag_version": "0.0.1"}, {"physics_revision": "2020-01-01"}):
+        with pytest.raises(ConfigError, match=r"this Dask worker runs rvdiag .* install the client's rvdiag"):
+            run_unit(unit, dataclasses.replace(job, **change))

@@ -86,6 +86,7 @@ def test_stream_gives_every_window_once_per_epoch_in_a_seeded_order(store_path):
 def test_blocks_read_only_the_rows_asked_for(store_path, monkeypatch):
     store = SampleStore.open(store_path)
     src = StoreSamples(store, store.indices("test"), meta_columns=("output_speed_deg_s",))
+    assert sorted(src.meta) == ["output_speed_deg_s", "unit"]  # only the columns it needs, not every column
     sizes = []
     original = type(store.signals).get_orthogonal_selection
 

@@ -190,6 +190,10 @@ class Job:
     model: Mapping[str, Any] = field(default_factory=dict)
     #: the config has a ``[profile]`` table: pass the profiles, record their columns
     profile_columns: bool = False
+    #: the client's rvdiag release and physics revision: a worker running other code refuses the unit
+    #: (``None``: not checked)
+    rvdiag_version: str | None = None
+    physics_revision: str | None = None
 
     @classmethod
     def from_config(cls, cfg: LibraryConfig, params: Any) -> "Job":
@@ -200,7 +204,8 @@ class Job:
             train_per_state=cfg.train_per_state, test_per_state=cfg.test_per_state, assign=cfg.assign,
             severity_columns=tuple(cfg.severity_parameters()),
             scale_columns=tuple(f"{s}.{k}" for s, k, _ in scaled_keys(cfg)), model=dict(cfg.model),
-            profile_columns=cfg.profile is not None,
+            profile_columns=cfg.profile is not None, rvdiag_version=__version__,
+            physics_revision=_physics_revision(),
         )
 
 
@@ -270,10 +275,30 @@ def window_angles(unit: Unit, job: Job, starts: np.ndarray) -> tuple[np.ndarray,
     return np.degrees(th0), np.degrees(th1 - th0) * job.fs / job.segment_length
 
 
+def _physics_revision() -> str:
+    from rvdiag.dynamics import PHYSICS_REVISION
+
+    return PHYSICS_REVISION
+
+
+def check_worker(job: Job) -> None:
+    """Refuse to simulate for a client of another rvdiag release or physics revision (:class:`ConfigError`): a
+    cluster whose workers run other code would mix two simulators' samples in one store."""
+    if job.rvdiag_version is None and job.physics_revision is None:
+        return
+    mine = (__version__, _physics_revision())
+    if mine != (job.rvdiag_version, job.physics_revision):
+        raise ConfigError(
+            f"this Dask worker runs rvdiag {mine[0]} (physics {mine[1]}) and the client rvdiag {job.rvdiag_version} "
+            f"(physics {job.physics_revision}): install the client's rvdiag on every worker"
+        )
+
+
 def run_unit(unit: Unit, job: Job) -> UnitResult:
     """Simulate one unit and cut it into samples (the Dask task; pure function of its arguments)."""
     from rvdiag.params import ReducerParams
 
+    check_worker(job)
     t0 = time.perf_counter()
     params = ReducerParams.from_dict(dict(job.params), source="<library>")
     if unit.scales:

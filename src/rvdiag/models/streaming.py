@@ -3,8 +3,9 @@
 A library of 100,000 samples of 4096 points is 1.6 GB of float32; training in memory holds it, its network
 inputs (windows, log spectra) and their normalised copies at once.  Streaming holds one block instead.
 
-:class:`StoreSamples` is a selection of a store's samples (a split): its labels, metadata and groups, one value per
-sample, are in memory (a few MB for 100,000 samples); its signals stay in the store and are read a block at a time
+:class:`StoreSamples` is a selection of a store's samples (a split): its labels and the metadata columns it needs
+(those appended to the samples, and ``unit`` for the validation groups), one value per sample, are in memory (a few
+MB for 100,000 samples); its signals stay in the store and are read a block at a time
 (``zarr.Array.get_orthogonal_selection``, which reads only the chunks that hold the rows asked for).
 
 :class:`StoreStream` (a ``torch.utils.data.IterableDataset``) gives the mini-batches of one epoch: the store's chunks
@@ -49,21 +50,23 @@ class StoreSamples:
     meta_columns : metadata columns appended after each sample's points (the model's
         :func:`rvdiag.features.combine.input_metadata`, e.g. the speed column of the angle-domain CNN inputs)
     where : how errors name the data (``"the store PATH"``)
+    keep_meta : further metadata columns to keep in :attr:`meta` (``unit`` and ``meta_columns`` always are)
 
     Attributes
     ----------
     index : ndarray of int, the samples in the store, increasing
     y : ndarray of str, the class name of each
-    meta : dict column -> ndarray, one value per selected sample
+    meta : dict column -> ndarray, one value per selected sample (the columns kept)
     length : points per sample
     """
 
     def __init__(self, store: Any, index: Sequence[int] | np.ndarray, meta_columns: Sequence[str] = (),
-                 where: str | None = None):
+                 where: str | None = None, keep_meta: Sequence[str] = ()):
         self.store = store
         self.index = np.sort(np.asarray(index, dtype=np.int64))
         self.y = np.asarray(store.label_names[self.index])
-        self.meta = {k: np.asarray(v)[self.index] for k, v in store.meta.items()}
+        keep = {"unit", *meta_columns, *keep_meta}
+        self.meta = {k: np.asarray(v)[self.index] for k, v in store.meta.items() if k in keep}
         self.meta_columns = tuple(meta_columns)
         self.length = int(store.length)
         self.where = where or f"the store {store.path}"
