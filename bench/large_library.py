@@ -9,8 +9,8 @@ Usage::
 The library: six states (T1..T6), independent simulations of 1 s at 48 kHz with random speed, load and SNR, cut
 into 4096-point samples every 2048 points (22 per simulation, the layout of configs/demo.toml), simulated by the
 **synthetic stand-in** ``rvdiag.library.synthetic:simulate`` (analytic tones and impacts, about 5 ms per
-simulation) unless ``--simulator dynamics``.  The dynamic model takes about 1.2 s per simulation of 1.05 s on one
-core of the development machine: the 4,546 simulations of 100,000 samples would hold both cores for about 45 min,
+simulation) unless ``--simulator dynamics``.  The dynamic model takes 0.8-1.2 s per simulation of 1.05 s on one
+core of the development machine: the 4,548 simulations of 100,000 samples would hold both cores for 30-45 min,
 against about 3 min for the stand-in.  What the client holds does not depend on which simulator fills the samples
 (each result is one simulation's samples, written and released); the workers' memory does (the dynamic model's
 compiled kernels and tables), and ``--simulator dynamics`` at smaller sizes measures it.

@@ -212,3 +212,39 @@ def test_a_worker_of_another_release_or_physics_refuses_the_units(tmp_path, monk
     for change in ({"rvdiag_version": "0.0.1"}, {"physics_revision": "2020-01-01"}):
         with pytest.raises(ConfigError, match=r"this Dask worker runs rvdiag .* install the client's rvdiag"):
             run_unit(unit, dataclasses.replace(job, **change))
+
+
+def test_a_scheduler_without_rvdiag_is_one_error_line(tmp_path, capsys):
+    """Dask's scheduler unpickles the tasks, so it needs rvdiag too: without it, one line and exit code 2."""
+    from conftest import run_cli
+
+    blocker = tmp_path / "blocker" / "rvdiag"
+    blocker.mkdir(parents=True)
+    (blocker / "__init__.py").write_text('raise ImportError("no rvdiag here")\n')
+    sched_file = tmp_path / "scheduler.json"
+    log = tmp_path / "scheduler.log"
+    env = {**os.environ, "PYTHONPATH": str(blocker.parent)}
+    with open(log, "wb") as fh:
+        scheduler = subprocess.Popen([sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port", "0",
+                                      "--no-dashboard", "--scheduler-file", str(sched_file)],
+                                     stdout=fh, stderr=subprocess.STDOUT, env=env, cwd=tmp_path)
+    try:
+        _wait("the scheduler's address file", lambda: sched_file.exists() and sched_file.stat().st_size > 0, 60,
+              [(scheduler, log)])
+        address = json.loads(sched_file.read_text())["address"]
+        with open(tmp_path / "worker.log", "wb") as fh:  # a worker that has rvdiag
+            worker = subprocess.Popen([sys.executable, "-m", "dask", "worker", address, "--nthreads", "1",
+                                       "--no-nanny", "--no-dashboard", "--host", "127.0.0.1"],
+                                      stdout=fh, stderr=subprocess.STDOUT, env=_env(), cwd=tmp_path)
+        cfg_file = tmp_path / "synthetic.toml"
+        cfg_file.write_text(tomli_w.dumps({**CONFIG, "simulator": "rvdiag.library.synthetic:simulate"}))
+        code, _, err = run_cli(["library", "build", cfg_file, "--out", tmp_path / "x.zarr", "--scheduler", address,
+                                "--quiet"], capsys)
+    finally:
+        for p in (locals().get("worker"), scheduler):
+            if p is not None and p.poll() is None:
+                p.terminate()
+                p.wait(timeout=30)
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert code == 2 and len(lines) == 1, err
+    assert lines[0].startswith("error: the Dask scheduler cannot read the simulation tasks") and "rvdiag" in lines[0]

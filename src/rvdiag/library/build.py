@@ -610,7 +610,15 @@ def _run_on_client(client: Any, todo: list[Unit], job: Job, write: Callable[[Uni
             except KilledWorker as exc:
                 raise SimulationError(
                     f"Dask workers died running {exc.task} (more often than distributed.scheduler.allowed-failures "
-                    "allows: out of memory?); the committed simulations are kept: re-run the same command to resume"
+                    "allows: out of memory, or workers without rvdiag installed?); the committed simulations are "
+                    "kept: re-run the same command to resume"
+                ) from None
+            except RuntimeError as exc:
+                if "deserialization of the task graph" not in str(exc):
+                    raise
+                raise RvdiagError(
+                    "the Dask scheduler cannot read the simulation tasks: it needs the client's Python packages, "
+                    f"rvdiag {__version__} among them, installed where it runs (as the workers do)"
                 ) from None
             fut.release()
             write(res)
