@@ -4,6 +4,7 @@
                  [--features time|spectrum|spectrum-abs|logspec|envelope|bearing-envelope|wpd|eemd|none|cnn]
                  [--epochs N] [--device auto|cpu|cuda] [--seed N] [--repeat N]
                  [--bearing-geometry N_BALLS,D_BALL_MM,D_PITCH_MM,CONTACT_DEG] [--rpm-column NAME]
+                 [--streaming | --no-streaming]
 
 Feature sets join with '+' (``--features spectrum-abs+bearing-envelope``).  ``bearing-envelope`` needs the
 bearing's geometry and reads each sample's shaft speed (rev/min) from the store's metadata column
@@ -14,6 +15,11 @@ With no options it trains the setup docs/results.md recommends (:data:`rvdiag.re
 :mod:`rvdiag.registry`.  Trains on the store's ``train`` split, scores the ``test`` split (when present) into
 the model card, and with ``--repeat N`` trains N seeds (seed, seed+1, ...) and prints best / mean accuracy per
 class.
+
+``--streaming`` (CNN models) reads the training samples from the store a block at a time instead of loading the
+split (:mod:`rvdiag.models.streaming`): memory stays flat whatever the library's size.  A CNN streams without being
+asked when its training split's signals exceed 2 GiB (``--no-streaming`` loads it anyway); smaller stores train in
+memory as before, with the same results.
 """
 
 from __future__ import annotations
@@ -21,6 +27,7 @@ from __future__ import annotations
 import functools
 import json
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 import typer
@@ -127,9 +134,10 @@ def build_estimator(model: str, features: str | None, *, epochs: int, device: st
     raise ParameterError(f"unknown model {model!r}; use one of {'|'.join(CNN_MODELS + CLASSICAL_MODELS)}")
 
 
-def _fit(est, X, y, quiet: bool, label: str, groups=None):
+def _fit(est, X, y, quiet: bool, label: str, groups=None, source=None):
     """Fit with a rich progress bar per epoch (CNN), or the bars of the stages a classical fit reports (EEMD
-    features, MPA / GA / PSO tuning; :mod:`rvdiag.cli._progress`), each with an ETA, on stderr."""
+    features, MPA / GA / PSO tuning; :mod:`rvdiag.cli._progress`), each with an ETA, on stderr.  With ``source``
+    (a :class:`rvdiag.models.streaming.StoreSamples`) the CNN streams its samples from the store instead of ``X``."""
     from rich.progress import Progress, TextColumn
 
     console = stderr_console()
@@ -147,7 +155,10 @@ def _fit(est, X, y, quiet: bool, label: str, groups=None):
                     console.print(f"{label} epoch {rec['epoch']}/{rec['max_epochs']}: {info} ({rec['seconds']:.1f} s)",
                                   soft_wrap=True)
 
-            est.fit(X, y, callback=cb, groups=groups)
+            if source is not None:
+                est.fit_store(source, callback=cb, groups=groups)
+            else:
+                est.fit(X, y, callback=cb, groups=groups)
             prog.update(task, total=est.n_epochs_, completed=est.n_epochs_,
                         info=f"stopped after {est.n_epochs_} epochs, kept epoch {est.best_epoch_}")
     else:
@@ -222,6 +233,11 @@ def register(app: typer.Typer) -> None:
                                          help="tsa-ci / orders features and --representation orders: the store's "
                                               "metadata column holding each sample's speed, output deg/s (name ending in _deg_s, as a library "
                                               "writes) or input rev/min (ending in _rpm)."),
+        streaming: Optional[bool] = typer.Option(None, "--streaming/--no-streaming",
+                                                 help="CNN models: read the training samples from the store a block "
+                                                      "at a time (memory flat in the store's size) instead of "
+                                                      "loading the split. Default: stream when the training split's "
+                                                      "signals exceed 2 GiB."),
     ) -> None:
         """Train a classifier on the train split of a store and save it as a model directory.
 
@@ -262,18 +278,28 @@ def register(app: typer.Typer) -> None:
         if model in CNN_MODELS:
             with opt.option_names(CNN_OPTION_NAMES):  # the samples must be at least one network input long
                 new_estimator(seed=seed, fs=store.fs).network_input_length(store.length)
-        tr = store.load("train")
-        te = store.load("test") if "test" in store.splits() else None
-        if snr_db is not None:
-            tr, te = _with_noise(tr, snr_db, [seed, 0]), (None if te is None else _with_noise(te, snr_db, [seed, 1]))
-        Xtr = with_metadata(tr.X, tr.meta, meta_cols, where=f"the store {data}")
-        Xte = None if te is None else with_metadata(te.X, te.meta, meta_cols, where=f"the store {data}")
+        stream = _streaming_choice(streaming, model, snr_db, store)
+        where = f"the store {data}"
+        if stream:
+            from rvdiag.models.streaming import DEFAULT_BUFFER_SAMPLES, StoreSamples, predict_store
+
+            tr = StoreSamples(store, store.indices("train"), meta_cols, where=where)
+            te = StoreSamples(store, store.indices("test"), meta_cols, where=where) if "test" in store.splits() else None
+            Xtr = Xte = None
+        else:
+            tr = store.load("train")
+            te = store.load("test") if "test" in store.splits() else None
+            if snr_db is not None:
+                tr, te = _with_noise(tr, snr_db, [seed, 0]), (None if te is None else _with_noise(te, snr_db, [seed, 1]))
+            Xtr = with_metadata(tr.X, tr.meta, meta_cols, where=where)
+            Xte = None if te is None else with_metadata(te.X, te.meta, meta_cols, where=where)
         labels = [c for c in store.classes if c in set(tr.y.tolist())]
         if len(labels) < 2:
             raise StoreError(f"{data}: the train split holds fewer than 2 classes")
         echo = (lambda *a, **k: None) if json_out else (lambda msg: typer.echo(msg, err=True))
         echo(f"{data}: {len(tr.y)} training samples of {store.length} points, {len(labels)} classes"
-             + (f", {len(te.y)} test samples" if te is not None else ", no test split"))
+             + (f", {len(te.y)} test samples" if te is not None else ", no test split")
+             + (f"; streamed from the store, {DEFAULT_BUFFER_SAMPLES} samples at a time" if stream else ""))
 
         runs, first = [], None
         for r in range(repeat):
@@ -290,10 +316,12 @@ def register(app: typer.Typer) -> None:
                     echo(f"note: samples have {store.length} points and the {model} input is {W}: each sample is cut "
                          f"into {len(starts)} window(s) starting at {starts.tolist()}; training uses every window, "
                          "predictions average them (docs/models.md)")
-            _fit(est, Xtr, tr.y, quiet or json_out, f"seed {s}", groups=validation_groups(store, tr))
+            _fit(est, Xtr, tr.y, quiet or json_out, f"seed {s}", groups=validation_groups(store, tr),
+                 source=tr if stream else None)
             metrics = None
             if te is not None and len(te.y):
-                metrics = classification_metrics(te.y, est.predict(Xte), labels=[str(c) for c in est.classes_])
+                predicted = predict_store(est, te) if stream else est.predict(Xte)
+                metrics = classification_metrics(te.y, predicted, labels=[str(c) for c in est.classes_])
                 runs.append(metrics)
                 echo(f"seed {s}: test accuracy {100 * metrics['accuracy']:.2f} %  kappa {metrics['kappa']:.4f}")
             if r == 0:
@@ -304,6 +332,8 @@ def register(app: typer.Typer) -> None:
                       "kind": store.attrs.get("kind"), "n_train": int(len(tr.y)), **_signal_info(store)}
         extra = {} if snr_db is None else {"added_noise": {"snr_db": float(snr_db), "seed": [seed, 0],
                                                            "applies_to": "train and test splits"}}
+        if stream:
+            extra["streaming"] = {"buffer_samples": int(est.stream_buffer_samples_)}
         scalars = (store.attrs.get("config") or {}).get("scalars") or {}
         if meta_cols:  # where diagnose finds each column in a measured file (the store's --scalar regex)
             extra["metadata_sources"] = {c: scalars[c] for c in meta_cols if c in scalars}
@@ -332,6 +362,23 @@ def _signal_info(store) -> dict:
     if isinstance(cfg.get("channel"), (str, int)):
         info["channel"] = cfg["channel"]
     return info
+
+
+def _streaming_choice(streaming: bool | None, model: str, snr_db: float | None, store) -> bool:
+    """Whether to stream the training samples (``--streaming/--no-streaming``; by default a CNN streams when its
+    training split's float32 signals exceed :data:`rvdiag.models.streaming.STREAMING_THRESHOLD_BYTES`)."""
+    from rvdiag.models.streaming import STREAMING_THRESHOLD_BYTES
+
+    if streaming is None:
+        big = len(store.indices("train")) * store.length * 4 > STREAMING_THRESHOLD_BYTES
+        return bool(big and model in CNN_MODELS and snr_db is None)
+    if streaming and model not in CNN_MODELS:
+        raise ParameterError(f"--streaming applies to the CNN models ({'|'.join(CNN_MODELS)}); {model!r} has no "
+                             "partial_fit and trains in memory (use --no-streaming or leave it out)")
+    if streaming and snr_db is not None:
+        raise ParameterError("--snr-db adds noise to the samples in memory and does not combine with --streaming; "
+                             "build the library with [operation] noise_snr_db instead")
+    return bool(streaming)
 
 
 def _print_repeat(summary: dict, seed: int, n: int) -> None:

@@ -35,7 +35,7 @@ import tempfile
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any, Iterable, Iterator, Mapping
 
 import numpy as np
 import zarr
@@ -421,43 +421,82 @@ class StoreBuilder:
         os.replace(tmp, target)
 
     def finalize(self) -> Path:
-        """Turn the unit records into ``label`` and ``meta`` columns and mark the store complete."""
+        """Turn the unit records into ``label`` and ``meta`` columns and mark the store complete.
+
+        Two passes over the records: the first finds each column's type, the second fills typed arrays, one
+        record at a time.  Memory is the columns themselves (8 bytes a value), not Python lists of every value."""
         if self.complete:
             return self.path
         n_units = len(self.unit_rows)
         missing = sorted(set(range(n_units)) - self.committed_units())
         if missing:
             raise StoreError(f"{self.path}: {len(missing)} unit(s) not built yet (first: {missing[0]})")
-        labels: list[str] = []
-        columns: dict[str, list[Any]] = {}
-        for unit in range(n_units):
-            record = json.loads((self._units_dir / f"{unit}.json").read_text("utf-8"))
+        kinds: dict[str, _ColumnKind] = {}
+        for unit, meta in self._records():
             rows = self.unit_rows[unit]
-            labels.extend(record["labels"])
-            meta = dict(record["meta"])
-            meta["unit"] = [unit] * rows
-            start = sum(self.unit_rows[:unit])
-            for key in set(columns) | set(meta):
-                col = columns.setdefault(key, [None] * start)
-                col.extend(meta.get(key, [None] * rows))
+            for key in set(kinds) | set(meta):
+                kinds.setdefault(key, _ColumnKind(unit > 0)).see(meta.get(key, [None] * rows))
         lookup = {c: i for i, c in enumerate(self.classes)}
+        labels = np.empty(self.n_samples, dtype=np.int16)
+        columns = {key: kind.empty(self.n_samples) for key, kind in kinds.items()}
+        for unit, meta, names in self._records(with_labels=True):
+            lo, hi = int(self.offsets[unit]), int(self.offsets[unit + 1])
+            labels[lo:hi] = [lookup[v] for v in names]
+            for key, kind in kinds.items():
+                kind.fill(columns[key], lo, meta.get(key, [None] * (hi - lo)))
         lab = self._group.create_array(
             "label", shape=(self.n_samples,), dtype="int16", chunks=(max(self.n_samples, 1),), overwrite=True
         )
-        lab[:] = np.asarray([lookup[v] for v in labels], dtype=np.int16)
-        _write_meta_columns(self._group, {k: _column(v) for k, v in columns.items()}, self.n_samples)
+        lab[:] = labels
+        _write_meta_columns(self._group, columns, self.n_samples)
         self._group.attrs["complete"] = True
         shutil.rmtree(self._units_dir, ignore_errors=True)
         return self.path
 
+    def _records(self, with_labels: bool = False) -> Iterator[tuple]:
+        """``(unit, meta)`` (``+ labels``) of every unit record in unit order, ``unit`` added to the metadata."""
+        for unit in range(len(self.unit_rows)):
+            record = json.loads((self._units_dir / f"{unit}.json").read_text("utf-8"))
+            meta = dict(record["meta"])
+            meta["unit"] = [unit] * self.unit_rows[unit]
+            yield (unit, meta, record["labels"]) if with_labels else (unit, meta)
 
-def _column(values: list[Any]) -> np.ndarray:
-    """A metadata column as int, float (None -> NaN) or str array."""
-    present = [v for v in values if v is not None]
-    if present and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in present):
-        if len(present) == len(values):
-            return np.asarray(values, dtype=np.int64)
-        return np.asarray([np.nan if v is None else float(v) for v in values], dtype=np.float64)
-    if present and all(isinstance(v, (int, float, np.number)) and not isinstance(v, bool) for v in present):
-        return np.asarray([np.nan if v is None else float(v) for v in values], dtype=np.float64)
-    return np.asarray(["" if v is None else str(v) for v in values], dtype=object)
+
+class _ColumnKind:
+    """The type of a metadata column seen value by value: int64 when every value is an int, float64 (``None`` ->
+    NaN) when every present value is a number, else str (``None`` -> "")."""
+
+    def __init__(self, missing_before: bool = False):
+        self.none = missing_before  # a column that first appears in a later unit is None in the earlier ones
+        self.present = False
+        self.ints = self.numbers = True
+
+    def see(self, values: list[Any]) -> None:
+        for v in values:
+            if v is None:
+                self.none = True
+                continue
+            self.present = True
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.number)):
+                self.ints = self.numbers = False
+            elif not isinstance(v, (int, np.integer)):
+                self.ints = False
+
+    @property
+    def dtype(self) -> Any:
+        if self.present and self.ints and not self.none:
+            return np.int64
+        if self.present and self.numbers:
+            return np.float64
+        return object
+
+    def empty(self, n: int) -> np.ndarray:
+        return np.empty(n, dtype=self.dtype)
+
+    def fill(self, out: np.ndarray, lo: int, values: list[Any]) -> None:
+        if out.dtype == np.int64:
+            out[lo:lo + len(values)] = values
+        elif out.dtype == np.float64:
+            out[lo:lo + len(values)] = [np.nan if v is None else float(v) for v in values]
+        else:
+            out[lo:lo + len(values)] = ["" if v is None else str(v) for v in values]

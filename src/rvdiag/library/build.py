@@ -217,6 +217,10 @@ class Job:
     model: Mapping[str, Any] = field(default_factory=dict)
     #: the config has a ``[profile]`` table: pass the profiles, record their columns
     profile_columns: bool = False
+    #: the client's rvdiag release and physics revision: a worker running other code refuses the unit
+    #: (``None``: not checked)
+    rvdiag_version: str | None = None
+    physics_revision: str | None = None
 
     @classmethod
     def from_config(cls, cfg: LibraryConfig, params: Any) -> "Job":
@@ -227,7 +231,8 @@ class Job:
             train_per_state=cfg.train_per_state, test_per_state=cfg.test_per_state, assign=cfg.assign,
             severity_columns=tuple(cfg.severity_parameters()),
             scale_columns=tuple(f"{s}.{k}" for s, k, _ in scaled_keys(cfg)), model=dict(cfg.model),
-            profile_columns=cfg.profile is not None,
+            profile_columns=cfg.profile is not None, rvdiag_version=__version__,
+            physics_revision=_physics_revision(),
         )
 
 
@@ -309,9 +314,29 @@ def window_angles(unit: Unit, job: Job, starts: np.ndarray) -> tuple[np.ndarray,
     return np.degrees(th0), np.degrees(th1 - th0) * job.fs / job.segment_length
 
 
+def _physics_revision() -> str:
+    from rvdiag.dynamics import PHYSICS_REVISION
+
+    return PHYSICS_REVISION
+
+
+def check_worker(job: Job) -> None:
+    """Refuse to simulate for a client of another rvdiag release or physics revision (:class:`ConfigError`): a
+    cluster whose workers run other code would mix two simulators' samples in one store."""
+    if job.rvdiag_version is None and job.physics_revision is None:
+        return
+    mine = (__version__, _physics_revision())
+    if mine != (job.rvdiag_version, job.physics_revision):
+        raise ConfigError(
+            f"this Dask worker runs rvdiag {mine[0]} (physics {mine[1]}) and the client rvdiag {job.rvdiag_version} "
+            f"(physics {job.physics_revision}): install the client's rvdiag on every worker"
+        )
+
+
 def run_unit(unit: Unit, job: Job) -> UnitResult:
     """Simulate one unit and cut it into samples (the Dask task; pure function of its arguments):
     :func:`simulate_unit`, then :func:`finish_unit`."""
+    check_worker(job)
     t0 = time.perf_counter()
     return finish_unit(unit, job, simulate_unit(unit, job), t0)
 
@@ -671,19 +696,29 @@ def _run_on_client(client: Any, todo: list[Any], job: Job, task: Callable[..., A
                    handle: Callable[[Any], None]) -> int:
     """Submit ``task(item, job)`` for each item (a unit, or a GPU ensemble of units) with at most one in flight per
     worker thread; ``handle`` each result as it completes.  A GPU ensemble asks for one ``GPU`` resource when the
-    cluster's workers declare that resource (``dask worker --resources GPU=1``)."""
+    cluster's workers declare that resource (``dask worker --resources GPU=1``).
+
+    The number of worker threads is read again (at most once a second) as results come in, so that workers that
+    join after the start (a batch system's jobs leaving the queue, ``cluster.scale``) get work, and the window
+    shrinks when some leave.  A worker lost in the middle of a simulation loses nothing: the scheduler gives its
+    task to another worker, up to ``distributed.scheduler.allowed-failures`` times per task (3 by default), and
+    only a task that exceeds it fails the build (every result written so far stays committed).  The job goes
+    with every task (about 3 kB), not scattered once, so no worker's death can take the only copy of it."""
     from distributed import KilledWorker, as_completed
 
-    nthreads = sum(client.nthreads().values())
+    def threads() -> int:
+        return sum(client.nthreads().values())
+
+    nthreads = threads()
     if nthreads == 0:
         try:
             client.wait_for_workers(1, timeout=60)
         except TimeoutError:
             raise RvdiagError("the Dask cluster has no workers (none joined within 60 s)") from None
-        nthreads = sum(client.nthreads().values())
+        nthreads = threads()
     window = max(1, nthreads)
+    checked = time.monotonic()
     pending = iter(todo)
-    job_future = client.scatter(job, broadcast=True)
     futures = as_completed()
     extra: dict[str, Any] = {}
     if task is not _run_checked and any("GPU" in (w.get("resources") or {})
@@ -695,7 +730,7 @@ def _run_on_client(client: Any, todo: list[Any], job: Job, task: Callable[..., A
         if item is None:
             return False
         name = f"unit-{item.index}" if isinstance(item, Unit) else f"ensemble-{item[0].index}"
-        futures.add(client.submit(task, item, job_future, pure=False, key=f"rvdiag-{name}-{time.time_ns()}", **extra))
+        futures.add(client.submit(task, item, job, pure=False, key=f"rvdiag-{name}-{time.time_ns()}", **extra))
         return True
 
     for _ in range(window):
@@ -707,13 +742,24 @@ def _run_on_client(client: Any, todo: list[Any], job: Job, task: Callable[..., A
                 res = fut.result()
             except KilledWorker as exc:
                 raise SimulationError(
-                    f"a Dask worker died running {exc.task} (out of memory?); the committed simulations are "
+                    f"Dask workers died running {exc.task} (more often than distributed.scheduler.allowed-failures "
+                    "allows: out of memory, or workers without rvdiag installed?); the committed simulations are "
                     "kept: re-run the same command to resume"
+                ) from None
+            except RuntimeError as exc:
+                if "deserialization of the task graph" not in str(exc):
+                    raise
+                raise RvdiagError(
+                    "the Dask scheduler cannot read the simulation tasks: it needs the client's Python packages, "
+                    f"rvdiag {__version__} among them, installed where it runs (as the workers do)"
                 ) from None
             fut.release()
             handle(res)
             del res
-            submit_next()
+            if time.monotonic() - checked >= 1.0:
+                window, checked = max(1, threads()), time.monotonic()
+            while futures.count() < window and submit_next():
+                pass
     except BaseException:
         for fut in list(futures.futures):
             fut.cancel()

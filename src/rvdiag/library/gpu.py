@@ -17,7 +17,8 @@ from typing import Any
 import numpy as np
 
 from rvdiag.errors import ConfigError, DeviceWarning, RvdiagError
-from rvdiag.library.build import Job, Unit, UnitResult, finish_unit, resolve_simulator, run_unit, simulator_call
+from rvdiag.library.build import (Job, Unit, UnitResult, check_worker, finish_unit, resolve_simulator, run_unit,
+                                  simulator_call)
 
 #: values of ``--device``
 DEVICES = ("cpu", "cuda", "auto")
@@ -106,6 +107,7 @@ def ensemble_task(units: list[Unit], job: Job,
     the units run one by one on its CPU and the second item says why (the client warns once)."""
     from rvdiag.dynamics.gpu import unavailable_reason
 
+    check_worker(job)
     reason = unavailable_reason()
     if reason is None:
         return run_ensemble(units, job, layout), None

@@ -366,24 +366,8 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         X, y = validate_data(self, X, y, dtype=np.float64 if angle else np.float32, ensure_min_samples=2)
         check_classification_targets(y)
         W = self._check_params(X.shape[1] - (1 if angle else 0))
-        self.classes_, y_idx = np.unique(y, return_inverse=True)
-        if len(self.classes_) < 2:
-            raise ParameterError(f"need at least 2 classes to train, got {len(self.classes_)}")
-        self.net_input_length_ = W
-        if angle:
-            self.window_starts_ = np.array([0], dtype=np.int64)
-            self.samples_per_rev_ = self._default_samples_per_rev(X[:, -1])
-        else:
-            self.window_starts_ = window_starts(X.shape[1], W, self.long_input)
-        device = resolve_device(self.device)
-        self.device_ = str(device)
-        rng = np.random.default_rng(self.random_state)
-
-        if groups is not None:
-            groups = np.asarray(groups)
-            if groups.shape != (len(y_idx),):
-                raise ParameterError(f"groups must have one entry per sample ({len(y_idx)}), got shape {groups.shape}")
-        tr, va = _split(y_idx, float(self.validation_fraction), rng, groups)
+        y_idx, rng, device = self._start_fit(y, W, X.shape[1], X[:, -1] if angle else None)
+        tr, va = self._validation_split(y_idx, groups, rng)
         k = len(self.window_starts_)
         if self.normalize == "global":
             R = self._represent(X[tr])
@@ -395,8 +379,111 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         Xtr = torch.from_numpy(self._prepare(X[tr])).unsqueeze(1)
         ytr = torch.from_numpy(np.repeat(y_idx[tr], k)).long()
         Xva = torch.from_numpy(self._prepare(X[va])).unsqueeze(1) if len(va) else None
-        yva = y_idx[va]
+        Xtr_d, ytr_d = Xtr.to(device), ytr.to(device)
+        n = len(ytr)
+        bs = int(self.batch_size)
 
+        def batches():
+            order = torch.from_numpy(rng.permutation(n)).to(device)
+            for start in range(0, n, bs):
+                b = order[start:start + bs]
+                yield Xtr_d[b], ytr_d[b]
+
+        def validation_proba(net):
+            return _predict_windows(net, Xva, device, k)
+
+        return self._train(W, device, batches, n, validation_proba if Xva is not None else None, y_idx[va],
+                           callback)
+
+    def fit_store(self, source, callback: Callable[[dict], None] | None = None, groups=None,
+                  buffer_samples: int | None = None):
+        """Train the network on samples streamed from a store (:mod:`rvdiag.models.streaming`): as :meth:`fit`
+        with the same seed, validation split, normalisation and early stopping, but the training samples are read
+        ``buffer_samples`` at a time in a random order of the store's chunks and shuffled within that buffer, and
+        the validation samples are scored block by block, so memory does not grow with the store.  The batch
+        order differs from :meth:`fit`'s, so the weights do too.
+
+        Parameters
+        ----------
+        source : :class:`rvdiag.models.streaming.StoreSamples` (the training split, with the model's metadata
+            columns appended when it reads any)
+        callback, groups : as :meth:`fit` (``groups``: one per sample of ``source``)
+        buffer_samples : samples per read (default :data:`rvdiag.models.streaming.DEFAULT_BUFFER_SAMPLES`)
+
+        Returns
+        -------
+        self
+        """
+        from rvdiag.models.streaming import DEFAULT_BUFFER_SAMPLES, TRANSFORM_PIECE, StoreStream
+
+        buffer_samples = DEFAULT_BUFFER_SAMPLES if buffer_samples is None else buffer_samples
+        angle = self.representation in ANGLE_REPRESENTATIONS
+        if len(source) < 2:
+            raise ParameterError(f"need at least 2 samples to train, got {len(source)}")
+        if angle and tuple(source.meta_columns) != self.input_metadata():
+            raise ParameterError(f"representation {self.representation!r} reads the metadata column(s) "
+                                 f"{list(self.input_metadata())} after each sample; the source appends "
+                                 f"{list(source.meta_columns)}")
+        y = np.asarray(source.y)
+        check_classification_targets(y)
+        W = self._check_params(source.length)
+        speeds = np.asarray(source.meta[self.speed_column], dtype=np.float64) if angle else None
+        y_idx, rng, device = self._start_fit(y, W, source.n_features, speeds)
+        self.n_features_in_ = int(source.n_features)
+        tr, va = self._validation_split(y_idx, groups, rng)
+        k = len(self.window_starts_)
+        train, val = source.subset(tr), source.subset(va)
+        if self.normalize == "global":
+            self.norm_mean_, sd = _streamed_moments(self._represent, train, TRANSFORM_PIECE)
+            self.norm_std_ = sd if sd > 0 else 1.0
+        else:
+            self.norm_mean_, self.norm_std_ = 0.0, 1.0
+        stream = StoreStream(train, y_idx[tr], self._prepare, windows_per_sample=k, batch_size=int(self.batch_size),
+                             rng=rng, buffer_samples=buffer_samples)
+
+        def batches():
+            for xb, yb in stream:
+                yield xb.to(device), yb.to(device)
+
+        def validation_proba(net):
+            out = [_predict_windows(net, torch.from_numpy(self._prepare(X[s:s + TRANSFORM_PIECE])).unsqueeze(1),
+                                    device, k)
+                   for _, X in val.blocks(buffer_samples) for s in range(0, len(X), TRANSFORM_PIECE)]
+            return np.concatenate(out)
+
+        self.stream_buffer_samples_ = int(buffer_samples)
+        return self._train(W, device, batches, len(stream), validation_proba if len(va) else None, y_idx[va],
+                           callback)
+
+    def _start_fit(self, y: np.ndarray, W: int, n_features: int, speeds: np.ndarray | None):
+        """Classes, input windows or angle sampling, device and the seeded generator of a fit: ``(y_idx, rng,
+        device)``."""
+        self.classes_, y_idx = np.unique(y, return_inverse=True)
+        if len(self.classes_) < 2:
+            raise ParameterError(f"need at least 2 classes to train, got {len(self.classes_)}")
+        self.net_input_length_ = W
+        if speeds is not None:
+            self.window_starts_ = np.array([0], dtype=np.int64)
+            self.samples_per_rev_ = self._default_samples_per_rev(speeds)
+        else:
+            self.window_starts_ = window_starts(n_features, W, self.long_input)
+        device = resolve_device(self.device)
+        self.device_ = str(device)
+        return y_idx, np.random.default_rng(self.random_state), device
+
+    def _validation_split(self, y_idx: np.ndarray, groups, rng: np.random.Generator):
+        if groups is not None:
+            groups = np.asarray(groups)
+            if groups.shape != (len(y_idx),):
+                raise ParameterError(f"groups must have one entry per sample ({len(y_idx)}), got shape {groups.shape}")
+        return _split(y_idx, float(self.validation_fraction), rng, groups)
+
+    def _train(self, W: int, device: torch.device, batches: Callable[[], object], n: int,
+               validation_proba: Callable[[torch.nn.Module], np.ndarray] | None, yva: np.ndarray,
+               callback: Callable[[dict], None] | None):
+        """The training loop of :meth:`fit` and :meth:`fit_store`: ``batches()`` yields one epoch's ``(x, y)``
+        batches on ``device`` (``n`` inputs in all), ``validation_proba(net)`` the validation samples' class
+        probabilities (None: no validation split)."""
         deterministic_before = (torch.are_deterministic_algorithms_enabled(),
                                 torch.is_deterministic_algorithms_warn_only_enabled())
         os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
@@ -412,24 +499,20 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
             loss_fn = torch.nn.CrossEntropyLoss()
             best, best_state, best_epoch, stale = np.inf, None, 0, 0
             self.history_ = []
-            Xtr_d, ytr_d = Xtr.to(device), ytr.to(device)
-            n = len(ytr)
             for epoch in range(1, int(self.max_epochs) + 1):
                 t0 = time.perf_counter()
                 net.train()
-                order = torch.from_numpy(rng.permutation(n)).to(device)
                 total = 0.0
-                for start in range(0, n, int(self.batch_size)):
-                    b = order[start:start + int(self.batch_size)]
+                for xb, yb in batches():
                     opt.zero_grad()
-                    loss = loss_fn(net(Xtr_d[b]), ytr_d[b])
+                    loss = loss_fn(net(xb), yb)
                     loss.backward()
                     opt.step()
-                    total += float(loss.detach()) * len(b)
+                    total += float(loss.detach()) * len(yb)
                 train_loss = total / n
                 val_loss = val_acc = None
-                if Xva is not None:
-                    proba = _predict_windows(net, Xva, device, k)
+                if validation_proba is not None:
+                    proba = validation_proba(net)
                     val_loss = float(-np.mean(np.log(np.clip(proba[np.arange(len(yva)), yva], 1e-12, None))))
                     val_acc = float(np.mean(proba.argmax(1) == yva))
                 monitor = val_loss if val_loss is not None else train_loss
@@ -552,3 +635,23 @@ def _predict_windows(net: torch.nn.Module, Xw: torch.Tensor, device: torch.devic
         net.train()
     P = np.concatenate(out) if out else np.zeros((0, 1), np.float32)
     return P.reshape(-1, k, P.shape[1]).mean(axis=1).astype(np.float64)
+
+
+def _streamed_moments(represent: Callable[[np.ndarray], np.ndarray], source, block_samples: int) -> tuple[float, float]:
+    """Mean and standard deviation of every value of ``represent(X)`` over the blocks of ``source``, combined block
+    by block (Chan, Golub & LeVeque 1983, "Algorithms for computing the sample variance", The American Statistician
+    37(3): the pairwise update of the mean and the sum of squared deviations)."""
+    n, mean, m2 = 0, 0.0, 0.0
+    for _, X in source.blocks(block_samples):
+        R = np.asarray(represent(X), dtype=np.float64)
+        nb = R.size
+        if nb == 0:
+            continue
+        mb = float(R.mean())
+        m2b = float(np.sum((R - mb) ** 2))
+        delta = mb - mean
+        total = n + nb
+        mean += delta * nb / total
+        m2 += m2b + delta * delta * n * nb / total
+        n = total
+    return (mean, float(np.sqrt(m2 / n))) if n else (0.0, 1.0)
