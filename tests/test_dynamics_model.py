@@ -9,6 +9,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from rvdiag.dynamics import ModelSettings, mesh_table, prepare
+from rvdiag.dynamics.trace import planet_runout
 from rvdiag.dynamics import model as mdl
 from rvdiag.dynamics.linear import natural_frequencies, potential_energy, stiffness_matrix, static_equilibrium
 from rvdiag.dynamics.mesh import MeshTable, contact_ratio, rectangular_mesh_table, single_pair_stiffness
@@ -86,28 +87,34 @@ def test_static_meshes_loaded_and_pins_half_in_contact(loaded):
     mt = mdl.mesh_array(m)
     mdl.mesh_terms(0.0, P, m.tables, mt)
     S = int(P[mdl.I_NSLOT])
-    for i, (cps, sps, sap, cap) in enumerate(m.planet):
+    runout = planet_runout(m, 0.0)[0]  # the planets' runout transmission error (manufacturing errors)
+    for i, row in enumerate(m.planet):
         ip = 3 + 3 * i
+        sap, cap = row[2], row[3]
         d = (q[0] * sap + q[1] * cap + P[mdl.I_RB1] * q[2] - q[ip] * P[mdl.I_SINA]
-             - q[ip + 1] * P[mdl.I_COSA] + P[mdl.I_RB2] * q[ip + 2])
+             - q[ip + 1] * P[mdl.I_COSA] + P[mdl.I_RB2] * q[ip + 2] - runout[i])
         loaded_pairs = [s for s in range(S) if mt[i, 4 * s] > 0 and d - mt[i, 4 * s + 1] > P[mdl.I_HALF_BACKLASH]]
         assert loaded_pairs, (i, d, mt[i])
     geo, rot, _ = mdl.work_arrays(m)
     mdl.pin_geometry(0.0, P, m.cosk, m.sink, geo, rot)
     lay = mdl.dof_layout(2, 2)
+    e = m.extra["manufacturing"]  # the pins' radius and groove errors (rvdiag.dynamics.manufacturing)
+    rho, vx, vy = e.pin_offsets_fixed_frame()
     for j in range(2):
         idd = lay[f"disc{j}"]
         cb, sb = rot[j, 0], rot[j, 1]
         ux = cb * q[idd] + sb * q[idd + 1]
         uy = -sb * q[idd] + cb * q[idd + 1]
-        g = 0  # shared geometry (180 deg = 20 pin pitches)
+        g = 0  # shared geometry (180 deg = 20 pin pitches): index k is pin k + 20 j
         # pin wheel displacement is ~1e-10 m here; include it properly
         iR = lay["pin_wheel"]
         cB, sB = rot[j, 2], rot[j, 3]
         ux -= cB * q[iR] + sB * q[iR + 1]
         uy -= -sB * q[iR] + cB * q[iR + 1]
         th = q[idd + 2] - P[mdl.I_ZP] / P[mdl.I_ZC] * q[iR + 2]
-        delta = ux * geo[g, 0] + uy * geo[g, 1] + th * geo[g, 2]
+        k = (np.arange(40) + 20 * j) % 40
+        off = rho[k] - ((cB * vx[k] + sB * vy[k]) * geo[g, 0] + (cB * vy[k] - sB * vx[k]) * geo[g, 1])
+        delta = ux * geo[g, 0] + uy * geo[g, 1] + th * geo[g, 2] + off
         n_loaded = int(np.sum(delta > 0))
         assert 14 <= n_loaded <= 26, n_loaded
 

@@ -70,10 +70,12 @@ def spectra():
 
 
 def test_healthy_peaks_at_mesh_harmonics():
-    """Perfect involutes (ISO 1328 errors off), sensor y direction: the 3 largest spectral peaks are harmonics
+    """Perfect involutes (ISO 1328 errors off, and no manufacturing errors: the planets' runout would put its
+    sidebands n fsp +- k f_planet among the peaks), sensor y direction: the 3 largest spectral peaks are harmonics
     of the stage-1 mesh frequency fsp (or of the stage-2 fcs) of `rvdiag freqs`, within 2 Hz (one bin at
     0.5 s)."""
-    perfect = P0.replace(modification={"iso1328_grade": 0})
+    perfect = P0.replace(modification={"iso1328_grade": 0}, manufacturing={
+        "planet_runout_grade": 0, "crank_hole_position": 0.0, "crank_phase_arcmin": 0.0})
     healthy = simulate(perfect, None, output_speed_deg_s=45.0, load_Nm=100.0, duration_s=0.5, fs=48000.0,
                        settings=ModelSettings(substeps=10, transient_s=0.02))
     fr = characteristic_frequencies(P0, output_speed_deg_s=45.0)

@@ -3,8 +3,8 @@
 The approach of each tooth pair is ``delta - e(phi)``, ``e`` the pair's separation (here: the wear depth at its
 contact point, from ``rvdiag.gears.mesh_stiffness(...).pair_profile_error_m``), with the force
 ``k g(delta - e) + c (delta' - e')`` (Kahraman & Singh 1990).  The tests run on perfect involutes without
-relief (``iso1328_grade = 0``, no relief) so that wear is the only separation; a table without pair data
-(``pair_stiffness_N_per_m=None``) is one spring per mesh with ``error_m`` as its separation.
+relief (``iso1328_grade = 0``, no relief) and without manufacturing errors so that wear is the only separation; a
+table without pair data (``pair_stiffness_N_per_m=None``) is one spring per mesh with ``error_m`` as its separation.
 """
 
 from __future__ import annotations
@@ -24,11 +24,13 @@ from rvdiag.errors import ParameterError
 from rvdiag.gears import ToothFaults, Wear
 from rvdiag.params import ReducerParams
 
-#: perfect involutes without relief or extended contact: the wear deviation is then the only separation, which
-#: isolates the excitation this module is about
+#: perfect involutes without relief or extended contact, and no manufacturing errors: the wear deviation is then the
+#: only separation, which isolates the excitation this module is about
 P0 = ReducerParams.default().replace(
     modification={"iso1328_grade": 0, "tip_relief_sun": 0.0, "tip_relief_planet": 0.0,
-                  "extended_contact_separation": 0.0})
+                  "extended_contact_separation": 0.0},
+    manufacturing={"planet_runout_grade": 0, "crank_hole_position": 0.0, "crank_phase_arcmin": 0.0,
+                   "pin_radius": 0.0, "pin_position": 0.0})
 #: the library engineer's operating point (docs/library.md): 45 deg/s output, 75 N m, no noise
 OP = dict(output_speed_deg_s=45.0, load_Nm=75.0)
 SIM = dict(duration_s=0.1, fs=48000.0, settings=ModelSettings(transient_s=0.05), **OP)

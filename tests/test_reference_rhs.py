@@ -52,6 +52,17 @@ def test_reference_rhs_equals_compiled_rhs(fault):
     assert _max_rel_diff(m, seed=1) < 1e-9
 
 
+def test_reference_rhs_equals_compiled_rhs_with_large_manufacturing_errors():
+    """Every manufacturing error on at several times its default tolerance (planet runout, crank holes, crank
+    phases, pins; rvdiag.dynamics.manufacturing), a specimen (seed 12) whose crank phases differ by 8.2 arcmin."""
+    p = P0.replace(manufacturing={"planet_runout_grade": 8, "crank_hole_position": 20e-6, "crank_phase_arcmin": 10.0,
+                                  "pin_radius": 5e-6, "pin_position": 20e-6}, modification={"error_seed": 12})
+    m = prepare(p, output_speed_deg_s=45.0, load_Nm=100.0)
+    e = m.extra["manufacturing"]
+    assert abs(e.crank_phase[1] - e.crank_phase[0]) > 2e-3 and min(e.runout) > 4e-6 and np.std(e.pin_radial) > 5e-6
+    assert _max_rel_diff(m, seed=5) < 1e-9
+
+
 def test_reference_rhs_equals_compiled_rhs_other_settings():
     """1000 rpm, rated load, frozen excitation, no damping, no Coriolis, bilateral contacts."""
     m = prepare(P0, input_speed_rpm=1000.0)

@@ -20,6 +20,13 @@ the contact is closed (always, with the bilateral flag ``P[I_BILATERAL]``, which
 dead zone by a shift of ``bilateral * b/2``); with a profile deviation ``e`` the mesh deflection is
 ``delta - e`` and its rate ``delta' - de/dt``, ``de/dt`` the table slope per grid step times the grid
 rate (zero when the time variation is frozen).
+
+Manufacturing errors (``model.extra["manufacturing"]``, the drawn deviations of
+:mod:`rvdiag.dynamics.manufacturing`, not the kernels' packed coefficients): each planet's runout e_i at phi_i
+takes ``e_i sin(beta_0 + phi_i + alpha)`` off its mesh approach and ``e_i cos(beta_0 + phi_i + alpha) beta_0'``
+off its rate; a crank hole's error eps_i shifts the crank-carrier bearing's seat; a crank's eccentric angle error
+adds to its rotation in the crank-cycloid bearings; a pin's radius error rho_k and groove error v_k (fixed frame)
+compress its contacts by ``rho_k - v_k . n`` (the pins stand still: no rate).
 """
 
 from __future__ import annotations
@@ -90,6 +97,17 @@ class ReferenceRHS:
         self.idisc = 3 + 6 * N + 3 * np.arange(D)  # discs
         self.iH = 3 + 6 * N + 3 * D  # carrier
         self.iR = self.iH + 3  # pin wheel
+        err = model.extra.get("manufacturing")
+        zN, zZ = np.zeros(N), np.zeros(Zp)
+        self.run_e = np.asarray(err.runout) if err is not None else zN
+        self.run_phi = np.asarray(err.runout_angle) if err is not None else zN
+        self.hole = (np.asarray(err.hole_radial), np.asarray(err.hole_tangential)) if err is not None else (zN, zN)
+        self.dphase = np.asarray(err.crank_phase) if err is not None else zN
+        self.pin_rho = np.asarray(err.pin_radius) if err is not None else zZ
+        pr = np.asarray(err.pin_radial) if err is not None else zZ
+        pt = np.asarray(err.pin_tangential) if err is not None else zZ
+        g = self.gamma
+        self.pin_v = (pr * np.cos(g) - pt * np.sin(g), pr * np.sin(g) + pt * np.cos(g))  # fixed frame
 
     def kinematics(self, t: float) -> tuple[float, float, float]:
         """Carrier angle theta_H, speed Omega and acceleration dOmega/dt at t (docs/model.md section 2): Omega t at
@@ -199,6 +217,11 @@ class ReferenceRHS:
              - q[ip] * self.sa - q[ip + 1] * self.ca + rb2 * q[ip + 2])
         dd = (v[0] * self.sap + v[1] * self.cap + rb1 * v[2]
               - v[ip] * self.sa - v[ip + 1] * self.ca + rb2 * v[ip + 2])
+        # planet runout: the pitch circle, eccentric by e_i at phi_i, turns with the cranks' eccentric angle beta_0
+        beta0 = P[mdl.I_BETA0] - P[mdl.I_ZP] * th_H
+        arg = beta0 + self.run_phi + P[mdl.I_ALPHA]
+        d = d - self.run_e * np.sin(arg)
+        dd = dd - (0.0 if frozen else self.run_e * np.cos(arg) * -P[mdl.I_ZP] * Om_t)
         hb = P[mdl.I_HALF_BACKLASH]
         if bil != 0.0:  # linearised: nominal TVMS and load-shared separation, no damping in the mesh
             km = self.k_table[j0] + fr * (self.k_table[j1] - self.k_table[j0])
@@ -244,6 +267,7 @@ class ReferenceRHS:
                     z[ic + 1] - (-sps * z[iH] + cps * z[iH + 1]) - a * z[iH + 2])
 
         (dx, dy), (vx, vy) = cc(q), cc(v)
+        dx, dy = dx - self.hole[0], dy - self.hole[1]  # the seat of crank bearing i is off by the hole's error
         fx = P[mdl.I_KCC] * dx + P[mdl.I_CCC] * vx
         fy = P[mdl.I_KCC] * dy + P[mdl.I_CCC] * vy
         Q[ic] -= fx
@@ -259,14 +283,14 @@ class ReferenceRHS:
         kcd, ccd = P[mdl.I_KCD], P[mdl.I_CCD]
         tx, ty = -e * sb[None, :], e * cb[None, :]  # (1, D): e t_j
 
-        def ccd_d(z):
+        def ccd_d(z, dph):
             ux = (cps * z[ic] - sps * z[ic + 1])[:, None]
             uy = (sps * z[ic] + cps * z[ic + 1])[:, None]
-            th = z[ic + 2][:, None]
+            th = (z[ic + 2] + dph)[:, None]
             return (ux + th * tx - z[idd][None, :] + z[idd + 2][None, :] * a * sps[:, None],
                     uy + th * ty - z[idd + 1][None, :] - z[idd + 2][None, :] * a * cps[:, None])
 
-        (dx, dy), (vx, vy) = ccd_d(q), ccd_d(v)
+        (dx, dy), (vx, vy) = ccd_d(q, self.dphase), ccd_d(v, 0.0)
         fx = kcd * dx + ccd * vx  # (N, D)
         fy = kcd * dy + ccd * vy
         Q[ic] -= np.sum(cps[:, None] * fx + sps[:, None] * fy, axis=1)
@@ -322,7 +346,12 @@ class ReferenceRHS:
 
         ux, uy, th = rel(q)
         wx, wy, om = rel(v)
-        return nx, ny, lk, ux * nx + uy * ny + th * lk, wx * nx + wy * ny + om * lk
+        # pin errors: the groove's offset v_k (fixed frame) seen in disc j's eccentric frame, R(-B_j) v_k
+        vx, vy = self.pin_v
+        px = cB[:, None] * vx[None, :] + sB[:, None] * vy[None, :]
+        py = -sB[:, None] * vx[None, :] + cB[:, None] * vy[None, :]
+        off = self.pin_rho[None, :] - (px * nx + py * ny)
+        return nx, ny, lk, ux * nx + uy * ny + th * lk + off, wx * nx + wy * ny + om * lk
 
     def pin_deflections(self, t: float, q: np.ndarray) -> np.ndarray:
         """Approach delta_jk of every cycloid-pin contact, shape (D, Zp); > 0 is compression."""

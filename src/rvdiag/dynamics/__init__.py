@@ -27,9 +27,10 @@ from rvdiag.kinematics import sun_speed_hz
 from rvdiag.params import ReducerParams
 
 #: The revision of the simulated physics: the date of the last deliberate change to what a simulation returns for
-#: the same parameters (bumped with it; 2026-11-25: extended tooth contact, run-in wear, speed profiles).  Library
-#: stores record it in their hashed config, so a build never resumes a store simulated by other physics.
-PHYSICS_REVISION = "2026-11-25"
+#: the same parameters (bumped with it; 2026-11-25: extended tooth contact, run-in wear, speed profiles; 2026-11-26:
+#: the manufacturing errors of ``[manufacturing]``, on by default).  Library stores record it in their hashed config,
+#: so a build never resumes a store simulated by other physics.
+PHYSICS_REVISION = "2026-11-26"
 
 #: what :func:`simulate` can record
 SIGNALS = ("vibration", "current", "both")

@@ -67,6 +67,10 @@ P_FIELDS = (
     "RATIO",                                    # i: sun speed / carrier speed
     "ARM_MGL", "ARM_ML2", "ARM_TH0",            # gravity arm: M g L, M L^2, its angle at t = 0
     "JREF_I",                                   # i J_ref: drive torque per unit carrier acceleration
+    # manufacturing errors (rvdiag.dynamics.manufacturing; docs/model.md section 3): MFG 1.0 when the planet table
+    # carries planet runout, crank-hole or crank-phase errors (its columns 4-8); PINERR the index in P where the
+    # pins' errors start (0: none), PINSHIFT the pin index of disc 1's pin 0 when the discs share one geometry
+    "MFG", "PINERR", "PINSHIFT",
     # the servo motor's electrical side (rvdiag.dynamics.motor_kernel; docs/model.md section 10), last
     *MOTOR_P_FIELDS,
 )
@@ -371,13 +375,59 @@ def _pin_sums_pair(geo, ux, uy, th, wx, wy, om, vx, vy, ph, zx, zy, ps, kp, cp, 
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
+def _pin_sums_err(geo, g, ux, uy, th, wx, wy, om, kp, cp, dlim, flo, P, pb, nz, h, cB, sB):
+    """:func:`_pin_sums` with the pins' manufacturing errors (:mod:`rvdiag.dynamics.manufacturing`; Blanche & Yang
+    1989): geometry index k is pin ``m = k + h``, whose radius error ``rho_m`` and groove position error ``v_m``
+    (fixed frame) compress the contact by ``rho_m - (R(-B) v_m) . n_k`` more (``cB, sB`` the cosine and sine of the
+    disc's eccentric angle B in the fixed frame).  ``P[pb:]`` holds ``rho``, ``v_x``, ``v_y``, each twice over
+    (``2 Zp`` values), so ``k + h`` needs no wrap.  The pins stand still, so the rate is unchanged."""
+    sx = sy = sm = 0.0
+    bx = pb + 2 * nz
+    by = pb + 4 * nz
+    for k in range(nz):
+        nx = geo[g, 0, k]
+        ny = geo[g, 1, k]
+        lk = geo[g, 2, k]
+        m = k + h
+        vx = P[bx + m]
+        vy = P[by + m]
+        o = P[pb + m] - ((cB * vx + sB * vy) * nx + (cB * vy - sB * vx) * ny)
+        d = ux * nx + uy * ny + th * lk + o
+        f = max(kp * d + cp * (wx * nx + wy * ny + om * lk), flo)
+        f = f if d > dlim else 0.0
+        sx += f * nx
+        sy += f * ny
+        sm += f * lk
+    return sx, sy, sm
+
+
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
 def generalized_forces(y, P, planet, mt, geo, rot, Q):
-    """Generalized forces Q(t, q, v) of all springs, contacts, dampers and the external torques.
+    """Generalized forces Q(t, q, v) of all springs, contacts, dampers and the external torques
+    (:func:`_generalized_forces`): a model without manufacturing errors runs a copy compiled without their terms,
+    so that its arithmetic, and its output to the last bit, is that of the model before them."""
+    if P[I_MFG] != 0.0 or P[I_PINERR] != 0.0:
+        _generalized_forces(y, P, planet, mt, geo, rot, Q, True)
+    else:
+        _generalized_forces(y, P, planet, mt, geo, rot, Q, False)
+
+
+@numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
+def _generalized_forces(y, P, planet, mt, geo, rot, Q, errors):
+    """Generalized forces Q(t, q, v) of all springs, contacts, dampers and the external torques; ``errors``
+    (a constant at each call) compiles the manufacturing errors' terms in or out.
 
     ``y = [q, v]`` (the first-order state; ``Q`` has ``n = y.size / 2`` entries).  ``mt`` must hold
     :func:`mesh_terms` and ``geo, rot`` :func:`pin_geometry` at the same ``t``.  The equations are in
     docs/model.md.  Each sun-planet mesh force is ``k g(delta - e) + c (delta' - e')`` with the
     deviation ``e`` (transmission-error excitation, Kahraman & Singh 1990).
+
+    Manufacturing errors (:mod:`rvdiag.dynamics.manufacturing`; docs/model.md section 3), only when ``P[I_MFG]``
+    / ``P[I_PINERR]`` are set, so that a model without them runs the original code: ``planet[i, 4:6] = (A_i,
+    B_i)`` the runout's transmission error ``r_i = A_i cos b_0 + B_i sin b_0`` (``b_0`` the cranks' eccentric
+    angle, ``rot[0]``; its rate ``-Zp Omega`` times the derivative), lost by mesh i's approach; ``planet[i, 6:8]``
+    the crank hole's position error (radial, tangential) in the crank-carrier bearing; ``planet[i, 8]`` the crank's
+    eccentric angle error in the crank-cycloid bearings; and the pins' errors in :func:`_pin_sums_err`.
 
     Written for speed (bench/HISTORY.md 2026-11-23, "slice-free force kernels": 271 -> 173 ns with the
     changes of that entry): no array views, the forces of the sun, planets, cranks, carrier and pin wheel
@@ -408,6 +458,11 @@ def generalized_forces(y, P, planet, mt, geo, rot, Q):
     T_sh = P[I_KIN] * (y[2] - qm) + P[I_CIN] * (y[n + 2] - vm)
     S2 = -T_sh
     prof = P[I_PROFILE] != 0.0
+    mfg = errors and P[I_MFG] != 0.0
+    if mfg:  # the planets turn with the cranks' eccentrics: angle b_0 (disc 0's eccentric), rate -Zp Omega
+        cr0 = rot[0, 0]
+        sr0 = rot[0, 1]
+        wb = 0.0 if P[I_TFROZEN] >= 0.0 else -P[I_ZP] * (mt[N, 0] if prof else P[I_OMEGA])
     if mot and P[I_PMSM] != 0.0 and y.size > 2 * n:  # the PMSM's air-gap torque and friction on the rotor
         Q[iM] = (air_gap_torque(P, I_PMSM, y[2 * n], y[2 * n + 1]) - P[I_M_B] * (mt[N, 5] + vm) + T_sh)
     elif mot:  # the rotor: drive torque, speed loop, and the shaft's reaction
@@ -469,6 +524,11 @@ def generalized_forces(y, P, planet, mt, geo, rot, Q):
         # flanks meet at d < -b with the nominal TVMS and the mean mesh damper
         d = y[0] * sap + y[1] * cap + rb1 * y[2] - qp0 * sa - qp1 * ca + rb2 * qp2
         dd = y[n] * sap + y[n + 1] * cap + rb1 * y[n + 2] - vp0 * sa - vp1 * ca + rb2 * vp2
+        if mfg:  # the planet's runout: a transmission error once per planet revolution (Inalpolat & Kahraman 2009)
+            ra = planet[i, 4]
+            rb = planet[i, 5]
+            d -= ra * cr0 + rb * sr0
+            dd -= (rb * cr0 - ra * sr0) * wb
         F = 0.0
         if bil != 0.0:  # linearised: nominal TVMS, load-shared separation (bilateral start and modal analysis)
             F = mt[i, 4 * S] * (d - mt[i, 4 * S + 1] - bil * hb)
@@ -502,6 +562,11 @@ def generalized_forces(y, P, planet, mt, geo, rot, Q):
         # crank-carrier bearing: d = u_c - R^T u_H - a th_H e_t (orbiting frame)
         dx = qc0 - (cps * qH0 + sps * qH1)
         dy = qc1 - (-sps * qH0 + cps * qH1) - a * qH2
+        qe2 = qc2
+        if mfg:  # the crank hole's position error (radial, tangential), the crank's eccentric angle error
+            dx -= planet[i, 6]
+            dy -= planet[i, 7]
+            qe2 = qc2 + planet[i, 8]
         vx = vc0 - (cps * vH0 + sps * vH1)
         vy = vc1 - (-sps * vH0 + cps * vH1) - a * vH2
         fx = kcc * dx + ccc * vx
@@ -525,8 +590,8 @@ def generalized_forces(y, P, planet, mt, geo, rot, Q):
             ty = e * rot[jd, 0]
             qd2 = y[idd + 2]
             vd2 = y[n + idd + 2]
-            dx = ucx + qc2 * tx - y[idd] + qd2 * asp
-            dy = ucy + qc2 * ty - y[idd + 1] - qd2 * acp
+            dx = ucx + qe2 * tx - y[idd] + qd2 * asp
+            dy = ucy + qe2 * ty - y[idd + 1] - qd2 * acp
             vx = vcx + vc2 * tx - y[n + idd] + vd2 * asp
             vy = vcy + vc2 * ty - y[n + idd + 1] - vd2 * acp
             fx = kcd * dx + ccd * vx
@@ -552,19 +617,35 @@ def generalized_forces(y, P, planet, mt, geo, rot, Q):
     vR0 = y[n + iR]
     vR1 = y[n + iR + 1]
     vR2 = y[n + iR + 2]
+    pb = (int(P[I_PINERR]) & 1048575) if errors else 0  # the pins' errors in P from here (0: none)
+    nz = geo.shape[2] & 65535
     jd = 0
     while jd < D:
         a0, a1, a2, a3, a4, a5 = _disc_frame(jd, y, n, rot, iD0, qR0, qR1, qR2, vR0, vR1, vR2, rr)
         if gsh and jd + 1 < D:
             b0, b1, b2, b3, b4, b5 = _disc_frame(jd + 1, y, n, rot, iD0, qR0, qR1, qR2, vR0, vR1, vR2, rr)
-            s0x, s0y, s0m, s1x, s1y, s1m = _pin_sums_pair(
-                geo, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, kp, cp, dlim, dlim)
+            if pb != 0:  # geometry index k is pin k + jd PINSHIFT of disc jd (mod Zp)
+                h0 = (jd * int(P[I_PINSHIFT])) % nz
+                h1 = ((jd + 1) * int(P[I_PINSHIFT])) % nz
+                s0x, s0y, s0m = _pin_sums_err(geo, 0, a0, a1, a2, a3, a4, a5, kp, cp, dlim, dlim, P, pb, nz, h0,
+                                              rot[jd, 2], rot[jd, 3])
+                s1x, s1y, s1m = _pin_sums_err(geo, 0, b0, b1, b2, b3, b4, b5, kp, cp, dlim, dlim, P, pb, nz, h1,
+                                              rot[jd + 1, 2], rot[jd + 1, 3])
+            else:
+                s0x, s0y, s0m, s1x, s1y, s1m = _pin_sums_pair(
+                    geo, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, kp, cp, dlim, dlim)
             r0, r1, r2 = _apply_pin_sums(jd, s0x, s0y, s0m, iD0, rr, rot, Q)
             R0 += r0
             R1 += r1
             R2 += r2
             r0, r1, r2 = _apply_pin_sums(jd + 1, s1x, s1y, s1m, iD0, rr, rot, Q)
             jd += 2
+        elif pb != 0:
+            h0 = (jd * int(P[I_PINSHIFT])) % nz if gsh else 0
+            sx, sy, sm = _pin_sums_err(geo, 0 if gsh else jd, a0, a1, a2, a3, a4, a5, kp, cp, dlim, dlim, P, pb, nz,
+                                       h0, rot[jd, 2], rot[jd, 3])
+            r0, r1, r2 = _apply_pin_sums(jd, sx, sy, sm, iD0, rr, rot, Q)
+            jd += 1
         else:
             sx, sy, sm = _pin_sums(geo, 0 if gsh else jd, a0, a1, a2, a3, a4, a5, kp, cp, dlim, dlim)
             r0, r1, r2 = _apply_pin_sums(jd, sx, sy, sm, iD0, rr, rot, Q)

@@ -137,12 +137,19 @@ def potential_energy(model: mdl.Model, t: float, q: np.ndarray) -> float:
     pe = np.concatenate([model.pairs[:, 1, :], model.pairs[:, 1, :1]], axis=1)  # per-slot separation
     bil = P[mdl.I_BILATERAL]
     beta = [P[mdl.I_BETA0] - Zp * Om * te + j * P[mdl.I_DISCPHASE] for j in range(D)]
+    # manufacturing errors (rvdiag.dynamics.manufacturing), from the drawn deviations, not the packed tables
+    err = model.extra.get("manufacturing")
+    zN, zZ = (0.0,) * N, (0.0,) * int(Zp)
+    runout, run_ang = (err.runout, err.runout_angle) if err is not None else (zN, zN)
+    hole_r, hole_t, dphase = (err.hole_radial, err.hole_tangential, err.crank_phase) if err is not None else (zN,) * 3
     for i in range(N):
         psi = 2 * np.pi * i / N
         p, c = lay[f"planet{i}"], lay[f"crank{i}"]
         phase = np.mod(P[mdl.I_WREL] * te - psi, 2 * np.pi)
         d = (q[s] * np.sin(alpha - psi) + q[s + 1] * np.cos(alpha - psi) + rb1 * q[s + 2]
              - q[p] * np.sin(alpha) - q[p + 1] * np.cos(alpha) + rb2 * q[p + 2])
+        # the planet's pitch circle, eccentric by e_i at phi_i to its crank, turns with the eccentric angle beta_0
+        d -= runout[i] * np.sin(beta[0] + run_ang[i] + alpha)
         if bil != 0:  # linearised: nominal TVMS, load-shared separation
             V += 0.5 * np.interp(phase, grid, ktab) * (d - np.interp(phase, grid, etab) - bil * hb) ** 2
         else:  # each tooth pair a spring beyond its separation and the half backlash; back flanks nominal
@@ -156,13 +163,13 @@ def potential_energy(model: mdl.Model, t: float, q: np.ndarray) -> float:
         V += 0.5 * P[mdl.I_KPT] * (q[p + 2] - q[c + 2]) ** 2
         Rm = np.array([[np.cos(psi), -np.sin(psi)], [np.sin(psi), np.cos(psi)]])
         uH = q[H:H + 2]
-        dcc = q[c:c + 2] - Rm.T @ uH - a * q[H + 2] * np.array([0.0, 1.0])
+        dcc = q[c:c + 2] - Rm.T @ uH - a * q[H + 2] * np.array([0.0, 1.0]) - np.array([hole_r[i], hole_t[i]])
         V += 0.5 * P[mdl.I_KCC] * dcc @ dcc
         for j in range(D):
             dd = lay[f"disc{j}"]
             tj = e * np.array([-np.sin(beta[j]), np.cos(beta[j])])
             et = np.array([-np.sin(psi), np.cos(psi)])
-            dcd = Rm @ q[c:c + 2] + q[c + 2] * tj - q[dd:dd + 2] - q[dd + 2] * a * et
+            dcd = Rm @ q[c:c + 2] + (q[c + 2] + dphase[i]) * tj - q[dd:dd + 2] - q[dd + 2] * a * et
             V += 0.5 * P[mdl.I_KCD] * dcd @ dcd
     # cycloid-pin contacts, written in the carrier frame with explicit pin and pitch-point positions
     Rp = P[mdl.I_RP]
@@ -171,6 +178,12 @@ def potential_energy(model: mdl.Model, t: float, q: np.ndarray) -> float:
     th_c = Om * te  # carrier angle: the pin wheel's fixed-frame displacement seen in the carrier frame
     Rc = np.array([[np.cos(th_c), np.sin(th_c)], [-np.sin(th_c), np.cos(th_c)]])
     ur = Rc @ q[R:R + 2]
+    # each pin's radius error and its groove's position error (fixed frame, then in the carrier frame)
+    rho = np.asarray(err.pin_radius if err is not None else zZ)
+    gk = 2 * np.pi * np.arange(int(Zp)) / Zp
+    pr = np.asarray(err.pin_radial if err is not None else zZ)
+    pt = np.asarray(err.pin_tangential if err is not None else zZ)
+    vpin = np.stack([pr * np.cos(gk) - pt * np.sin(gk), pr * np.sin(gk) + pt * np.cos(gk)], axis=1) @ Rc.T
     for j in range(D):
         dd = lay[f"disc{j}"]
         ehat = np.array([np.cos(beta[j]), np.sin(beta[j])])
@@ -181,7 +194,8 @@ def potential_energy(model: mdl.Model, t: float, q: np.ndarray) -> float:
         # displacement of the disc point on the line of action minus that of the pin, along n
         cross_d = (C - Od)[0] * n[:, 1] - (C - Od)[1] * n[:, 0]
         cross_r = C[0] * n[:, 1] - C[1] * n[:, 0]
-        delta = n @ (q[dd:dd + 2] - ur) + q[dd + 2] * cross_d - q[R + 2] * cross_r
+        delta = (n @ (q[dd:dd + 2] - ur) + q[dd + 2] * cross_d - q[R + 2] * cross_r
+                 + rho - np.sum(n * vpin, axis=1))
         if bil == 0:
             delta = np.maximum(delta, 0.0)
         V += 0.5 * P[mdl.I_KPIN] * np.sum(delta**2)

@@ -273,7 +273,8 @@ def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_c
     and *separation* (m, :mod:`rvdiag.gears.modification`): the tip and root relief of ``params.modification``
     at the pair's roll position, the profile slope deviation and the sun tooth's position error of its
     ISO 1328 grade, and the wear depth at the contact point (Archard profile, docs/tvms.md section 3).  The
-    planet's pitch errors repeat only every Z2 mesh cycles and are left out of this one-revolution table.
+    planet's pitch errors repeat only every Z2 mesh cycles and are left out of this one-revolution table (its
+    runout, the once-per-revolution part, is a manufacturing error of :mod:`rvdiag.dynamics.manufacturing`).
     The table's ``error_m`` is the load-shared separation ``sum k_j e_j / sum k_j`` (the profile deviation a
     single-spring model would use).
     """

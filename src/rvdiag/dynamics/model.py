@@ -51,7 +51,9 @@ class Model:
 
     P: np.ndarray
     mass: np.ndarray
-    planet: np.ndarray  # (N, 4): cos psi, sin psi, sin(alpha - psi), cos(alpha - psi)
+    #: (N, 9): cos psi, sin psi, sin(alpha - psi), cos(alpha - psi), then the planet's manufacturing errors: runout
+    #: coefficients A, B, crank-hole error (radial, tangential), crank phase error (packing._pack_manufacturing_errors)
+    planet: np.ndarray
     tvms: np.ndarray
     cosk: np.ndarray
     sink: np.ndarray

@@ -16,6 +16,7 @@ import numpy as np
 
 from rvdiag.dynamics import kernels as kn
 from rvdiag.dynamics.layout import dof_layout
+from rvdiag.dynamics.manufacturing import ManufacturingErrors, draw_manufacturing_errors
 from rvdiag.dynamics.mesh import MeshTable
 from rvdiag.dynamics.profile import G, LoadProfile, SpeedProfile
 from rvdiag.dynamics.settings import ModelSettings
@@ -273,16 +274,44 @@ def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: floa
     P[kn.I_ROTLIM] = st.max_rotation_rad
 
     psi = TWO_PI * np.arange(N) / N
-    planet = np.column_stack([np.cos(psi), np.sin(psi), np.sin(alpha - psi), np.cos(alpha - psi)])
+    errs = draw_manufacturing_errors(params)
+    planet, P = _pack_manufacturing_errors(P, errs, psi, alpha, Zp, pitches)
     kk = TWO_PI * np.arange(Zp) / Zp
     sensor = np.array([np.asarray(d, float) / math.hypot(*d) for d in st.sensor_directions])
     extra = {"k_pin_N_per_m": k_pin, "k_mesh_mean_N_per_m": k_mean, "carrier_speed_rad_s": Omega,
-             "ratio": params.ratio}
+             "ratio": params.ratio, "manufacturing": errs}
     pk, pe = mesh.resample_pairs(st.tvms_points)
     P[kn.I_NSLOT] = pk.shape[0]
     return dict(P=P, mass=mass, planet=planet, tvms=tv, cosk=np.cos(kk), sink=np.sin(kk), sensor=sensor,
                 n_planets=N, n_discs=D, mesh_source=mesh.source, extra=extra,
                 tvms_error=mesh.resample_error(st.tvms_points), pairs=np.stack([pk, pe], axis=1))
+
+
+def _pack_manufacturing_errors(P: np.ndarray, errs: ManufacturingErrors, psi: np.ndarray, alpha: float, Zp: int,
+                               pitches: float) -> tuple[np.ndarray, np.ndarray]:
+    """The planet table and ``P`` with the reducer's manufacturing errors (:mod:`rvdiag.dynamics.manufacturing`;
+    docs/model.md section 3).
+
+    ``planet[i] = (cos psi, sin psi, sin(alpha - psi), cos(alpha - psi), A_i, B_i, eps_r, eps_t, Delta_i)``: the
+    runout's transmission error ``e_i sin(b_0 + phi_i + alpha) = A_i cos b_0 + B_i sin b_0``, the crank hole's
+    position error and the crank's eccentric angle error.  The pins' radius errors and the fixed-frame groove
+    errors ``v_x, v_y`` are appended to ``P`` (each twice over, so the kernel indexes ``k + shift`` without a wrap),
+    ``P[I_PINERR]`` their start.  ``P[I_MFG]`` and ``P[I_PINERR]`` stay 0 without errors, and the kernels then run
+    the code of the model without them."""
+    N = psi.size
+    e, ph = np.asarray(errs.runout), np.asarray(errs.runout_angle)
+    planet = np.column_stack([np.cos(psi), np.sin(psi), np.sin(alpha - psi), np.cos(alpha - psi),
+                              e * np.sin(ph + alpha), e * np.cos(ph + alpha), np.asarray(errs.hole_radial),
+                              np.asarray(errs.hole_tangential), np.asarray(errs.crank_phase)])
+    if len(errs.runout) != N or len(errs.pin_radius) != Zp:
+        raise ParameterError("manufacturing errors: one per planet and one per pin")
+    P[kn.I_MFG] = 0.0 if errs.planets_zero else 1.0
+    P[kn.I_PINSHIFT] = float(round(pitches) % Zp) if abs(pitches - round(pitches)) < 1e-12 else 0.0
+    if errs.pins_zero:
+        return planet, P
+    P[kn.I_PINERR] = float(P.size)
+    rho, vx, vy = errs.pin_offsets_fixed_frame()
+    return planet, np.concatenate([P, np.tile(rho, 2), np.tile(vx, 2), np.tile(vy, 2)])
 
 
 def _pack_motor(P: np.ndarray, params: ReducerParams, has_rotor: bool, Omega: float, load_Nm: float,

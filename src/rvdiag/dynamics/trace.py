@@ -57,12 +57,14 @@ def mesh_forces(model: mdl.Model, t: np.ndarray, y: np.ndarray) -> np.ndarray:
     sa, ca, rb1, rb2 = P[mdl.I_SINA], P[mdl.I_COSA], P[mdl.I_RB1], P[mdl.I_RB2]
     for k, (tk, yk) in enumerate(zip(t, y)):
         mdl.mesh_terms(float(tk), P, model.tables, mt)
+        run, run_rate = planet_runout(model, float(tk))
         for i in range(N):
             ip = 3 + 3 * i
             sap, cap = model.planet[i, 2], model.planet[i, 3]
-            d = yk[0] * sap + yk[1] * cap + rb1 * yk[2] - yk[ip] * sa - yk[ip + 1] * ca + rb2 * yk[ip + 2]
+            d = (yk[0] * sap + yk[1] * cap + rb1 * yk[2] - yk[ip] * sa - yk[ip + 1] * ca + rb2 * yk[ip + 2]
+                 - run[i])
             dd = (yk[n] * sap + yk[n + 1] * cap + rb1 * yk[n + 2] - yk[n + ip] * sa - yk[n + ip + 1] * ca
-                  + rb2 * yk[n + ip + 2])
+                  + rb2 * yk[n + ip + 2] - run_rate[i])
             iramp, cm = P[mdl.I_IRAMP], P[mdl.I_CMESH]
             for s in range(S):
                 km, e, ed, c = mt[i, 4 * s:4 * s + 4]
@@ -72,6 +74,32 @@ def mesh_forces(model: mdl.Model, t: np.ndarray, y: np.ndarray) -> np.ndarray:
             if d < -hb:  # back flank, reported in slot 0
                 out[k, i, 0] += min(0.0, mt[i, 4 * S] * (d + hb) - cm * max((d + hb) * iramp, -1.0) * dd)
     return out
+
+
+def planet_runout(model: mdl.Model, t: float) -> tuple[np.ndarray, np.ndarray]:
+    """Each planet's runout transmission error (m) and its rate (m/s) at time ``t``, as the kernels take them from
+    their planet table (:mod:`rvdiag.dynamics.manufacturing`): ``A_i cos b_0 + B_i sin b_0``, ``b_0`` the cranks'
+    eccentric angle, turning at ``-Zp Omega`` (zeros without errors, or with the time variation frozen)."""
+    P = model.P
+    N = model.n_planets
+    if P[mdl.I_MFG] == 0.0:
+        return np.zeros(N), np.zeros(N)
+    cb0, sb0 = mdl.frame_angles(float(t), P)[:2]
+    A, B = model.planet[:, 4], model.planet[:, 5]
+    if P[mdl.I_TFROZEN] >= 0.0:
+        w = 0.0
+    elif P[mdl.I_PROFILE] != 0.0:
+        w = -P[mdl.I_ZP] * float(_profile_speed(model, t))
+    else:
+        w = -P[mdl.I_ZP] * P[mdl.I_OMEGA]
+    return A * cb0 + B * sb0, (B * cb0 - A * sb0) * w
+
+
+def _profile_speed(model: mdl.Model, t: float) -> float:
+    """The carrier's speed Omega(t) on the model's speed profile (the kernels' row ``mt[N, 0]``)."""
+    mt = mdl.mesh_array(model)
+    mdl.mesh_terms(float(t), model.P, model.tables, mt)
+    return float(mt[model.n_planets, 0])
 
 
 def static_mesh_force(model: mdl.Model) -> float:

@@ -105,13 +105,16 @@ def relief_separation(roll: np.ndarray, path_length: float, mod: ProfileModifica
 
 @dataclass(frozen=True)
 class FlankTolerances:
-    """ISO 1328-1:2013 flank tolerances of one gear (m): single pitch, total profile, form and slope."""
+    """ISO 1328-1:2013 flank tolerances of one gear (m): single pitch, total profile, form and slope, and the
+    total cumulative pitch and the runout."""
 
     grade: int
     single_pitch: float
     profile_total: float
     profile_form: float
     profile_slope: float
+    total_cumulative_pitch: float = 0.0
+    runout: float = 0.0
 
 
 def iso1328_tolerances(module_m: float, pitch_diameter_m: float, grade: int) -> FlankTolerances:
@@ -123,10 +126,14 @@ def iso1328_tolerances(module_m: float, pitch_diameter_m: float, grade: int) -> 
     - total profile ``F_aT = (3.2 sqrt(m) + 0.22 sqrt(d) + 0.7)``
     - profile form ``f_faT = (2.5 sqrt(m) + 0.17 sqrt(d) + 0.5)``
     - profile slope ``f_HaT = (2 sqrt(m) + 0.14 sqrt(d) + 0.5)``
+    - total cumulative pitch ``F_pT = (0.002 d + 0.55 sqrt(d) + 0.7 m + 12)`` and the runout tolerance
+      ``F_rT = 0.9 F_pT`` given with it (the planets' runout of :mod:`rvdiag.dynamics.manufacturing`)
 
     >>> t = iso1328_tolerances(1.25e-3, 13.75e-3, 5)
     >>> round(t.single_pitch * 1e6, 2), round(t.profile_slope * 1e6, 2)
     (5.51, 3.25)
+    >>> round(iso1328_tolerances(1.25e-3, 41.25e-3, 5).runout * 1e6, 1)
+    14.8
     """
     if isinstance(grade, bool) or int(grade) != grade or not 1 <= grade <= 11:
         raise ParameterError(f"ISO 1328 flank tolerance class must be a whole number 1..11, got {grade!r}")
@@ -141,6 +148,8 @@ def iso1328_tolerances(module_m: float, pitch_diameter_m: float, grade: int) -> 
         profile_total=(3.2 * math.sqrt(m) + 0.22 * math.sqrt(d) + 0.7) * um,
         profile_form=(2.5 * math.sqrt(m) + 0.17 * math.sqrt(d) + 0.5) * um,
         profile_slope=(2.0 * math.sqrt(m) + 0.14 * math.sqrt(d) + 0.5) * um,
+        total_cumulative_pitch=(0.002 * d + 0.55 * math.sqrt(d) + 0.7 * m + 12.0) * um,
+        runout=0.9 * (0.002 * d + 0.55 * math.sqrt(d) + 0.7 * m + 12.0) * um,
     )
 
 

@@ -206,6 +206,52 @@ class Modification:
 
 
 @dataclass(frozen=True)
+class Manufacturing:
+    """Manufacturing and assembly errors of the reducer outside the sun's flanks (those are ``[modification]``'s
+    ``iso1328_grade``), entered in the dynamic model by :mod:`rvdiag.dynamics.manufacturing` (docs/model.md
+    section 3, "Manufacturing errors").  Each is a tolerance: the deviations of one reducer are drawn uniformly
+    within +- half of it from ``[modification] error_seed`` (the convention of the sun's pitch deviations: a part
+    of the class meets its tolerance with margin), so one seed is one specimen.  0 turns an error off.
+
+    - ``planet_runout_grade``: ISO 1328-1:2013 tolerance class of the planets' runout, F_rT = 0.9 F_pT with the
+      total cumulative pitch tolerance F_pT = (0.002 d + 0.55 sqrt(d) + 0.7 m + 12) sqrt(2)^(A - 5) um (d, m in
+      mm); 5, the class of the sun (RV-20E planet, d = 41.25 mm: F_rT = 14.8 um, so eccentricities up to 3.7 um).
+      Each planet's pitch circle is eccentric to its crank by F_r / 2 at a drawn angle: a transmission error
+      once per planet revolution in its mesh (Inalpolat & Kahraman 2009, J. Sound Vib. 323).
+    - ``crank_hole_position`` (m): +- tolerance of each crank-bearing hole's position in the carrier, radially
+      and tangentially; 3 um, an IT4 hole pattern (ISO 286-1: IT4 = 6 um at 18-30 mm) as jig-bored precision
+      carriers are made (planet position errors: Bodas & Kahraman 2004, JSME Int. J. C 47(3); Gu & Velex 2012,
+      J. Sound Vib. 331).
+    - ``crank_phase_arcmin``: +- tolerance of each crank's eccentrics' angle relative to its planet's tooth
+      phase, set by the planet's indexing on the crank's spline at assembly; 1 arcmin = 6 um of arc at the
+      planet's pitch circle, the planet's grade-5 single pitch tolerance f_pT (5.6 um).
+    - ``pin_radius`` (m): +- tolerance of each pin's radius; a needle-roller lot of ISO 3096 grade G2 (diameter
+      variation within a lot <= 2 um) is 1 um.
+    - ``pin_position`` (m): +- tolerance of each pin groove's position in the pin housing, radially and
+      tangentially; an IT4 groove pattern is 3 um (the pin radius and position tolerances of Blanche & Yang 1989,
+      J. Mech. Transm. Autom. Des. 111(3)).
+
+    The pins' errors are 0 (off) by default: they need the discs' profile modifications, which the model leaves
+    out (``[stage2] equidistant_modification``, ``offset_modification`` must be 0).  On unmodified profiles the pins
+    of the unloaded half stand off by less than 1 um under load, so pin errors of 1-3 um make 2-7 of them per disc
+    touch and fight the loaded half (12-14 % of the pin torque at rated load, 30 % at 40 %, the largest pin force
+    3x), where a real disc's modification leaves them 10-20 um of clearance (docs/model.md section 3).
+    """
+
+    planet_runout_grade: int = _nonnegative(default=5)
+    crank_hole_position: float = _nonnegative(default=3.0e-6)
+    crank_phase_arcmin: float = _nonnegative(default=1.0)
+    pin_radius: float = _nonnegative(default=0.0)
+    pin_position: float = _nonnegative(default=0.0)
+
+    @property
+    def is_zero(self) -> bool:
+        """True when every error is off (the model without manufacturing errors)."""
+        return not (self.planet_runout_grade or self.crank_hole_position or self.crank_phase_arcmin
+                    or self.pin_radius or self.pin_position)
+
+
+@dataclass(frozen=True)
 class Drive:
     """The servo drive on the input shaft: its rotor and the speed loop that holds its speed
     (:mod:`rvdiag.dynamics.model`, docs/model.md section 3).
@@ -303,9 +349,14 @@ _SECTIONS: dict[str, type] = {
     "drive": Drive,
     "mounting": Mounting,
     "motor": Motor,
+    "manufacturing": Manufacturing,
 }
 #: sections added after the first parameter files: a file without them takes every default of the section
-OPTIONAL_SECTIONS = ("modification", "drive", "mounting", "motor")
+OPTIONAL_SECTIONS = ("modification", "drive", "mounting", "motor", "manufacturing")
+#: largest ``[manufacturing]`` length tolerance (m) and crank phase tolerance (arcmin) accepted: beyond them the
+#: small-displacement model (errors of the order of the elastic deflections) no longer describes the reducer
+MAX_MANUFACTURING_TOLERANCE_M = 1.0e-4
+MAX_CRANK_PHASE_ARCMIN = 30.0
 
 
 @dataclass(frozen=True)
@@ -327,6 +378,7 @@ class ReducerParams:
     drive: Drive = field(default_factory=Drive)
     mounting: Mounting = field(default_factory=Mounting)
     motor: Motor = field(default_factory=Motor)
+    manufacturing: Manufacturing = field(default_factory=Manufacturing)
     source: str = field(default="", compare=False)
 
     # ------------------------------------------------------------------ derived kinematics
@@ -477,6 +529,17 @@ def _check_consistency(p: ReducerParams, source: str) -> None:
                           f"got {md.relief_exponent}")
     if md.iso1328_grade > 11:
         raise ConfigError(f"{source}: [modification] iso1328_grade must be 0 (perfect) or 1..11, got {md.iso1328_grade}")
+    mf = p.manufacturing
+    if mf.planet_runout_grade > 11:
+        raise ConfigError(f"{source}: [manufacturing] planet_runout_grade must be 0 (none) or 1..11, "
+                          f"got {mf.planet_runout_grade}")
+    for key in ("crank_hole_position", "pin_radius", "pin_position"):
+        if getattr(mf, key) > MAX_MANUFACTURING_TOLERANCE_M:
+            raise ConfigError(f"{source}: [manufacturing] {key} must be at most {MAX_MANUFACTURING_TOLERANCE_M:g} m "
+                              f"(a precision reducer's tolerance is microns), got {getattr(mf, key)}")
+    if mf.crank_phase_arcmin > MAX_CRANK_PHASE_ARCMIN:
+        raise ConfigError(f"{source}: [manufacturing] crank_phase_arcmin must be at most {MAX_CRANK_PHASE_ARCMIN:g}, "
+                          f"got {mf.crank_phase_arcmin}")
     if (md.tip_relief_sun or md.tip_relief_planet) and md.tip_relief_length <= 0:
         raise ConfigError(f"{source}: [modification] a tip relief needs tip_relief_length > 0")
     if (md.root_relief_sun or md.root_relief_planet) and md.root_relief_length <= 0:
