@@ -58,7 +58,7 @@ P_FIELDS = (
     "CPH", "SPH",                               # cos and sin of the disc phase
     "NSLOT",  # tooth-pair slots of each sun-planet mesh (rows of Model.tables: k, e, c per slot)
     "IRAMP",  # 1 / MESH_DAMPING_RAMP_M
-    "MOTOR",  # 1.0: a motor rotor DOF (the last coordinate) on the input shaft, held by the speed loop
+    "MOTOR",  # 1.0: a motor rotor DOF (after the pin wheel; last but the load) on the input shaft, held by the speed loop
     "KSL", "CSL", "TDRIVE",  # speed-loop spring and damper on the rotor, its steady drive torque
     # speed and load profile (docs/model.md section 2; rvdiag.dynamics.profile): PROFILE 0 the constant-speed
     # model (the kernels' original path), 1 constant speed with a time-varying load, 2 a trapezoid, 3 an S-curve
