@@ -12,11 +12,11 @@ parameter set (``errors on``, the default) and with every tolerance 0 (``errors 
 RMS, kurtosis and crest factor of T1 and T2, errors on and off.
 
     .venv/bin/python bench/current_lines.py [--speeds 30,45,60] [--states T1,T2,T7,T8] [--errors on,off]
-        [--seed 0] [--set manufacturing.crank_phase_arcmin=2] [--vibration] [--probe-load-inertia J] [--json FILE]
+        [--seed 0] [--set manufacturing.crank_phase_arcmin=2] [--vibration] [--load-inertia J] [--json FILE]
 
-``--probe-load-inertia J`` is a what-if, not a parameter of the model: it adds J kg m^2 to the output carrier's
-inertia (a load rigidly on the output), to show what the pure-torque load of the model hides (docs/model.md
-section 10).
+``--load-inertia J`` puts a load of J kg m^2 on the output coupling, the model's load DOF
+(``simulate(load_inertia_kg_m2=J)``; docs/model.md sections 1, 3 and 10: 3.75 is the motor-current rig's 15 kg arm
+at 0.5 m); without it the load is the parameter set's (a pure torque by default).
 
 About 4 s of wall time per 4.2-s run on one free core (24 runs for the whole table).
 """
@@ -45,23 +45,6 @@ FAMILY = (1, 2, 3, 4, 5)
 GOAL_LINES = ("fe", "fe-1f1", "fe+1f1", "fe-fsp", "fe+fsp", "fe-fcs", "fe+fcs")
 
 
-def probe_load_inertia(J: float) -> None:
-    """Add ``J`` (kg m^2) to the carrier's polar inertia in every model built from here on (a what-if: the model's
-    output load is a constant torque without inertia, docs/model.md section 3)."""
-    import dataclasses
-
-    import rvdiag.dynamics.packing as packing
-    from rvdiag.params.derived import Body
-
-    base = packing.body_properties
-
-    def with_load(p):
-        b = base(p)
-        return dataclasses.replace(b, carrier=Body(b.carrier.mass, b.carrier.inertia + J))
-
-    packing.body_properties = with_load
-
-
 def params_for(errors: str, seed: int, sets: list[str]) -> ReducerParams:
     p = ReducerParams.default()
     changes: dict[str, dict] = {"modification": {"error_seed": seed}}
@@ -83,17 +66,19 @@ def family(x: np.ndarray, fs: float, params: ReducerParams, speed: float) -> dic
             for k in FAMILY for s in "-+"}
 
 
-def current_case(params: ReducerParams, state: str, speed: float, duration: float) -> dict:
+def current_case(params: ReducerParams, state: str, speed: float, duration: float,
+                 load_inertia: float | None = None) -> dict:
     fault = None if state == "T1" else ToothFaults.for_state(state)
-    r = simulate(params, fault, output_speed_deg_s=speed, duration_s=duration, signal="current")
+    r = simulate(params, fault, output_speed_deg_s=speed, duration_s=duration, signal="current",
+                 load_inertia_kg_m2=load_inertia)
     x = r.signal[0][-N_WINDOW:]
     lines = current_lines(x, r.fs, params, speed)["lines"]
     return {"lines": lines, "family": family(x, r.fs, params, speed)}
 
 
-def vibration_case(params: ReducerParams, state: str, speed: float = 60.0) -> dict:
+def vibration_case(params: ReducerParams, state: str, speed: float = 60.0, load_inertia: float | None = None) -> dict:
     fault = None if state == "T1" else ToothFaults.for_state(state)
-    x = simulate(params, fault, output_speed_deg_s=speed, duration_s=1.0).signal[0]
+    x = simulate(params, fault, output_speed_deg_s=speed, duration_s=1.0, load_inertia_kg_m2=load_inertia).signal[0]
     x = x - x.mean()
     rms = float(np.sqrt(np.mean(x * x)))
     return {"rms": rms, "kurtosis": float(kurtosis(x, fisher=False)), "crest": float(np.abs(x).max() / rms)}
@@ -124,12 +109,10 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=DURATION_S)
     ap.add_argument("--vibration", action="store_true")
     ap.add_argument("--json", default=None, help="write every figure to this file")
-    ap.add_argument("--probe-load-inertia", type=float, default=0.0, metavar="J",
-                    help="what-if, not a model parameter: add J kg m^2 to the output carrier's polar inertia (a load "
-                         "rigidly on the output; the model's load is a pure torque)")
+    ap.add_argument("--load-inertia", type=float, default=None, metavar="J",
+                    help="the load's inertia on the output coupling, kg m^2 (the model's load DOF; default: the "
+                         "parameter set's, a pure load torque)")
     a = ap.parse_args()
-    if a.probe_load_inertia:
-        probe_load_inertia(a.probe_load_inertia)
     speeds = [float(s) for s in a.speeds.split(",")]
     states = a.states.split(",")
     out: dict = {"current": {}, "vibration": {}}
@@ -137,7 +120,7 @@ def main() -> None:
     for errors in a.errors.split(","):
         params = params_for(errors, a.seed, a.set)
         for sp in speeds:
-            res = {st: current_case(params, st, sp, a.duration) for st in states}
+            res = {st: current_case(params, st, sp, a.duration, a.load_inertia) for st in states}
             out["current"][f"{errors} {sp:g}"] = res
             h = res["T1"]["lines"]
             print(f"errors {errors:3s} {sp:4.0f} deg/s T1: " + "  ".join(
@@ -152,7 +135,7 @@ def main() -> None:
                       f"f_e+-k f1 (k=1..5) rms {r['family_rms']:5.2f}x", flush=True)
         if a.vibration:
             for st in ("T1", "T2"):
-                v = vibration_case(params, st)
+                v = vibration_case(params, st, load_inertia=a.load_inertia)
                 out["vibration"][f"{errors} {st}"] = v
                 print(f"errors {errors:3s} 60 deg/s rated {st} vibration x: RMS {v['rms']:.3f} m/s^2  "
                       f"kurtosis {v['kurtosis']:.1f}  crest {v['crest']:.1f}", flush=True)

@@ -65,6 +65,8 @@ def test_simulate_writes_repeatable_npz(tmp_path, capsys):
     (["simulate", "--input-speed", "1000", "--duration", "0"], "--duration must be"),
     (["simulate", "--state", "T2", "--input-speed", "1000", "--broken-fraction", "2"], "broken fraction"),
     (["simulate", "--state", "T1", "--input-speed", "1000", "--wear-depth", "0.01"], "does not apply"),
+    (["simulate", "--input-speed", "1000", "--load-inertia", "-1"], "--load-inertia must be a finite number >= 0"),
+    (["simulate", "--input-speed", "1000", "--load-inertia", "nan"], "--load-inertia must be a finite number >= 0"),
     (["freqs", "--output-speed", "-3"], "output speed must be > 0"),
     (["freqs"], "--input-speed"),
 ])

@@ -171,9 +171,11 @@ def test_cuda_import_aliases_row_stack_only_when_loaded_and_missing():
     assert res == {"kept": True, "before": False, "after": True, "reason": None, "sim": True}
 
 
-def test_segmented_motor_current_simulation_on_the_simulated_gpu_equals_simulate():
+@pytest.mark.parametrize("load_inertia", [None, 3.75], ids=["torque_load", "load_dof"])
+def test_segmented_motor_current_simulation_on_the_simulated_gpu_equals_simulate(load_inertia):
     """A simulation recorded in two time segments with the motor current (several integrator calls, record
-    margins, motor rows), integrated as an ensemble and finished by PreparedSimulation.finish, equals simulate()."""
+    margins, motor rows), integrated as an ensemble and finished by PreparedSimulation.finish, equals simulate();
+    also with the load DOF (the rotor then not the last coordinate)."""
     res = _in_simulator("""
         import json
         import numpy as np
@@ -181,7 +183,8 @@ def test_segmented_motor_current_simulation_on_the_simulated_gpu_equals_simulate
         from rvdiag.dynamics.ensemble import IntegrationRequest, integrate_ensemble
 
         kw = dict(input_speed_rpm=1500.0, load_Nm=80.0, duration_s=0.03, fs=48000.0, signal="both", current_fs=1000.0,
-                  seed=5, noise_snr_db=30.0, settings=ModelSettings(substeps=4, transient_s=0.015, segment_s=0.015))
+                  seed=5, noise_snr_db=30.0, settings=ModelSettings(substeps=4, transient_s=0.015, segment_s=0.015),
+                  load_inertia_kg_m2=LOAD)
         ref = simulate(**kw)
         run = prepare_simulation(**kw)
         calls = run.segment_calls()
@@ -194,10 +197,11 @@ def test_segmented_motor_current_simulation_on_the_simulated_gpu_equals_simulate
         print(json.dumps({"calls": len(calls), "margin": list(run.margin), "rows": run.rows,
                           "signal": bool(np.array_equal(res.signal, ref.signal)),
                           "current": bool(np.array_equal(res.current, ref.current)),
-                          "record": res.settings == ref.settings}))
-    """)
+                          "record": res.settings == ref.settings, "n_dof": run.model.n_dof}))
+    """.replace("LOAD", repr(load_inertia)))
     assert res["calls"] == 2 and res["margin"][0] > 0 and res["rows"] == 2 + 4
     assert res["signal"] and res["current"] and res["record"]
+    assert res["n_dof"] == (29 if load_inertia else 28)
 
 
 # ------------------------------------------------------------------ this process: no simulator

@@ -114,7 +114,7 @@ def test_compiled_motor_rates_match_an_independent_numpy_statement(dead_time_s, 
         theta, omega = rng.uniform(0, 2000), 45 * 121 * math.pi / 180
         t_ff, k_sl, c_sl = 1.4, P[kn.I_KSL], P[kn.I_CSL]
         dydt = np.zeros_like(y)
-        motor_rates(y, P, b, n, theta, omega, t_ff, k_sl, c_sl, dydt)
+        motor_rates(y, P, b, n, n - 1, theta, omega, t_ff, k_sl, c_sl, dydt)
         ref = reference_motor_rates(x, y[n - 1], y[2 * n - 1], theta, omega, t_ff, k_sl, c_sl, m)
         # the observer's rates amplify the rounding of the ~1e3 rad absolute angle (ulp 2e-13) by l_2 ~ 1.6e8
         assert dydt[2 * n:] == pytest.approx(ref, rel=1e-8, abs=1e-8 * np.abs(ref).max())

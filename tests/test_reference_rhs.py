@@ -154,3 +154,23 @@ def test_reference_rhs_equals_compiled_rhs_on_an_scurve():
     # in the middle of the first jerk phase: a = J t, v = J t^2 / 2 (t from the move's start)
     _, w, a = g.kinematics(0.07)
     assert a == pytest.approx(np.radians(3000.0) * 0.05) and w == pytest.approx(np.radians(3000.0) * 0.05**2 / 2)
+
+
+@pytest.mark.parametrize("case", ["constant", "trapezoid_arm", "no_rotor"])
+def test_reference_rhs_equals_compiled_rhs_with_the_load_dof(case):
+    """The load DOF th_L (docs/model.md sections 1-3): the output coupling, the load torque on the load, its nominal
+    angular acceleration on a trapezoid with a gravity arm (whose inertia M L^2 is the load's), and the rotor's
+    index moved by it; also without the rotor (the ideal speed source)."""
+    from rvdiag.dynamics import LoadProfile, SpeedProfile
+
+    if case == "constant":
+        m = prepare(P0, output_speed_deg_s=45.0, load_Nm=100.0, load_inertia_kg_m2=3.75)
+    elif case == "trapezoid_arm":
+        m = prepare(P0, profile=SpeedProfile("trapezoid", 45.0, 300.0), load_profile=LoadProfile(15.0, 0.5, 20.0),
+                    load_Nm=20.0, duration_s=1.0)
+        assert m.P[mdl.I_PROFILE] == 2.0
+    else:
+        m = prepare(P0.replace(drive={"speed_loop_bandwidth_hz": 0.0}), output_speed_deg_s=45.0, load_Nm=100.0,
+                    load_inertia_kg_m2=3.75)
+    assert m.has_load and m.names[-1] == "load.th"
+    assert _max_rel_diff(m, seed=6) < 1e-9

@@ -97,6 +97,10 @@ class ReferenceRHS:
         self.idisc = 3 + 6 * N + 3 * np.arange(D)  # discs
         self.iH = 3 + 6 * N + 3 * D  # carrier
         self.iR = self.iH + 3  # pin wheel
+        # the optional single-coordinate bodies after the pin wheel: the motor rotor, then the load
+        self.has_load = P[mdl.I_LOAD] != 0.0
+        self.iM = self.iR + 3  # motor rotor (when P[I_MOTOR])
+        self.iL = self.n - 1  # load (when P[I_LOAD])
         err = model.extra.get("manufacturing")
         zN, zZ = np.zeros(N), np.zeros(Zp)
         self.run_e = np.asarray(err.runout) if err is not None else zN
@@ -170,7 +174,10 @@ class ReferenceRHS:
         if P[mdl.I_PROFILE] == 0.0:
             return P[mdl.I_TLOAD]
         th, _, a = self.kinematics(t)
-        return P[mdl.I_TLOAD] + P[mdl.I_ARM_MGL] * np.cos(P[mdl.I_ARM_TH0] + th) + P[mdl.I_ARM_ML2] * a
+        # with a load DOF the arm's inertia is the DOF's: its acceleration torque is the DOF's nominal angular
+        # acceleration, not a term of the load torque (docs/model.md section 2)
+        inertial = 0.0 if self.has_load else P[mdl.I_ARM_ML2] * a
+        return P[mdl.I_TLOAD] + P[mdl.I_ARM_MGL] * np.cos(P[mdl.I_ARM_TH0] + th) + inertial
 
     def _te(self, t: float) -> float:
         tf = self.P[mdl.I_TFROZEN]
@@ -188,17 +195,24 @@ class ReferenceRHS:
 
         # supports, input coupling, load torque
         Q[0:2] -= P[mdl.I_KSS] * q[0:2] + P[mdl.I_CSS] * v[0:2]
-        # input shaft from the motor rotor (the last coordinate) or an ideal speed source (angle 0)
-        qm, vm = (q[-1], v[-1]) if P[mdl.I_MOTOR] != 0.0 else (0.0, 0.0)
+        # input shaft from the motor rotor (after the pin wheel) or an ideal speed source (angle 0)
+        iM = self.iM
+        qm, vm = (q[iM], v[iM]) if P[mdl.I_MOTOR] != 0.0 else (0.0, 0.0)
         t_shaft = P[mdl.I_KIN] * (q[2] - qm) + P[mdl.I_CIN] * (v[2] - vm)
         Q[2] -= t_shaft
         if P[mdl.I_MOTOR] != 0.0:  # rotor: steady drive torque, speed-loop spring and damper, shaft reaction
             drive = P[mdl.I_TDRIVE]
             if P[mdl.I_PROFILE] != 0.0:  # feed-forward: T_L(t) / i plus i J_ref dOmega/dt
                 drive = self.load_torque(t) / P[mdl.I_RATIO] + P[mdl.I_JREF_I] * self.kinematics(t)[2]
-            Q[-1] += drive - P[mdl.I_KSL] * qm - P[mdl.I_CSL] * vm + t_shaft
+            Q[iM] += drive - P[mdl.I_KSL] * qm - P[mdl.I_CSL] * vm + t_shaft
         Q[iH:iH + 2] -= P[mdl.I_KHS] * q[iH:iH + 2] + P[mdl.I_CHS] * v[iH:iH + 2]
-        Q[iH + 2] -= self.load_torque(t)
+        if self.has_load:  # output coupling k_out, c_out between carrier and load; the load torque on the load
+            iL = self.iL
+            t_out = P[mdl.I_KOUT] * (q[iH + 2] - q[iL]) + P[mdl.I_COUT] * (v[iH + 2] - v[iL])
+            Q[iH + 2] -= t_out
+            Q[iL] += t_out - self.load_torque(t)
+        else:
+            Q[iH + 2] -= self.load_torque(t)
         Q[iR:iR + 2] -= P[mdl.I_KRH] * q[iR:iR + 2] + P[mdl.I_CRH] * v[iR:iR + 2]
         Q[iR + 2] -= P[mdl.I_KRT] * q[iR + 2] + P[mdl.I_CRT] * v[iR + 2]
 
@@ -389,7 +403,9 @@ class ReferenceRHS:
         spin[self.idisc + 2] = 1.0
         spin[self.iH + 2] = 1.0
         if P[mdl.I_MOTOR] != 0.0:
-            spin[-1] = P[mdl.I_RATIO]
+            spin[self.iM] = P[mdl.I_RATIO]
+        if self.has_load:  # the load turns with the carrier
+            spin[self.iL] = 1.0
         acc -= spin * dOm
         return acc
 

@@ -24,7 +24,8 @@ SIMULATE_OPTION_NAMES = {"duration_s": "--duration", "fs": "--fs", "substeps": "
                          "transient_s": "--transient", "segment_s": "--segment", "workers": "--workers",
                          "noise_snr_db": "--snr-db", "load_Nm": "--load", "input_speed_rpm": "--input-speed",
                          "output_speed_deg_s": "--output-speed", "signal": "--signal",
-                         "current_fs": "--current-fs", "current_snr_db": "--current-snr-db"}
+                         "current_fs": "--current-fs", "current_snr_db": "--current-snr-db",
+                         "load_inertia_kg_m2": "--load-inertia"}
 
 
 def _check_severities(state: str, severities: dict) -> None:
@@ -100,10 +101,14 @@ def register(app: typer.Typer) -> None:
                                               "deceleration (limit), deg/s^2."),
         jerk: Optional[float] = typer.Option(None, "--jerk", help="S-curve's jerk limit, deg/s^3."),
         arm_mass: float = typer.Option(0.0, "--arm-mass", help="Gravity arm on the output: point mass, kg "
-                                       "(load T0 + M g L cos(angle) + M L^2 dOmega/dt)."),
+                                       "(load T0 + M g L cos(angle); its inertia M L^2 the load DOF's unless --load-inertia says otherwise)."),
         arm_length: float = typer.Option(0.0, "--arm-length", help="Gravity arm's length, m."),
         arm_angle: float = typer.Option(0.0, "--arm-angle", help="Gravity arm's angle above the horizontal at the "
                                         "record's start, deg."),
+        load_inertia: Optional[float] = typer.Option(None, "--load-inertia", help="The load's polar inertia on the "
+                                                     "output coupling, kg m^2: a DOF of the model (0: a pure load "
+                                                     "torque; default: the parameter set's [operation] load_inertia, "
+                                                     "else the gravity arm's M L^2)."),
         signal: str = typer.Option("vibration", "--signal", help="What to record: vibration (housing "
                                    "acceleration), current (the servo motor's phase currents i_a, i_b, i_c, i_q and "
                                    "its speed, from the PMSM model under i_d = 0 vector control) or both."),
@@ -168,7 +173,8 @@ def register(app: typer.Typer) -> None:
         kw = dict(input_speed_rpm=input_speed, output_speed_deg_s=output_speed, load_Nm=load,
                   profile=speed_profile, load_profile=load_profile,
                   duration_s=duration, fs=fs, noise_snr_db=snr_db, seed=seed, settings=settings,
-                  workers=workers, signal=signal, current_fs=current_fs, current_snr_db=current_snr_db)
+                  workers=workers, signal=signal, current_fs=current_fs, current_snr_db=current_snr_db,
+                  load_inertia_kg_m2=load_inertia)
         with opt.option_names(SIMULATE_OPTION_NAMES):
             if quiet:
                 res = simulate(p, None if fault.is_healthy else fault, **kw)

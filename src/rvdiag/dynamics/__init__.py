@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from rvdiag.dynamics.mesh import MeshTable, mesh_table_from_gears, rectangular_mesh_table
-from rvdiag.dynamics.model import Model, ModelSettings, build_model
+from rvdiag.dynamics.model import I_TLOAD, Model, ModelSettings, build_model
 from rvdiag.dynamics.noise import add_awgn
 from rvdiag.dynamics.profile import LoadProfile, SpeedProfile
 from rvdiag.dynamics.transfer import apply_path
@@ -28,9 +28,10 @@ from rvdiag.params import ReducerParams
 
 #: The revision of the simulated physics: the date of the last deliberate change to what a simulation returns for
 #: the same parameters (bumped with it; 2026-11-25: extended tooth contact, run-in wear, speed profiles; 2026-11-26:
-#: the manufacturing errors of ``[manufacturing]``, on by default).  Library stores record it in their hashed config,
-#: so a build never resumes a store simulated by other physics.
-PHYSICS_REVISION = "2026-11-26"
+#: the manufacturing errors of ``[manufacturing]``, on by default; 2026-11-27: the load DOF, which a gravity arm's
+#: inertia M L^2 now brings along, so a library with an arm, as configs/mcsa.toml, simulates other samples).
+#: Library stores record it in their hashed config, so a build never resumes a store simulated by other physics.
+PHYSICS_REVISION = "2026-11-27"
 
 #: what :func:`simulate` can record
 SIGNALS = ("vibration", "current", "both")
@@ -121,6 +122,7 @@ def prepare(
     profile: SpeedProfile | None = None,
     load_profile: LoadProfile | None = None,
     duration_s: float | None = None,
+    load_inertia_kg_m2: float | None = None,
 ) -> Model:
     """Build the model of one operating point (validating every input) without integrating.
 
@@ -129,6 +131,7 @@ def prepare(
     params = ReducerParams.default() if params is None else params
     if not isinstance(params, ReducerParams):
         raise ParameterError("params must be a ReducerParams")
+    params = with_load_inertia(params, load_inertia_kg_m2)
     if profile is not None and not isinstance(profile, SpeedProfile):
         raise ParameterError("profile must be a SpeedProfile")
     if load_profile is not None and not isinstance(load_profile, LoadProfile):
@@ -145,6 +148,20 @@ def prepare(
         raise ParameterError(f"load torque must be finite, got {load_Nm}")
     return build_model(params, mesh_table(params, fault, mesh_source), fsun, load, settings or ModelSettings(),
                        profile, load_profile, duration_s)
+
+
+def with_load_inertia(params: ReducerParams, load_inertia_kg_m2: float | None) -> ReducerParams:
+    """``params`` with ``[operation] load_inertia`` set to ``load_inertia_kg_m2`` (kg m^2; ``None``: unchanged).
+    Raises ParameterError naming the argument for a value that is not a finite number >= 0."""
+    if load_inertia_kg_m2 is None:
+        return params
+    J = load_inertia_kg_m2
+    if (isinstance(J, bool) or not isinstance(J, (int, float, np.integer, np.floating))
+            or not math.isfinite(float(J)) or J < 0):
+        raise ParameterError(f"load_inertia_kg_m2 must be a finite number >= 0, got {J!r}")
+    if params.operation.load_inertia is not None and float(params.operation.load_inertia) == float(J):
+        return params
+    return params.replace(operation={"load_inertia": float(J)})
 
 
 def initial_deflection(model: Model, t0: float) -> tuple[np.ndarray, str]:
@@ -183,6 +200,7 @@ def simulate(
     signal: str = "vibration",
     current_fs: float = 1000.0,
     current_snr_db: float | None = None,
+    load_inertia_kg_m2: float | None = None,
 ) -> SimulationResult:
     """Simulate the housing vibration of an RV reducer at constant speed and load, or under a speed and load
     profile.
@@ -230,6 +248,11 @@ def simulate(
         More white Gaussian noise on each current channel, at this SNR.  The current always carries the
         sensors' noise, ``[motor] current_noise`` (A rms).  Both come from ``numpy.random.default_rng([seed, 1])``
         (the vibration's noise stream is unchanged).
+    load_inertia_kg_m2 : float, optional
+        The load's polar inertia J_L on the output coupling ``[bearings] output_torsional``, a DOF of the model
+        (docs/model.md sections 1 and 3; an elastic joint, Spong 1987); 0: a pure load torque on the carrier, the
+        model without the load DOF.  ``None``: ``params``' ``[operation] load_inertia`` when it states one, else the
+        gravity arm's point-mass inertia ``M L^2`` of ``load_profile`` (no arm: 0).
 
     Returns
     -------
@@ -245,7 +268,7 @@ def simulate(
                              load_Nm=load_Nm, duration_s=duration_s, fs=fs, noise_snr_db=noise_snr_db, seed=seed,
                              settings=settings, mesh_source=mesh_source, workers=workers, profile=profile,
                              load_profile=load_profile, signal=signal, current_fs=current_fs,
-                             current_snr_db=current_snr_db)
+                             current_snr_db=current_snr_db, load_inertia_kg_m2=load_inertia_kg_m2)
     out, n_segments = run.integrate(progress)
     return run.finish(out, n_segments)
 
@@ -337,7 +360,7 @@ class PreparedSimulation:
             "input_speed_rpm": opt["input_speed_rpm"],
             "output_speed_deg_s": opt["output_speed_deg_s"],
             "sun_speed_hz": float(model.P[5] + model.P[6]) / (2 * math.pi),
-            "load_Nm": float(model.P[35]),
+            "load_Nm": float(model.P[I_TLOAD]),
             "duration_s": float(self.duration_s),
             "fs": float(fs),
             "noise_snr_db": opt["noise_snr_db"],
@@ -349,6 +372,8 @@ class PreparedSimulation:
             "model_settings": self.settings.to_dict(),
             "params": params.to_dict(),
         }
+        if model.has_load:  # the load DOF's inertia (stated, or the gravity arm's M L^2)
+            record["load_inertia_kg_m2"] = float(model.mass[-1])
         if current is None:
             return SimulationResult(signal, float(fs), record, names, theta_out, params.ratio * theta_out)
         record.update(signal=signal_kind, current_fs=float(current_fs), current_snr_db=opt["current_snr_db"],
@@ -377,6 +402,7 @@ def prepare_simulation(
     signal: str = "vibration",
     current_fs: float = 1000.0,
     current_snr_db: float | None = None,
+    load_inertia_kg_m2: float | None = None,
 ) -> PreparedSimulation:
     """:func:`simulate` (the same arguments, less ``progress``) up to the integration: every argument validated,
     the model built.  ``simulate(...)`` is ``prepare_simulation(...)`` then its :meth:`~PreparedSimulation.integrate`
@@ -402,6 +428,9 @@ def prepare_simulation(
     if n_samples < 1:
         raise ParameterError(f"duration {duration_s} s at {fs} Hz gives no sample")
     params = ReducerParams.default() if params is None else params
+    if not isinstance(params, ReducerParams):
+        raise ParameterError("params must be a ReducerParams")
+    params = with_load_inertia(params, load_inertia_kg_m2)
     model = prepare(params, fault, input_speed_rpm=input_speed_rpm, output_speed_deg_s=output_speed_deg_s,
                     load_Nm=load_Nm, settings=st, mesh_source=mesh_source, profile=profile,
                     load_profile=load_profile, duration_s=float(duration_s))

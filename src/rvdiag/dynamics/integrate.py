@@ -197,9 +197,10 @@ def _record_motor(y, n, P, mt, c0, out, s):
     N = int(P[kn.I_NPL])
     out[c0, s] = y[2 * n]
     out[c0 + 1, s] = y[2 * n + 1]
-    th = P[kn.I_M_P] * (mt[N, 4] + y[n - 1])
+    im = n - 2 if P[kn.I_LOAD] != 0.0 else n - 1  # the rotor (a load DOF comes after it)
+    th = P[kn.I_M_P] * (mt[N, 4] + y[im])
     out[c0 + 2, s] = th - 2.0 * math.pi * math.floor(th / (2.0 * math.pi))
-    out[c0 + 3, s] = mt[N, 5] + y[2 * n - 1]
+    out[c0 + 3, s] = mt[N, 5] + y[n + im]
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", nogil=True)

@@ -13,7 +13,8 @@ crank-cycloid bearings (isotropic linear springs); every cycloid-pin contact (He
 linearised at the operating load, Johnson 1985, from :mod:`rvdiag.gears.cycloid`; compression only, normal through
 the pitch point: Litvin & Feng 1996; lever arm e Zc sin(eta) / sqrt(1 + K1^2 - 2 K1 cos(eta)), Blanche & Yang
 1989); pin wheel and carrier supports; input shaft to the motor rotor (or an ideal speed source); load torque on
-the carrier.  Rotating-frame terms ``m (u'' + 2 Omega z x u' - Omega^2 u)`` and the nominal centripetal
+the carrier, or, with a load inertia, on the load DOF that the output coupling joins to the carrier (an elastic
+joint: Spong 1987, J. Dyn. Syst. Meas. Control 109).  Rotating-frame terms ``m (u'' + 2 Omega z x u' - Omega^2 u)`` and the nominal centripetal
 accelerations of orbiting bodies are included.  Viscous damping ``c = 2 zeta sqrt(k m_eq)``.
 
 The ``I_*`` indices into ``P`` are generated here from :data:`P_FIELDS`, beside the kernels that read them: numba
@@ -57,7 +58,7 @@ P_FIELDS = (
     "CPH", "SPH",                               # cos and sin of the disc phase
     "NSLOT",  # tooth-pair slots of each sun-planet mesh (rows of Model.tables: k, e, c per slot)
     "IRAMP",  # 1 / MESH_DAMPING_RAMP_M
-    "MOTOR",  # 1.0: a motor rotor DOF (the last coordinate) on the input shaft, held by the speed loop
+    "MOTOR",  # 1.0: a motor rotor DOF (after the pin wheel; last but the load) on the input shaft, held by the speed loop
     "KSL", "CSL", "TDRIVE",  # speed-loop spring and damper on the rotor, its steady drive torque
     # speed and load profile (docs/model.md section 2; rvdiag.dynamics.profile): PROFILE 0 the constant-speed
     # model (the kernels' original path), 1 constant speed with a time-varying load, 2 a trapezoid, 3 an S-curve
@@ -71,6 +72,9 @@ P_FIELDS = (
     # carries planet runout, crank-hole or crank-phase errors (its columns 4-8); PINERR the index in P where the
     # pins' errors start (0: none), PINSHIFT the pin index of disc 1's pin 0 when the discs share one geometry
     "MFG", "PINERR", "PINSHIFT",
+    # the load DOF th_L (docs/model.md sections 1, 3): LOAD 1.0 when the output drives a load inertia J_L through
+    # the output coupling k_out (the last coordinate, after the motor rotor's); KOUT, COUT its spring and damper
+    "LOAD", "KOUT", "COUT",
     # the servo motor's electrical side (rvdiag.dynamics.motor_kernel; docs/model.md section 10), last
     *MOTOR_P_FIELDS,
 )
@@ -451,7 +455,8 @@ def _generalized_forces(y, P, planet, mt, geo, rot, Q, errors):
     S0 = -(kss * y[0] + css * y[n])
     S1 = -(kss * y[1] + css * y[n + 1])
     mot = P[I_MOTOR] != 0.0
-    iM = n - 1
+    ld = P[I_LOAD] != 0.0
+    iM = iR + 3  # the motor rotor, after the pin wheel; the load DOF after it (docs/model.md section 1)
     qm = y[iM] if mot else 0.0
     vm = y[n + iM] if mot else 0.0
     # input shaft between the motor rotor (or the ideal speed source) and the sun
@@ -476,7 +481,13 @@ def _generalized_forces(y, P, planet, mt, geo, rot, Q, errors):
     vH2 = y[n + iH + 2]
     H0 = -(P[I_KHS] * qH0 + P[I_CHS] * vH0)
     H1 = -(P[I_KHS] * qH1 + P[I_CHS] * vH1)
-    H2 = -(mt[N, 2] if prof else P[I_TLOAD])
+    if ld:  # the output coupling to the load DOF, which carries the load torque (Spong 1987's elastic joint)
+        iL = n - 1
+        T_out = P[I_KOUT] * (qH2 - y[iL]) + P[I_COUT] * (vH2 - y[n + iL])
+        H2 = -T_out
+        Q[iL] = T_out - (mt[N, 2] if prof else P[I_TLOAD])
+    else:
+        H2 = -(mt[N, 2] if prof else P[I_TLOAD])
     # ---- pin wheel on the housing (fixed frame)
     R0 = -(P[I_KRH] * y[iR] + P[I_CRH] * y[n + iR])
     R1 = -(P[I_KRH] * y[iR + 1] + P[I_CRH] * y[n + iR + 1])
@@ -737,7 +748,7 @@ def _euler_terms(y, P, mt, rot, dydt, N, D, n, iR):
     """The terms of an accelerating carrier (dOmega/dt = ``mt[N, 1]``; docs/model.md section 2): the tangential
     parts of the nominal accelerations of the orbiting bodies' origins (planets and cranks a dOmega/dt, discs
     e Zc dOmega/dt e_t(beta_j)), the nominal angular accelerations of every body (sun and rotor i, planets and
-    cranks -Zc, discs and carrier 1, times dOmega/dt), and the Euler term -dOmega/dt z x u of the rotating frame
+    cranks -Zc, discs, carrier and load 1, times dOmega/dt), and the Euler term -dOmega/dt z x u of the rotating frame
     (with the Coriolis terms)."""
     dO = mt[N, 1]
     if dO == 0.0:
@@ -760,7 +771,9 @@ def _euler_terms(y, P, mt, rot, dydt, N, D, n, iR):
     dydt[n + 2] -= ri
     dydt[n + iR - 1] -= dO
     if P[I_MOTOR] != 0.0:
-        dydt[2 * n - 1] -= ri
+        dydt[n + iR + 3] -= ri
+    if P[I_LOAD] != 0.0:  # the load turns with the carrier
+        dydt[2 * n - 1] -= dO
     if P[I_CORIOLIS] != 0.0:
         for b in range(iR // 3):
             i = 3 * b
@@ -788,7 +801,8 @@ def rhs_with_terms(y, P, inv_mass, planet, mt, geo, rot, Q, dydt):
     accelerations(y, P, inv_mass, planet, mt, geo, rot, Q, dydt)
     if P[I_PMSM] != 0.0 and y.size > 2 * n:
         N = int(P[I_NPL]) & 255
-        motor_rates(y, P, I_PMSM, n, mt[N, 4], mt[N, 5], speed_loop_feed_forward(P, mt), P[I_KSL], P[I_CSL], dydt)
+        im = n - 2 if P[I_LOAD] != 0.0 else n - 1  # the rotor (the load DOF, when there, comes after it)
+        motor_rates(y, P, I_PMSM, n, im, mt[N, 4], mt[N, 5], speed_loop_feed_forward(P, mt), P[I_KSL], P[I_CSL], dydt)
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")

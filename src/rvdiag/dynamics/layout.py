@@ -11,15 +11,18 @@ constant speed:
 - pin wheel ``(x_r, y_r, th_r)`` in the fixed housing frame (its rotation, on the stiff housing support,
   carries the stage-2 reaction torque to the housing, where the sensor sits; see docs/model.md for why
   we add it to the 26 DOF of the dynamics paper's model);
-- with ``[drive] speed_loop_bandwidth_hz > 0``, the motor rotor's rotation ``th_m``, last.
+- with ``[drive] speed_loop_bandwidth_hz > 0``, the motor rotor's rotation ``th_m``;
+- with a load inertia (``[operation] load_inertia`` > 0), the load's rotation ``th_L`` (the robot arm on the
+  output flange, vibratory about the carrier's rigid motion like ``th_H``), last.
 """
 
 from __future__ import annotations
 
 
-def dof_layout(n_planets: int, n_discs: int, motor: bool = False) -> dict[str, int]:
+def dof_layout(n_planets: int, n_discs: int, motor: bool = False, load: bool = False) -> dict[str, int]:
     """Index of the first (x) coordinate of every body: ``{"sun": 0, "planet0": 3, ...}``; with ``motor``, the
-    motor rotor's single coordinate (its rotation) comes last."""
+    motor rotor's single coordinate (its rotation) follows the pin wheel, and with ``load`` the load's single
+    coordinate comes last."""
     out = {"sun": 0}
     for i in range(n_planets):
         out[f"planet{i}"] = 3 + 3 * i
@@ -31,14 +34,19 @@ def dof_layout(n_planets: int, n_discs: int, motor: bool = False) -> dict[str, i
     out["pin_wheel"] = out["carrier"] + 3
     if motor:
         out["motor"] = out["pin_wheel"] + 3
+    if load:
+        out["load"] = out["pin_wheel"] + 3 + (1 if motor else 0)
     return out
 
 
-def dof_names(n_planets: int, n_discs: int, motor: bool = False) -> list[str]:
-    """Names of the generalized coordinates, e.g. ``sun.x``, ``planet1.th``, ``pin_wheel.y``, ``motor.th``."""
+def dof_names(n_planets: int, n_discs: int, motor: bool = False, load: bool = False) -> list[str]:
+    """Names of the generalized coordinates, e.g. ``sun.x``, ``planet1.th``, ``pin_wheel.y``, ``motor.th``,
+    ``load.th``."""
     names: list[str] = []
     for body in dof_layout(n_planets, n_discs):
         names += [f"{body}.x", f"{body}.y", f"{body}.th"]
     if motor:
         names.append("motor.th")
+    if load:
+        names.append("load.th")
     return names

@@ -109,7 +109,7 @@ def potential_energy(model: mdl.Model, t: float, q: np.ndarray) -> float:
     """Potential of every conservative force at time ``t`` (an independent NumPy implementation).
 
     Springs ``k d^2 / 2`` (the mesh with its backlash dead zone, the pins only in compression), the
-    load torque ``T_L th_H``, the constant inertial forces of the orbiting bodies and, with the
+    load torque ``T_L th_H`` (``T_L th_L`` and the output coupling ``k_out (th_H - th_L)^2 / 2`` with a load DOF), the constant inertial forces of the orbiting bodies and, with the
     rotating-frame terms on, the centrifugal potential ``-m Omega^2 (x^2 + y^2) / 2``.  Written from
     docs/model.md without the compiled kernels (numpy sin/cos instead of angle-addition tables), so
     ``Q = -grad V`` checks the force code and ``T + V`` checks the integrator.
@@ -120,11 +120,15 @@ def potential_energy(model: mdl.Model, t: float, q: np.ndarray) -> float:
     N, D = model.n_planets, model.n_discs
     lay = mdl.dof_layout(N, D)
     s, H, R = lay["sun"], lay["carrier"], lay["pin_wheel"]
-    qm = q[-1] if model.has_motor else 0.0  # the motor rotor (or the ideal speed source at rest)
+    qm = q[model.rotor_index] if model.has_motor else 0.0  # the motor rotor (or the ideal speed source at rest)
     V = 0.5 * P[mdl.I_KSS] * (q[s] ** 2 + q[s + 1] ** 2) + 0.5 * P[mdl.I_KIN] * (q[s + 2] - qm) ** 2
     if model.has_motor:  # the speed loop's spring and the steady drive torque's work on the rotor
         V += 0.5 * P[mdl.I_KSL] * qm**2 - P[mdl.I_TDRIVE] * qm
-    V += 0.5 * P[mdl.I_KHS] * (q[H] ** 2 + q[H + 1] ** 2) + P[mdl.I_TLOAD] * q[H + 2]
+    V += 0.5 * P[mdl.I_KHS] * (q[H] ** 2 + q[H + 1] ** 2)
+    if model.has_load:  # the output coupling to the load DOF (the last coordinate), which carries the load torque
+        V += 0.5 * P[mdl.I_KOUT] * (q[H + 2] - q[-1]) ** 2 + P[mdl.I_TLOAD] * q[-1]
+    else:
+        V += P[mdl.I_TLOAD] * q[H + 2]
     V += 0.5 * P[mdl.I_KRH] * (q[R] ** 2 + q[R + 1] ** 2) + 0.5 * P[mdl.I_KRT] * q[R + 2] ** 2
     alpha, rb1, rb2, hb = P[mdl.I_ALPHA], P[mdl.I_RB1], P[mdl.I_RB2], P[mdl.I_HALF_BACKLASH]
     a, e, Om = P[mdl.I_A], P[mdl.I_E], P[mdl.I_OMEGA]

@@ -133,19 +133,31 @@ class Model:
         mt = mesh_array(self)
         mesh_terms(float(t0), P, self.tables, mt)
         t_ff = kn.speed_loop_feed_forward(P, mt)
-        qm = float(q0[-1])
+        qm = float(q0[self.rotor_index])
         i_q = float(np.clip((t_ff - P[kn.I_KSL] * qm) / P[kn.I_M_KT], -P[kn.I_M_IMAX], P[kn.I_M_IMAX]))
         x = np.array([0.0, i_q, 0.0, P[kn.I_M_R] * i_q / P[kn.I_M_KIC], qm, 0.0])
         return np.concatenate([y, x])
 
     @property
     def has_motor(self) -> bool:
-        """True when the last coordinate is the motor rotor's rotation (``[drive]`` speed loop on)."""
+        """True when a coordinate after the pin wheel's is the motor rotor's rotation (``[drive]`` speed loop on)."""
         return bool(self.P[kn.I_MOTOR] != 0.0)
 
     @property
+    def has_load(self) -> bool:
+        """True when the last coordinate is the load's rotation ``th_L`` (a load inertia on the output coupling,
+        ``[operation] load_inertia``; docs/model.md section 1)."""
+        return bool(self.P[kn.I_LOAD] != 0.0)
+
+    @property
+    def rotor_index(self) -> int:
+        """Index of the motor rotor's coordinate (with :attr:`has_motor`): after the pin wheel's, before the
+        load's."""
+        return self.n_dof - 2 if self.has_load else self.n_dof - 1
+
+    @property
     def names(self) -> list[str]:
-        return dof_names(self.n_planets, self.n_discs, self.has_motor)
+        return dof_names(self.n_planets, self.n_discs, self.has_motor, self.has_load)
 
     def frozen(self, t: float = 0.0) -> "Model":
         """Copy with every time-varying term frozen at time ``t`` (for modal and static analysis)."""
@@ -232,7 +244,7 @@ def load_kernels(model: Model) -> None:
         pin_geometry(0.0, model.P, model.cosk, model.sink, geo, rot)
         mesh_terms(0.0, model.P, model.tables, mt)
         ym = np.zeros(2 * model.n_dof + N_MOTOR_STATES)
-        motor_rates(ym, model.P, kn.I_PMSM, model.n_dof, 0.0, 0.0, 0.0, 0.0, 0.0, np.zeros_like(ym))
+        motor_rates(ym, model.P, kn.I_PMSM, model.n_dof, model.n_dof - 1, 0.0, 0.0, 0.0, 0.0, 0.0, np.zeros_like(ym))
         rhs_with_terms(y, model.P, model.inv_mass, model.planet, mt, geo, rot, Q, np.empty_like(y))
         _kernels_loaded = True
 

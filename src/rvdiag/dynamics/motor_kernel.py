@@ -87,16 +87,17 @@ def air_gap_torque(P, b, i_d, i_q):
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
-def motor_rates(y, P, b, n, theta_nom, omega_nom, t_ff, k_sl, c_sl, dydt):
+def motor_rates(y, P, b, n, im, theta_nom, omega_nom, t_ff, k_sl, c_sl, dydt):
     """``dydt[2n:2n+6]``: the rates of the electrical states at the rotor's nominal angle ``theta_nom`` and
     speed ``omega_nom`` (rad, rad/s, mechanical), the speed PI's feed-forward torque ``t_ff`` (N m) and its
     gains ``k_sl`` (N m/rad, integral) and ``c_sl`` (N m s/rad, proportional).
 
-    The rotor's vibratory angle and speed are ``y[n-1]`` and ``y[2n-1]``."""
+    The rotor's vibratory angle and speed are ``y[im]`` and ``y[n + im]`` (``im = n - 1``, or ``n - 2`` when a
+    load DOF follows the rotor)."""
     k = 2 * n
     a = y[k + 4]
     w = y[k + 5]
-    qm = y[n - 1]
+    qm = y[im]
     th = theta_nom + qm
     c1 = math.cos(th)
     s1 = math.sin(th)
@@ -114,11 +115,11 @@ def motor_rates(y, P, b, n, theta_nom, omega_nom, t_ff, k_sl, c_sl, dydt):
     for _ in range(int(P[b + _P]) - 1):
         c, s_ = c * c1 - s_ * s1, s_ * c1 + c * s1
     # the speed PI on the observed angle and speed, then the current loop
-    current_loop_rates(y, P, b, n, omega_nom, c, s_, t_ff - k_sl * a - c_sl * w, dydt)
+    current_loop_rates(y, P, b, n, im, omega_nom, c, s_, t_ff - k_sl * a - c_sl * w, dydt)
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
-def current_loop_rates(y, P, b, n, omega_nom, c, s_, t_cmd, dydt):
+def current_loop_rates(y, P, b, n, im, omega_nom, c, s_, t_cmd, dydt):
     """The current loop, the inverter and the stator: ``dydt[2n:2n+4]`` for ``(i_d, i_q, z_d, z_q)`` given the
     speed loop's torque command ``t_cmd`` (N m) and the electrical angle's cosine and sine ``c, s_``; see the
     module docstring for the equations."""
@@ -157,7 +158,7 @@ def current_loop_rates(y, P, b, n, omega_nom, c, s_, t_cmd, dydt):
         dydt[k + 2] = e_d
         dydt[k + 3] = e_q
     # the stator sees the true electrical angle and speed
-    vm = y[2 * n - 1]
+    vm = y[n + im]
     we = p * (omega_nom + vm)
     udt = P[b + _UDT]
     if udt != 0.0:

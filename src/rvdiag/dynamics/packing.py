@@ -158,8 +158,10 @@ def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: floa
 
     drive = params.drive
     motor = drive.speed_loop_bandwidth_hz > 0.0
-    lay = dof_layout(N, D, motor)
-    n = lay["pin_wheel"] + 3 + (1 if motor else 0)
+    J_L = load_inertia(params, load)
+    has_load = J_L > 0.0
+    lay = dof_layout(N, D, motor, has_load)
+    n = lay["pin_wheel"] + 3 + (1 if motor else 0) + (1 if has_load else 0)
     mass = np.empty(n)
 
     def put(body: str, m: float, J: float) -> None:
@@ -175,6 +177,8 @@ def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: floa
     put("carrier", bp.carrier.mass, bp.carrier.inertia)
     if motor:
         mass[lay["motor"]] = drive.motor_inertia
+    if has_load:
+        mass[lay["load"]] = J_L
     # the pin wheel carries the housing shell and the mounting flange ([mounting] housing_added_mass, a thin
     # ring at the outer radius)
     m_add = params.mounting.housing_added_mass
@@ -228,7 +232,8 @@ def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: floa
         # k = c w_c / 4 (PI corner at a quarter of the bandwidth), tuned on the rotor plus the train reflected to
         # it; the steady drive torque T_L / i holds the static rotor angle at zero
         w_c = TWO_PI * drive.speed_loop_bandwidth_hz
-        c_sl = (drive.motor_inertia + J_eff) * w_c
+        # a load inertia counts as well, reflected to the rotor: the drive is tuned for the joint it drives
+        c_sl = (drive.motor_inertia + J_eff + J_L / params.ratio**2) * w_c
         P[kn.I_MOTOR] = 1.0
         P[kn.I_CSL] = c_sl if st.damping else 0.0
         P[kn.I_KSL] = c_sl * w_c / 4.0
@@ -241,7 +246,15 @@ def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: floa
         (drive.motor_inertia if motor else 0.0) + J_s + (
             N * (Zc**2 * (J_p + bp.crank.inertia) + a**2 * (bp.planet.mass + bp.crank.mass))
             + D * (bp.cycloid.inertia + bp.cycloid.mass * (s2.eccentricity * Zc) ** 2)
-            + bp.carrier.inertia) / params.ratio**2)
+            + bp.carrier.inertia + J_L) / params.ratio**2)
+    if has_load:
+        # the output coupling (docs/model.md sections 3, 4): spring k_out = [bearings] output_torsional between
+        # carrier and load, its damper on the reduced inertia of the load and the rigid train reflected to the
+        # output (rotor included), as the input coupling's is on the train reflected to the sun
+        J_train = P[kn.I_JREF_I] * params.ratio - J_L  # i^2 J_ref without the load
+        P[kn.I_LOAD] = 1.0
+        P[kn.I_KOUT] = br.output_torsional
+        P[kn.I_COUT] = c(zb, br.output_torsional, J_L, J_train)
     if not profile.is_constant or load.has_arm:
         P[kn.I_PROFILE] = 1.0
         if not profile.is_constant:
@@ -254,7 +267,10 @@ def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: floa
             P[kn.I_PR_TJ], P[kn.I_PR_JERK] = profile.jerk_segment()
             P[kn.I_PR_F0] = float(profile._cumulative(np.zeros(1), duration_s)[0][0])
         M, L = float(load.arm_mass_kg), float(load.arm_length_m)
-        P[kn.I_ARM_MGL], P[kn.I_ARM_ML2] = M * G * L, M * L * L
+        # with a load DOF the arm's inertia is that DOF's (its rigid acceleration torque J_L dOmega/dt is the load
+        # DOF's nominal angular acceleration, and the drive's feed-forward has it through J_ref): the load torque
+        # keeps only the gravity term
+        P[kn.I_ARM_MGL], P[kn.I_ARM_ML2] = M * G * L, (0.0 if has_load else M * L * L)
         P[kn.I_ARM_TH0] = math.radians(load.arm_angle_deg)
     if st.electrical:
         _pack_motor(P, params, motor, Omega, load_Nm, profile, load, duration_s)
@@ -285,6 +301,21 @@ def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: floa
     return dict(P=P, mass=mass, planet=planet, tvms=tv, cosk=np.cos(kk), sink=np.sin(kk), sensor=sensor,
                 n_planets=N, n_discs=D, mesh_source=mesh.source, extra=extra,
                 tvms_error=mesh.resample_error(st.tvms_points), pairs=np.stack([pk, pe], axis=1))
+
+
+def load_inertia(params: ReducerParams, load: LoadProfile | None = None) -> float:
+    """The load inertia J_L (kg m^2) of the load DOF (docs/model.md section 1): ``[operation] load_inertia`` when
+    the parameter set states it, else the gravity arm's point-mass inertia ``M L^2`` when ``load`` has an arm,
+    else 0 (no load DOF: the load is a pure torque on the carrier)."""
+    stated = params.operation.load_inertia
+    if stated is not None:
+        J = float(stated)
+        if not (math.isfinite(J) and J >= 0.0):
+            raise ParameterError(f"[operation] load_inertia must be finite and >= 0, got {stated!r}")
+        return J
+    if load is not None and load.has_arm:
+        return float(load.arm_mass_kg) * float(load.arm_length_m) ** 2
+    return 0.0
 
 
 def _pack_manufacturing_errors(P: np.ndarray, errs: ManufacturingErrors, psi: np.ndarray, alpha: float, Zp: int,
@@ -329,7 +360,7 @@ def _pack_motor(P: np.ndarray, params: ReducerParams, has_rotor: bool, Omega: fl
     g = controller_gains(m, pp)
     acc = 0.0 if profile.is_constant else abs(profile.segments(duration_s)[3])
     arm = float(load.arm_mass_kg) * float(load.arm_length_m)
-    torque = ((abs(load_Nm) + arm * G + arm * float(load.arm_length_m) * acc) / params.ratio
+    torque = ((abs(load_Nm) + arm * G + P[kn.I_ARM_ML2] * acc) / params.ratio
               + P[kn.I_JREF_I] * acc + m.viscous_friction * params.ratio * Omega)
     check_operating_point(m, pp, params.ratio * Omega, torque)
     P[kn.I_PMSM] = 1.0

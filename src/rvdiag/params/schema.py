@@ -173,10 +173,19 @@ class Damping:
 
 @dataclass(frozen=True)
 class Operation:
-    """Rated operating figures used as defaults."""
+    """Rated operating figures used as defaults, and the driven load.
+
+    ``load_inertia`` (kg m^2) is the polar inertia of the load on the output flange (a robot arm), joined to the
+    carrier by the output coupling ``[bearings] output_torsional`` as a DOF of the dynamic model (an elastic
+    joint: Spong 1987, "Modeling and control of elastic joint robots", J. Dyn. Syst. Meas. Control 109;
+    docs/model.md sections 1 and 3).  0 is a pure load torque on the carrier (no load DOF).  Not stated (absent,
+    ``None``): the gravity arm's point-mass inertia ``M L^2`` when a run has one
+    (:class:`rvdiag.dynamics.profile.LoadProfile`), else 0.
+    """
 
     rated_torque: float = _positive()
     motor_pole_pairs: int = _positive()
+    load_inertia: float | None = _nonnegative(default=None)
 
 
 @dataclass(frozen=True)
@@ -425,8 +434,8 @@ class ReducerParams:
     def to_dict(self) -> dict[str, Any]:
         """Nested plain dict of every value (the inverse of :meth:`from_dict`)."""
         out: dict[str, Any] = {"name": self.name}
-        for name in _SECTIONS:
-            out[name] = dataclasses.asdict(getattr(self, name))
+        for name in _SECTIONS:  # an optional value not stated (None) is left out, as in the file it came from
+            out[name] = {k: v for k, v in dataclasses.asdict(getattr(self, name)).items() if v is not None}
         return out
 
     def to_toml(self) -> str:
