@@ -368,3 +368,27 @@ def test_a_store_simulated_by_other_physics_is_never_resumed(tmp_path, monkeypat
     monkeypatch.setattr(dyn, "PHYSICS_REVISION", "2099-01-01")
     with pytest.raises(StoreError, match=rf"physics of {re.escape(stored)} .* that of 2099-01-01"):
         build_library(cfg, path, workers=0, progress=False)
+
+
+def test_a_build_is_finished_on_the_device_it_began_on(tmp_path, monkeypatch):
+    """The store records the device it was begun on; finishing it on the other one is one StoreError line (a GPU's
+    units differ from the CPU's in the last bits).  Older stores, which record none, were built on the CPU."""
+    from types import SimpleNamespace
+
+    from rvdiag.library.build import _check_resume_device
+
+    path = tmp_path / "begun.zarr"
+    interrupted_build(tiny(), path, monkeypatch, after=4)
+    import zarr
+
+    began = dict(zarr.open_group(str(path), mode="r").attrs)["library"]["device"]
+    assert began == "cpu"
+    builder = SimpleNamespace(attrs={"library": {"device": began}})
+    _check_resume_device(path, builder, "cpu")  # the same device: fine
+    with pytest.raises(StoreError, match="begun with --device cpu; finish it with --device cpu"):
+        _check_resume_device(path, builder, "cuda")
+    with pytest.raises(StoreError, match="begun with --device cpu"):
+        _check_resume_device(path, SimpleNamespace(attrs={"library": {}}), "cuda")  # no record: the CPU
+    with pytest.raises(StoreError, match="begun with --device cuda"):
+        _check_resume_device(path, SimpleNamespace(attrs={"library": {"device": "cuda"}}), "cpu")
+    assert build_library(tiny(), path, workers=0, progress=False).built == 8  # resumed on the CPU

@@ -371,6 +371,11 @@ class StoreBuilder:
 
     # ------------------------------------------------------------------ state
     @property
+    def attrs(self) -> dict[str, Any]:
+        """The store's group attributes (config, library description, ...), as written when it was created."""
+        return dict(self._group.attrs)
+
+    @property
     def complete(self) -> bool:
         return bool(self._group.attrs.get("complete", False))
 

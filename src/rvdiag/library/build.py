@@ -46,7 +46,7 @@ import numpy as np
 
 from rvdiag import __version__
 from rvdiag.datasets import StoreBuilder, config_hash
-from rvdiag.errors import ConfigError, RvdiagError, SimulationError
+from rvdiag.errors import ConfigError, RvdiagError, SimulationError, StoreError
 from rvdiag.library.config import ARM_KEYS, LibraryConfig, scaled_keys
 from rvdiag.library.states import STATES, FaultSpec
 
@@ -606,7 +606,7 @@ def build_library(
         "library": {
             "mode": cfg.mode, "seed": cfg.seed, "simulator": cfg.simulator,
             "states": {s: STATES[s].description for s in cfg.classes},
-            "n_simulations": len(plan), "rvdiag_version": __version__,
+            "n_simulations": len(plan), "rvdiag_version": __version__, "device": device,
         },
     }
     builder = StoreBuilder(
@@ -615,6 +615,8 @@ def build_library(
     )
     done = builder.committed_units()
     todo = [u for u in plan if u.index not in done]
+    if done and todo:
+        _check_resume_device(out, builder, device)
     t0 = time.perf_counter()
     n_workers = 0 if (workers == 0 and client is None and not scheduler) else (workers or default_workers())
     built = 0
@@ -650,6 +652,18 @@ def build_library(
         path=out, n_units=len(plan), built=built, skipped=len(plan) - len(todo), n_samples=builder.n_samples,
         samples_built=samples_built, wall_s=time.perf_counter() - t0, workers=n_workers, device=device,
     )
+
+
+def _check_resume_device(out: Path, builder: StoreBuilder, device: str) -> None:
+    """Refuse to finish on a GPU a build begun on the CPU, or the reverse (:class:`StoreError`, one line): a GPU's
+    arithmetic differs from the CPU's in the last bits, which the integration grows to ~1e-8, so one store would
+    hold units of two slightly different simulators.  Stores from before the device was recorded were built on
+    the CPU."""
+    began = (builder.attrs.get("library") or {}).get("device", "cpu")
+    if began != device:
+        raise StoreError(f"{out} was begun with --device {began}; finish it with --device {began} (units integrated "
+                         f"on the {'GPU' if device == 'cuda' else 'CPU'} differ in the last bits), or choose "
+                         "another --out")
 
 
 def _unit_handler(write: Callable[[UnitResult], None], advance: Callable[[], None]) -> Callable[[UnitResult], None]:
