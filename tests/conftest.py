@@ -75,3 +75,20 @@ def run_cli(argv: list, capsys) -> tuple[int, str, str]:
         code = 0 if exc.code is None else exc.code
     cap = capsys.readouterr()
     return code, cap.out, cap.err
+
+
+def potential_gradient(model, t: float, q):
+    """Central-difference gradient of :func:`rvdiag.dynamics.linear.potential_energy` at ``(t, q)``, the check
+    that the compiled forces are ``Q = -grad V``.  Steps of 1e-12 (1e-13 on rotations, every third coordinate) are
+    small enough that no pin contact changes state within one."""
+    import numpy as np
+
+    from rvdiag.dynamics.linear import potential_energy
+
+    grad = np.empty(model.n_dof)
+    for i in range(model.n_dof):
+        h = 1e-13 if i % 3 == 2 else 1e-12
+        dq = np.zeros(model.n_dof)
+        dq[i] = h
+        grad[i] = (potential_energy(model, t, q + dq) - potential_energy(model, t, q - dq)) / (2 * h)
+    return grad
