@@ -14,20 +14,17 @@ from rvdiag.dynamics import kernels as kn
 from rvdiag.dynamics.motor_kernel import MOTOR_P_FIELDS, air_gap_torque, motor_rates
 from rvdiag.errors import ConfigError, ParameterError
 from rvdiag.motor import check_operating_point, controller_gains, phase_currents, sample_current
+from rvdiag.motor.lines import amplitude_spectrum, line_height
 from rvdiag.params import ReducerParams
 
 FAST = ModelSettings(transient_s=0.05)
 
 
-def _line_db(x, fs, f0, half=6):
-    """Amplitude of the line nearest ``f0`` (A) and its height over the median of the bins around it (dB)."""
-    n = x.size
-    w = np.hanning(n)
-    X = 2 * np.abs(np.fft.rfft((x - x.mean()) * w)) / w.sum()
-    k = int(round(f0 * n / fs))
-    pk = X[k - 2:k + 3].max()
-    floor = np.median(np.r_[X[max(k - 40, 0):k - half], X[k + half + 1:k + 41]])
-    return pk, 20 * np.log10(pk / floor)
+def _line_db(x, fs, f0):
+    """Amplitude of the line nearest ``f0`` (A) and its height over the median of the bins 6-40 away (dB):
+    :func:`rvdiag.motor.lines.line_height`, the table ``rvdiag diagnose`` prints for a current."""
+    f, amp = amplitude_spectrum(x, fs)
+    return line_height(amp, f[1], f0)
 
 
 # ------------------------------------------------------------------------------ design side

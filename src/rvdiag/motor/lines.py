@@ -52,7 +52,11 @@ def line_height(amp: np.ndarray, df: float, f0: float) -> tuple[float, float]:
 def estimate_output_speed(x: np.ndarray, fs: float, params, min_hz: float = 2.0) -> float:
     """Output speed (deg/s) from the strongest line of the current above ``min_hz``, taken as the supply
     frequency ``f_e = p f1`` (it is 40-80 dB above everything else under load)."""
-    f, amp = amplitude_spectrum(x, fs)
+    return _speed_from_spectrum(*amplitude_spectrum(x, fs), params, min_hz)
+
+
+def _speed_from_spectrum(f: np.ndarray, amp: np.ndarray, params, min_hz: float = 2.0) -> float:
+    """:func:`estimate_output_speed` on an amplitude spectrum already taken."""
     keep = f >= min_hz
     if not keep.any() or not np.isfinite(amp[keep]).all() or amp[keep].max() <= 0:
         raise ParameterError("cannot estimate the speed from the current: no line above "
@@ -77,9 +81,10 @@ def current_lines(x: np.ndarray, fs: float, params, output_speed_deg_s: float | 
                              f"got shape {x.shape}")
     if not (fs and fs > 0):
         raise ParameterError("the current's sampling rate is unknown: give --fs")
+    f, amp = amplitude_spectrum(x, fs)
     source = "given"
     if output_speed_deg_s is None:
-        output_speed_deg_s, source = estimate_output_speed(x, fs, params), "strongest line taken as f_e"
+        output_speed_deg_s, source = _speed_from_spectrum(f, amp, params), "strongest line taken as f_e"
     fr = characteristic_frequencies(params, output_speed_deg_s=output_speed_deg_s)
     wanted = {"fe": fr.fe}
     for k in SIDEBAND_ORDERS:
@@ -87,7 +92,6 @@ def current_lines(x: np.ndarray, fs: float, params, output_speed_deg_s: float | 
         wanted[f"fe+{k}f1"] = fr.fe + k * fr.f1
     wanted.update({"fe-fsp": abs(fr.fe - fr.fsp), "fe+fsp": fr.fe + fr.fsp,
                    "fe-fcs": abs(fr.fe - fr.fcs), "fe+fcs": fr.fe + fr.fcs, "5fe": 5 * fr.fe})
-    f, amp = amplitude_spectrum(x, fs)
     df = float(f[1] - f[0])
     lines = {}
     for name, hz in wanted.items():
