@@ -15,8 +15,10 @@ from rvdiag.cli import _options, build_app
 from rvdiag.cli._options import DEPRECATED, VOCABULARY
 
 #: Commands that write a file or folder (-o/--out) and commands that show progress (-q/--quiet).
-WRITERS = {"simulate", "train", "library build", "dataset from-files", "update", "params export", "mcsa"}
-PROGRESS = {"simulate", "train", "evaluate", "library build", "dataset from-files", "update", "mcsa"}
+WRITERS = {"simulate", "train", "library build", "dataset from-files", "update", "params export", "mcsa",
+           "separability"}
+PROGRESS = {"simulate", "train", "evaluate", "library build", "dataset from-files", "update", "mcsa",
+            "separability"}
 #: Python parameter names of the commands -> their concept in VOCABULARY.
 PARAM_CONCEPT = {"out": "out", "quiet": "quiet", "overwrite": "overwrite", "snr_db": "snr_db", "seed": "seed",
                  "params": "params", "as_json": "json", "json_out": "json", "fs": "fs", "channel": "channel"}

@@ -79,6 +79,17 @@ def snr_db(help: str, default: Any = None) -> Any:
     return typer.Option(default, *VOCABULARY["snr_db"], help=help)
 
 
+def parse_levels(text: str, option: str = "--snr-db") -> list[float]:
+    """``"-5,0,5"`` -> [-5.0, 0.0, 5.0] (a list of SNRs in dB); one clear :class:`ParameterError` for anything else."""
+    try:
+        levels = [float(x) for x in str(text).split(",") if x.strip()]
+    except ValueError:
+        raise ParameterError(f"{option} must be comma-separated numbers in dB, got {text!r}") from None
+    if not levels or not all(math.isfinite(v) for v in levels):
+        raise ParameterError(f"{option} must be comma-separated finite numbers in dB, got {text!r}")
+    return levels
+
+
 def seed(help: str) -> Any:
     """``--seed``."""
     return typer.Option(0, *VOCABULARY["seed"], help=help)

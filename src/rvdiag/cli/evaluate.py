@@ -1,4 +1,5 @@
-"""``rvdiag evaluate MODEL_DIR DATA.zarr [--split test|train|all] [--json] [--report FILE.html]``."""
+"""``rvdiag evaluate MODEL_DIR DATA.zarr [--split test|train|all] [--json] [--report FILE.html]
+[--snr-db=LEVELS [--plot FILE.png] [--bound BOUND.json]]``."""
 
 from __future__ import annotations
 
@@ -27,6 +28,11 @@ def register(app: typer.Typer) -> None:
                                  "--snr-db=-5,0,5,10,15,20 (the '=' lets the list start with a minus); "
                                  "accuracy against SNR, JSON key 'snr'."),
         seed: int = opt.seed("Seed of the noise added by --snr-db."),
+        plot: Path = typer.Option(None, "--plot", metavar="FILE.png", help="With --snr-db: write the figure of accuracy and per-class "
+                                  "recall against SNR here (PNG)."),
+        bound: list[Path] = typer.Option(None, "--bound", metavar="BOUND.json", help="With --snr-db: a separability bound written by "
+                                         "'rvdiag separability --out' (repeatable): drawn dashed on --plot, copied "
+                                         "into the JSON (key 'bound')."),
         quiet: bool = opt.quiet(),
     ) -> None:
         """Score a saved model on a split of a sample store (progress with an ETA on stderr; -q: none)."""
@@ -38,7 +44,14 @@ def register(app: typer.Typer) -> None:
 
         if report is not None and (report.is_dir() or (report.parent.exists() and not report.parent.is_dir())):
             raise ParameterError(f"--report {report}: not a writable file path")
-        levels = _parse_levels(snr_db) if snr_db is not None else None
+        levels = opt.parse_levels(snr_db) if snr_db is not None else None
+        if plot is not None and levels is None:
+            raise ParameterError("--plot draws the accuracy against SNR: give --snr-db=LEVELS too")
+        if bound and levels is None:
+            raise ParameterError("--bound goes with the accuracy against SNR: give --snr-db=LEVELS too")
+        if plot is not None and (plot.is_dir() or not plot.parent.is_dir()):
+            raise ParameterError(f"--plot {plot}: not a writable file path")
+        bounds = [read_bound(b) for b in bound or ()]
         loaded = load_model(model_dir)
         store = SampleStore.open(data)
         with progress_bars(quiet):
@@ -49,12 +62,16 @@ def register(app: typer.Typer) -> None:
             typer.echo(w, err=True)
         if report is not None:
             write_report(report, report_html(loaded, store, ev))
+        if plot is not None:
+            _write_plot(plot, curve, bounds, f"{loaded.card.get('model')} on {Path(data).name} [{ev.split}]")
         if json_out:
             out = dict(ev.metrics)
             if groups is not None:
                 out["by"] = {"column": by, "groups": groups}
             if curve is not None:
                 out["snr"] = curve
+            if bounds:
+                out["bound"] = bounds
             typer.echo(json.dumps(out, indent=2))
         else:
             _print(ev, loaded, data)
@@ -64,6 +81,36 @@ def register(app: typer.Typer) -> None:
                 _print_snr(curve)
         if report is not None:
             typer.echo(f"report: {report.resolve()}", err=json_out)
+        if plot is not None:
+            typer.echo(f"plot: {plot.resolve()}", err=json_out)
+
+
+def read_bound(path: Path) -> dict:
+    """A separability bound written by ``rvdiag separability --out`` (checked: pair, snr_db, accuracy_bound)."""
+    try:
+        b = json.loads(Path(path).read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ParameterError(f"--bound {path}: not a readable JSON file ({exc})") from None
+    ok = (isinstance(b, dict) and isinstance(b.get("pair"), list) and isinstance(b.get("snr_db"), list)
+          and isinstance(b.get("accuracy_bound"), list) and len(b["snr_db"]) == len(b["accuracy_bound"]) > 0
+          and all(isinstance(v, (int, float)) for v in b["snr_db"] + b["accuracy_bound"]))
+    if not ok:
+        raise ParameterError(f"--bound {path}: not the JSON of 'rvdiag separability' (pair, snr_db, accuracy_bound)")
+    return b
+
+
+def _write_plot(path: Path, curve: list[dict], bounds: list[dict], title: str) -> None:
+    import matplotlib.pyplot as plt
+
+    from rvdiag.evaluation.plots import plot_snr_curve
+
+    fig = plot_snr_curve(curve, bounds, title=title)
+    try:
+        fig.savefig(path, dpi=120)
+    except OSError as exc:
+        raise ParameterError(f"cannot write --plot {path}: {exc}") from None
+    finally:
+        plt.close(fig)
 
 
 def _print(ev, loaded, data) -> None:
@@ -90,31 +137,23 @@ def _print(ev, loaded, data) -> None:
     con.print(cm)
 
 
-def _parse_levels(text: str) -> list[float]:
-    """``"-5,0,5"`` -> [-5.0, 0.0, 5.0]; a clear error for anything else."""
-    import math
-
-    try:
-        levels = [float(x) for x in text.split(",") if x.strip()]
-    except ValueError:
-        raise ParameterError(f"--snr-db must be comma-separated numbers in dB, got {text!r}") from None
-    if not levels or not all(math.isfinite(v) for v in levels):
-        raise ParameterError(f"--snr-db must be comma-separated finite numbers in dB, got {text!r}")
-    return levels
-
-
 def _print_snr(curve: list[dict]) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    t = Table(title="accuracy against added-noise SNR (same samples at every level)")
-    t.add_column("SNR (dB)", justify="right")
+    classes = list(curve[0].get("per_class_recall", {})) if curve else []
+    t = Table(title="accuracy against added-noise SNR (same samples at every level)",
+              caption="SNR in dB; accuracy, macro F1" + (" and the recall of each class (class columns)" if classes
+                                                         else "") + " in %")
+    t.add_column("SNR", justify="right")
     t.add_column("accuracy", justify="right")
-    t.add_column("macro F1", justify="right")
+    t.add_column("F1", justify="right")
     t.add_column("kappa", justify="right")
+    for c in classes:
+        t.add_column(c, justify="right")
     for row in curve:
-        t.add_row(f"{row['snr_db']:g}", f"{100 * row['accuracy']:.2f} %", f"{100 * row['f1_macro']:.2f} %",
-                  f"{row['kappa']:.3f}")
+        t.add_row(f"{row['snr_db']:g}", f"{100 * row['accuracy']:.2f}", f"{100 * row['f1_macro']:.2f}",
+                  f"{row['kappa']:.3f}", *(f"{100 * row['per_class_recall'][c]:.1f}" for c in classes))
     Console().print(t)
 
 

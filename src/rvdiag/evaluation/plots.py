@@ -190,3 +190,50 @@ def plot_history(history: Sequence[Mapping]) -> Figure:
     ax.legend(fontsize=8, loc="center right")
     fig.tight_layout()
     return fig
+
+
+def bound_label(bound: Mapping) -> str:
+    """Legend label of a separability bound: ``bound T1/T4 (crack 1.8 mm, 32.5 deg)`` (the severities given)."""
+    pair = "/".join(map(str, bound.get("pair", ("?", "?"))))
+    parts = []
+    for key, v in dict(bound.get("severities_SI") or {}).items():
+        if key == "crack_depth":
+            parts.append(f"crack {1e3 * v:g} mm")
+        elif key == "crack_angle_deg":
+            parts.append(f"{v:g} deg")
+        elif key == "wear_depth":
+            parts.append(f"wear {1e6 * v:g} um")
+        elif key == "broken_fraction":
+            parts.append(f"broken {v:g}")
+        else:
+            parts.append(f"{key} {v:g}")
+    return f"bound {pair}" + (f" ({', '.join(parts)})" if parts else "")
+
+
+def plot_snr_curve(curve: Sequence[Mapping], bounds: Sequence[Mapping] = (), title: str = "") -> Figure:
+    """Accuracy against added-noise SNR: the overall accuracy (black, solid), one recall curve per class, and each
+    separability bound of ``bounds`` (dashed, :mod:`rvdiag.evaluation.separability`).
+
+    ``curve`` is :func:`rvdiag.evaluation.evaluate.accuracy_against_snr`'s list (``snr_db``, ``accuracy``,
+    ``per_class_recall``); each bound a dict with ``pair``, ``snr_db`` and ``accuracy_bound`` (the JSON of
+    ``rvdiag separability``): the best accuracy any classifier can reach on that pair of states.  Lines in that
+    order: ``1 + n_classes + len(bounds)``."""
+    rows = sorted(curve, key=lambda r: r["snr_db"])
+    x = [r["snr_db"] for r in rows]
+    fig, ax = plt.subplots(figsize=(8.6, 4.2))
+    ax.plot(x, [100 * r["accuracy"] for r in rows], "k-o", lw=2, label="overall accuracy")
+    classes = list(rows[0].get("per_class_recall", {})) if rows else []
+    for i, c in enumerate(classes):
+        ax.plot(x, [100 * r["per_class_recall"][c] for r in rows], "-", marker=".", lw=1,
+                color=plt.cm.tab10(i % 10), label=f"recall {c}")
+    for j, b in enumerate(bounds):
+        ax.plot(b["snr_db"], [100 * v for v in b["accuracy_bound"]], "--", lw=1.8, color=plt.cm.Dark2(j % 8),
+                label=bound_label(b))
+    ax.set_xlabel("added white-noise SNR (dB)")
+    ax.set_ylabel("accuracy / recall (%)")
+    ax.set_ylim(0, 102)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False)
+    ax.set_title(title or "accuracy against SNR")
+    fig.tight_layout()
+    return fig

@@ -1,0 +1,167 @@
+"""``rvdiag separability [--pair T1,T4] [--snr-db=LEVELS] [--json] [--out BOUND.json]``: the best accuracy any
+classifier can reach in telling two states of the simulator apart at each white-noise SNR
+(:mod:`rvdiag.evaluation.separability`)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from rvdiag.cli import _options as opt
+from rvdiag.errors import ParameterError
+
+#: Python parameters of the library calls -> the options of this command (error messages name the option).
+SEPARABILITY_OPTION_NAMES = {"duration_s": "--duration", "fs": "--fs", "substeps": "--substeps",
+                             "transient_s": "--transient", "load_Nm": "--load",
+                             "output_speed_deg_s": "--output-speed"}
+
+
+def _pair(text: str) -> list[str]:
+    from rvdiag.gears.faults import STATES
+
+    names = [x.strip().upper() for x in str(text).split(",")]
+    if len(names) != 2 or not all(names):
+        raise ParameterError(f"--pair must name two states, e.g. T1,T4, got {text!r}")
+    for n in names:
+        if n not in STATES:
+            raise ParameterError(f"--pair: unknown state {n!r}; choose among {', '.join(STATES)}")
+    return names
+
+
+def _check_pair_severities(pair: list[str], severities: dict) -> None:
+    """Every severity given must apply to a state of the pair, and be valid for it."""
+    from rvdiag.cli.simulate import _OPTION, _USES, _check_severities
+    from rvdiag.gears.faults import STATES
+
+    kinds = {k for s in pair for k in STATES[s].split("+")}
+    for key in severities:
+        if _USES[key] not in kinds:
+            raise ParameterError(f"{_OPTION[key]} does not apply to the pair {','.join(pair)} "
+                                 f"({', '.join(STATES[s] for s in pair)})")
+    for s in pair:
+        used = {k: v for k, v in severities.items() if _USES[k] in STATES[s].split("+")}
+        _check_severities(s, used)
+
+
+def register(app: typer.Typer) -> None:
+    """Add the ``separability`` command to ``app``."""
+
+    @app.command("separability")
+    def separability_cmd(
+        pair: str = typer.Option("T1,T4", "--pair", help="The two states, e.g. T1,T4 (the crack; default) or "
+                                 "T5,T6."),
+        output_speed: Optional[float] = typer.Option(None, "--output-speed", help="Output (carrier) speed, deg/s "
+                                                     "(default: the demo library's, configs/demo.toml)."),
+        load: Optional[float] = typer.Option(None, "--load", help="Output load torque, N m (default: the demo "
+                                             "library's)."),
+        duration: Optional[float] = typer.Option(None, "--duration", help="Simulated record per state, s, after "
+                                                 "the transient (default: the demo library's, 1 s)."),
+        window: Optional[int] = typer.Option(None, "--window", help="Points per window: the sample length "
+                                             "(default: the demo library's segment_length, 4096)."),
+        snr_db: str = opt.snr_db("SNRs in dB, comma-separated (per-sample convention of the library's noise); "
+                                 "--snr-db=-5,0,5 (the '=' lets the list start with a minus).",
+                                 "-5,0,5,10,15,20,30"),
+        wear_depth_mm: Optional[float] = typer.Option(None, "--wear-depth", help="Maximum wear depth (mm)."),
+        crack_depth_mm: Optional[float] = typer.Option(None, "--crack-depth", help="Crack depth (mm)."),
+        crack_angle: Optional[float] = typer.Option(None, "--crack-angle", help="Crack angle from the tooth "
+                                                    "centreline (deg)."),
+        broken_fraction: Optional[float] = typer.Option(None, "--broken-fraction", help="Lost fraction of the "
+                                                        "tooth height, (0, 1]."),
+        pit_area_fraction: Optional[float] = opt.surface_fault("pit_area_fraction"),
+        pit_radius_mm: Optional[float] = opt.surface_fault("pit_radius_mm"),
+        pit_depth_mm: Optional[float] = opt.surface_fault("pit_depth_mm"),
+        spall_width_fraction: Optional[float] = opt.surface_fault("spall_width_fraction"),
+        spall_length_fraction: Optional[float] = opt.surface_fault("spall_length_fraction"),
+        spall_depth_mm: Optional[float] = opt.surface_fault("spall_depth_mm"),
+        params: Optional[Path] = opt.params(),
+        fs: Optional[float] = opt.fs("Sampling rate, Hz (default: the demo library's, 48000)."),
+        substeps: Optional[int] = typer.Option(None, "--substeps", help="Integrator steps per output sample "
+                                               "(default: the demo library's [model] substeps, 4)."),
+        json_out: bool = opt.json_flag("Print pair, window, n_windows, snr_db, accuracy_bound, distance_over_rms "
+                                       "(and the operating point) as JSON."),
+        out: Optional[Path] = opt.out("Also write the JSON here (for 'rvdiag evaluate --plot --bound').", None),
+        quiet: bool = opt.quiet(),
+    ) -> None:
+        """The separability bound: the best accuracy ANY classifier can reach in telling two states apart at
+        each white-noise SNR, for the simulator (binary detection of known signals in white Gaussian noise,
+        accuracy Phi(d / 2 sigma) per window; rvdiag.evaluation.separability).  Both states are simulated
+        noise-free with identical parameters, operating point and seeds; channel 0 (housing x), as the library.
+        Progress on stderr (-q: none)."""
+        from rvdiag.cli._progress import progress_bars
+        from rvdiag.evaluation.separability import separability_bound, simulate_pair
+        from rvdiag.library.config import LibraryConfig
+        from rvdiag.params import ReducerParams
+
+        states = _pair(pair)
+        levels = opt.parse_levels(snr_db)
+        severities = opt.fault_severities(
+            wear_depth_mm, crack_depth_mm, crack_angle, broken_fraction, pit_area_fraction=pit_area_fraction,
+            pit_radius_mm=pit_radius_mm, pit_depth_mm=pit_depth_mm, spall_width_fraction=spall_width_fraction,
+            spall_length_fraction=spall_length_fraction, spall_depth_mm=spall_depth_mm)
+        _check_pair_severities(states, severities)
+        demo = LibraryConfig.load("demo")
+        speed = float(demo.speed.lo) if output_speed is None else float(output_speed)
+        load_nm = float(demo.load_Nm.lo) if load is None else float(load)
+        duration_s = float(demo.duration_s) if duration is None else float(duration)
+        fs_hz = float(demo.fs) if fs is None else float(fs)
+        win = int(demo.segment_length) if window is None else int(window)
+        model = dict(demo.model)
+        if substeps is not None:
+            model["substeps"] = substeps
+        for name, value in (("--output-speed", speed), ("--duration", duration_s), ("--fs", fs_hz)):
+            if not value > 0 or not math.isfinite(value):
+                raise ParameterError(f"{name} must be a number > 0, got {value:g}")
+        if not load_nm >= 0 or not math.isfinite(load_nm):
+            raise ParameterError(f"--load must be a number >= 0, got {load_nm:g}")
+        if win < 2:
+            raise ParameterError(f"--window must be a whole number of points >= 2, got {win}")
+        n_record = int(round(duration_s * fs_hz))
+        if win > n_record:
+            raise ParameterError(f"--window {win} points is longer than the record: --duration {duration_s:g} s "
+                                 f"at {fs_hz:g} Hz gives {n_record} points")
+        if out is not None and (out.is_dir() or not out.parent.is_dir()):
+            raise ParameterError(f"--out {out}: not a writable file path")
+        p = ReducerParams.load(params)
+        with opt.option_names(SEPARABILITY_OPTION_NAMES), progress_bars(quiet):
+            a, b = simulate_pair(states, params=p, output_speed_deg_s=speed, load_Nm=load_nm,
+                                 duration_s=duration_s, fs=fs_hz, transient_s=demo.transient_s, model=model,
+                                 channel=int(demo.channel) if isinstance(demo.channel, int) else 0,
+                                 severities=severities)
+        res = separability_bound(a, b, win, levels)
+        result = {"pair": states, **res, "output_speed_deg_s": speed, "load_Nm": load_nm, "duration_s": duration_s,
+                  "fs": fs_hz, "substeps": model.get("substeps"), "severities_SI": severities,
+                  "params_file": str(params) if params is not None else None}
+        text = json.dumps(result, indent=2)
+        if out is not None:
+            try:
+                out.write_text(text + "\n")
+            except OSError as exc:
+                raise ParameterError(f"cannot write --out {out}: {exc}") from None
+        if json_out:
+            typer.echo(text)
+        else:
+            _print(result)
+        if out is not None:
+            typer.echo(f"wrote {out}", err=json_out)
+
+
+def _print(result: dict) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    a, b = result["pair"]
+    con = Console()
+    con.print(f"{a} against {b} at {result['output_speed_deg_s']:g} deg/s, {result['load_Nm']:g} N m: "
+              f"{result['n_windows']} windows of {result['window']} points, median ||s_{a} - s_{b}|| / ||s_{a}|| "
+              f"= {result['distance_over_rms']:.4g}; the bound is the best accuracy any classifier can reach in "
+              f"telling the two apart (chance 50 %)")
+    t = Table(title=f"separability bound {a}/{b}")
+    t.add_column("SNR (dB)", justify="right")
+    t.add_column("accuracy bound", justify="right")
+    for s, v in zip(result["snr_db"], result["accuracy_bound"]):
+        t.add_row(f"{s:g}", f"{100 * v:.2f} %")
+    con.print(t)
