@@ -32,6 +32,14 @@ K1 = E * ZP / RP
 UNMODIFIED = P0.replace(stage2={"equidistant_modification": 0.0, "offset_modification": 0.0})
 
 
+@pytest.fixture(autouse=True, scope="module")
+def _kernels_loaded_callees_first():
+    """The tests below call kernels directly; load them the way a simulation does first (callees first,
+    :func:`rvdiag.dynamics.model.load_kernels`), so that the simulations of later test files in the same process
+    keep their bits (the golden-file tests)."""
+    mdl.load_kernels(prepare(P0, output_speed_deg_s=45.0))
+
+
 def _pin_centre_locus(pin_circle_radius: float, points: int = 400_000) -> np.ndarray:
     """The path of a pin's centre relative to the disc (disc frame), over Zc turns of the eccentric: the disc
     rolls inside the pin ring, turning by -b / Zc when the eccentric turns by b."""

@@ -123,23 +123,25 @@ def _linearisation_load(profile: SpeedProfile, load: LoadProfile, T0: float, Ome
                         duration_s: float | None) -> float:
     """The load at which the pin stiffness is linearised: ``T0``, or with a gravity arm the mean of
     ``|T_L(t)|`` over the record (``duration_s``, else one output revolution)."""
+    return float(np.mean(np.abs(_load_over_record(profile, load, T0, Omega, duration_s))))
+
+
+def _load_over_record(profile: SpeedProfile, load: LoadProfile, T0: float, Omega: float,
+                      duration_s: float | None) -> np.ndarray:
+    """The load torque at 512 instants of the record (``duration_s``, else one output revolution); ``[T0]``
+    without a gravity arm."""
     if not load.has_arm:
-        return T0
+        return np.array([T0])
     span = duration_s if duration_s else 2.0 * math.pi / Omega
     t = np.linspace(0.0, span, 512)
     th, _, dw = profile.state(t, Omega, duration_s)
-    return float(np.mean(np.abs(load.torque(T0, th, dw))))
+    return load.torque(T0, th, dw)
 
 
 def _mean_load(profile: SpeedProfile, load: LoadProfile, T0: float, Omega: float, duration_s: float | None) -> float:
     """The signed mean load torque over the record (``T0`` without a gravity arm): its sign says which half of
     the pins carries the load."""
-    if not load.has_arm:
-        return T0
-    span = duration_s if duration_s else 2.0 * math.pi / Omega
-    t = np.linspace(0.0, span, 512)
-    th, _, dw = profile.state(t, Omega, duration_s)
-    return float(np.mean(load.torque(T0, th, dw)))
+    return float(np.mean(_load_over_record(profile, load, T0, Omega, duration_s)))
 
 
 def _pack_profile_modification(P: np.ndarray, s2, mean_load_Nm: float) -> None:
