@@ -12,6 +12,7 @@ with a broken tooth: RMS ratio 0.6-1.0); half broken RMS <= 1.5x; 20 um wear <= 
 healthy mesh-force factor <= 1.15.
 
     .venv/bin/python bench/plausibility.py [--speeds 30,45,60] [--loads 0.4,1.0,1.5] [--duration 1.0] [--json]
+        [--modification EQ,OFF] [--pin-errors RADIUS,POSITION]    (um; e.g. --modification 0,0: conjugate discs)
 """
 
 from __future__ import annotations
@@ -58,8 +59,19 @@ def main() -> None:
     ap.add_argument("--loads", default="0.4,1.0,1.5", help="fractions of the rated torque")
     ap.add_argument("--duration", type=float, default=1.0)
     ap.add_argument("--json", action="store_true")
+    ap.add_argument("--modification", default=None, metavar="EQ,OFF",
+                    help="the discs' equidistant and offset profile modifications in um (default: the parameter "
+                         "set's, +4,-3; 0,0 for conjugate discs)")
+    ap.add_argument("--pin-errors", default=None, metavar="RADIUS,POSITION",
+                    help="the pins' radius and position tolerances in um (default: the parameter set's, off)")
     a = ap.parse_args()
     params = ReducerParams.default()
+    if a.modification is not None:
+        eq, off = (float(v) * 1e-6 for v in a.modification.split(","))
+        params = params.replace(stage2={"equidistant_modification": eq, "offset_modification": off})
+    if a.pin_errors is not None:
+        rad, pos = (float(v) * 1e-6 for v in a.pin_errors.split(","))
+        params = params.replace(manufacturing={"pin_radius": rad, "pin_position": pos})
     rated = params.operation.rated_torque
     rows = []
     for sp in [float(s) for s in a.speeds.split(",")]:

@@ -199,6 +199,8 @@ def test_gears_tvms_is_the_default_mesh_and_broken_tooth_zeroes_it():
 
 
 def test_settings_validation():
+    from rvdiag.gears.cycloid import closing_offset
+
     with pytest.raises(ParameterError):
         ModelSettings(substeps=0)
     with pytest.raises(ParameterError):
@@ -207,9 +209,8 @@ def test_settings_validation():
         prepare(P0, input_speed_rpm=-5.0)
     with pytest.raises(ParameterError):
         prepare(P0, input_speed_rpm=100.0, output_speed_deg_s=30.0)
-    modified = P0.replace(stage2={"equidistant_modification": 1e-5})
-    with pytest.raises(ParameterError, match="unmodified"):
-        prepare(modified, input_speed_rpm=100.0)
+    with pytest.raises(ParameterError, match="radial clearance"):
+        closing_offset(0.82, 1e-6, 3e-6)
 
 
 def test_pin_stiffness_is_gears_hertz_contact_linearised_at_the_load():

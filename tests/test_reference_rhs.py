@@ -74,13 +74,14 @@ def test_reference_rhs_equals_compiled_rhs_other_settings():
 
 def test_random_states_open_and_close_pin_contacts():
     """The random states of the comparison switch pin contacts (so a wrong contact condition or a
-    wrong damper gate would show), and the loaded static state has about half the pins in contact."""
+    wrong damper gate would show), and the loaded static state has 5-8 of the 40 pins per disc in contact (the
+    discs' profile modification; half of them on conjugate discs)."""
     m = prepare(P0, output_speed_deg_s=45.0, load_Nm=100.0)
     q0 = static_equilibrium(m, 0.0)
     g = ReferenceRHS(m)
     closed0 = g.pin_deflections(0.0, q0) > 0.0
     assert closed0.shape == (2, 40)
-    assert 10 <= closed0.sum(axis=1).min() and closed0.sum(axis=1).max() <= 30
+    assert 5 <= closed0.sum(axis=1).min() and closed0.sum(axis=1).max() <= 8
     rng = np.random.default_rng(1)
     changed = 0
     for _ in range(8):

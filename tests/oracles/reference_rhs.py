@@ -26,7 +26,8 @@ Manufacturing errors (``model.extra["manufacturing"]``, the drawn deviations of
 takes ``e_i sin(beta_0 + phi_i + alpha)`` off its mesh approach and ``e_i cos(beta_0 + phi_i + alpha) beta_0'``
 off its rate; a crank hole's error eps_i shifts the crank-carrier bearing's seat; a crank's eccentric angle error
 adds to its rotation in the crank-cycloid bearings; a pin's radius error rho_k and groove error v_k (fixed frame)
-compress its contacts by ``rho_k - v_k . n`` (the pins stand still: no rate).
+compress its contacts by ``rho_k - v_k . n`` (the pins stand still: no rate); a modified disc profile stands each pin
+off by its initial clearance (:meth:`ReferenceRHS._clearance`; its rate is left out, as in the kernels).
 """
 
 from __future__ import annotations
@@ -347,6 +348,17 @@ class ReferenceRHS:
         L = np.hypot(px, py)
         return px / L, py / L, e * Zc * py / L
 
+    def _clearance(self, B: np.ndarray) -> np.ndarray:
+        """The discs' profile modification (docs/model.md section 3), shape (D, Zp): Delta = dr_rp - dr_p (1 - K1
+        cos eta) / S - c sin(eta) / S with S = sqrt(1 + K1^2 - 2 K1 cos eta), c the packed closing rotation."""
+        P = self.P
+        if P[mdl.I_PINMOD] == 0.0:
+            return np.zeros((len(B), self.gamma.size))
+        k1 = P[mdl.I_E] * P[mdl.I_ZP] / P[mdl.I_RP]
+        eta = self.gamma[None, :] - B[:, None]
+        S = np.sqrt(1.0 + k1 * k1 - 2.0 * k1 * np.cos(eta))
+        return P[mdl.I_DRRP] - (P[mdl.I_DRP] * (1.0 - k1 * np.cos(eta)) + P[mdl.I_CLOSE] * np.sin(eta)) / S
+
     def _pin_deflections(self, B, cb, sb, cB, sB, q, v):
         P = self.P
         nx, ny, lk = self._pin_geometry(B)
@@ -364,7 +376,7 @@ class ReferenceRHS:
         vx, vy = self.pin_v
         px = cB[:, None] * vx[None, :] + sB[:, None] * vy[None, :]
         py = -sB[:, None] * vx[None, :] + cB[:, None] * vy[None, :]
-        off = self.pin_rho[None, :] - (px * nx + py * ny)
+        off = self.pin_rho[None, :] - (px * nx + py * ny) - self._clearance(B)
         return nx, ny, lk, ux * nx + uy * ny + th * lk + off, wx * nx + wy * ny + om * lk
 
     def pin_deflections(self, t: float, q: np.ndarray) -> np.ndarray:

@@ -29,9 +29,10 @@ from rvdiag.params import ReducerParams
 #: The revision of the simulated physics: the date of the last deliberate change to what a simulation returns for
 #: the same parameters (bumped with it; 2026-11-25: extended tooth contact, run-in wear, speed profiles; 2026-11-26:
 #: the manufacturing errors of ``[manufacturing]``, on by default; 2026-11-27: the load DOF, which a gravity arm's
-#: inertia M L^2 now brings along, so a library with an arm, as configs/mcsa.toml, simulates other samples).
+#: inertia M L^2 now brings along, so a library with an arm, as configs/mcsa.toml, simulates other samples;
+#: 2026-11-28: the cycloid discs' equidistant and offset profile modifications, on by default).
 #: Library stores record it in their hashed config, so a build never resumes a store simulated by other physics.
-PHYSICS_REVISION = "2026-11-27"
+PHYSICS_REVISION = "2026-11-28"
 
 #: what :func:`simulate` can record
 SIGNALS = ("vibration", "current", "both")

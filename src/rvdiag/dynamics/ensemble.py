@@ -76,7 +76,7 @@ def _group_key(req: IntegrationRequest) -> tuple:
 def _work_shapes(m: mdl.Model) -> list[tuple[int, ...]]:
     """Shapes of the integrator's slot and work arrays, in :func:`rvdiag.dynamics.integrate.integrate`'s order
     (18 for either method)."""
-    geo, rot, mt = (m.n_discs, 3, m.cosk.size), (m.n_discs, 4), mdl.mesh_array(m).shape
+    geo, rot, mt = (m.n_discs, kn.GEO_ROWS, m.cosk.size), (m.n_discs, 4), mdl.mesh_array(m).shape
     if m.settings.method == "rk38":
         slots = [geo, rot, mt] * 4
         work = [(m.n_dof,)] + [(m.n_state,)] * 5  # Q, k1..k4, ytmp

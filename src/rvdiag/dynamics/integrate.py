@@ -483,7 +483,7 @@ def integrate(
         raise SimulationError(f"initial state must have {n_state} entries, got {y.shape}")
     nd, nz = model.n_discs, model.cosk.size
     rk38 = st.method == "rk38"
-    geo = [np.zeros((nd, 3, nz)) for _ in range(4 if rk38 else 5)]
+    geo = [np.zeros((nd, kn.GEO_ROWS, nz)) for _ in range(4 if rk38 else 5)]
     rot = [np.zeros((nd, 4)) for _ in range(4 if rk38 else 5)]
     mts = [mdl.mesh_array(model) for _ in range(4 if rk38 else 3)]
     work = [np.zeros(n)] + [np.zeros(n_state) for _ in range(5 if rk38 else 4)]  # Q, k1..k3 (k4), ytmp

@@ -75,6 +75,10 @@ P_FIELDS = (
     # the load DOF th_L (docs/model.md sections 1, 3): LOAD 1.0 when the output drives a load inertia J_L through
     # the output coupling k_out (the last coordinate, after the motor rotor's); KOUT, COUT its spring and damper
     "LOAD", "KOUT", "COUT",
+    # the cycloid discs' profile modification (docs/model.md section 3; rvdiag.gears.cycloid.modification_clearance):
+    # PINMOD 1.0 when modified; DRRP, DRP the equidistant and offset modifications; CLOSE the disc rotation that
+    # takes up the clearance on the loaded half, as a normal displacement at unit arm (m)
+    "PINMOD", "DRRP", "DRP", "CLOSE",
     # the servo motor's electrical side (rvdiag.dynamics.motor_kernel; docs/model.md section 10), last
     *MOTOR_P_FIELDS,
 )
@@ -88,6 +92,10 @@ INDEX_CONSTANTS = {f"I_{name}": i for name, i in P_INDEX.items()}
 globals().update(INDEX_CONSTANTS)
 
 TWO_PI = 2.0 * math.pi
+
+#: rows of the pin geometry ``geo[g, :, k]``: the contact normal (2), the lever arm about the disc centre, and the
+#: modified profile's initial clearance (:func:`pin_geometry_cs`)
+GEO_ROWS = 4
 
 #: LLVM fast-math flags of the compiled kernels: reassociation (vectorised reductions), fused
 #: multiply-add contraction and signed-zero freedom only.  No ``nnan``/``ninf``: the integrator's
@@ -167,7 +175,8 @@ def pin_geometry(t, P, cosk, sink, geo, rot):
 
     ``geo[g, 0, k], geo[g, 1, k]`` is the unit normal from the pitch point C to pin k and
     ``geo[g, 2, k] = e Zc n_y`` the lever arm about the disc centre (struct-of-arrays so the contact
-    loop vectorises); ``rot[j] = (cos b, sin b, cos B, sin B)``, ``b`` the eccentric angle of disc j in
+    loop vectorises); ``geo[g, 3, k]`` the initial clearance of a modified profile (written only when
+    ``P[I_PINMOD]`` is set; :func:`rvdiag.gears.cycloid.modification_clearance`); ``rot[j] = (cos b, sin b, cos B, sin B)``, ``b`` the eccentric angle of disc j in
     the carrier frame and ``B = b + Omega t`` in the fixed frame.  The pin angles relative to the
     eccentric are ``eta_k = eta_0 + 2 pi k / Zp``: one sin/cos per disc, the rest by angle addition
     with the precomputed ``cosk, sink`` (measured: the same output as per-pin sin/cos, ~10x cheaper; bench/HISTORY.md).  When the discs' phase is a whole
@@ -221,6 +230,7 @@ def pin_geometry_cs(cb0, sb0, cw, sw, P, cosk, sink, geo, rot):
     Rp = P[I_RP]
     eZp = e * Zp
     eZc = e * Zc
+    K1 = eZp / Rp
     nz = cosk.size
     frame_rotations(cb0, sb0, cw, sw, P, rot)
     ng = 1 if P[I_GSHARED] != 0.0 else rot.shape[0]
@@ -235,6 +245,18 @@ def pin_geometry_cs(cb0, sb0, cw, sw, P, cosk, sink, geo, rot):
             geo[j, 0, k] = dx * inv
             geo[j, 1, k] = dy * inv
             geo[j, 2, k] = eZc * dy * inv
+    if P[I_PINMOD] != 0.0:  # the modified profile's clearance (rvdiag.gears.cycloid.modification_clearance)
+        drrp = P[I_DRRP]
+        drp = P[I_DRP]
+        close = P[I_CLOSE]
+        for j in range(ng):
+            c0 = rot[j, 2]
+            s0 = -rot[j, 3]
+            for k in range(nz):
+                ce = c0 * cosk[k] - s0 * sink[k]
+                se = s0 * cosk[k] + c0 * sink[k]
+                inv_s = 1.0 / math.sqrt(1.0 + K1 * K1 - 2.0 * K1 * ce)
+                geo[j, 3, k] = drrp - (drp * (1.0 - K1 * ce) + close * se) * inv_s
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
@@ -255,8 +277,9 @@ def interpolate_geometry(g0, gm, g1, s, P, out):
     c1 = 2.0 * s * (s - 0.5)
     ng = 1 if P[I_GSHARED] != 0.0 else g0.shape[0]
     nz = g0.shape[2]
+    nr = 4 if P[I_PINMOD] != 0.0 else 3  # the clearance row only where the profile is modified
     for j in range(ng):
-        for r in range(3):
+        for r in range(nr):
             for k in range(nz):
                 out[j, r, k] = c0 * g0[j, r, k] + cm * gm[j, r, k] + c1 * g1[j, r, k]
 
@@ -330,9 +353,10 @@ def _mesh_interpolate(x0, erate, N, P, tvms, mt):
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
-def _pin_sums(geo, g, ux, uy, th, wx, wy, om, kp, cp, dlim, flo):
+def _pin_sums(geo, g, ux, uy, th, wx, wy, om, kp, cp, dlim, flo, clear):
     """Sums of F n_x, F n_y and F l over the pins of one disc, F = max(k d + c d', flo) where d > dlim,
-    else 0.
+    else 0; with ``clear`` (a constant at each call) the approach d is less the modified profile's clearance
+    ``geo[g, 3, k]``.
 
     ``geo[g, 0..2, k]`` is pin k's normal and lever arm (:func:`pin_geometry`); ``dlim`` and ``flo`` are 0
     for compression-only contacts whose damper never pulls (Modelica ElastoBacklash: the contact force is
@@ -346,6 +370,8 @@ def _pin_sums(geo, g, ux, uy, th, wx, wy, om, kp, cp, dlim, flo):
         ny = geo[g, 1, k]
         lk = geo[g, 2, k]
         d = ux * nx + uy * ny + th * lk
+        if clear:
+            d -= geo[g, 3, k]
         f = max(kp * d + cp * (wx * nx + wy * ny + om * lk), flo)
         f = f if d > dlim else 0.0
         sx += f * nx
@@ -355,7 +381,7 @@ def _pin_sums(geo, g, ux, uy, th, wx, wy, om, kp, cp, dlim, flo):
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
-def _pin_sums_pair(geo, ux, uy, th, wx, wy, om, vx, vy, ph, zx, zy, ps, kp, cp, dlim, flo):
+def _pin_sums_pair(geo, ux, uy, th, wx, wy, om, vx, vy, ph, zx, zy, ps, kp, cp, dlim, flo, clear):
     """:func:`_pin_sums` for two discs that share pin geometry 0, in one fused pass (one load of the
     geometry for both discs)."""
     s0x = s0y = s0m = s1x = s1y = s1m = 0.0
@@ -364,9 +390,12 @@ def _pin_sums_pair(geo, ux, uy, th, wx, wy, om, vx, vy, ph, zx, zy, ps, kp, cp, 
         ny = geo[0, 1, k]
         lk = geo[0, 2, k]
         d = ux * nx + uy * ny + th * lk
+        d2 = vx * nx + vy * ny + ph * lk
+        if clear:
+            d -= geo[0, 3, k]
+            d2 -= geo[0, 3, k]
         f = max(kp * d + cp * (wx * nx + wy * ny + om * lk), flo)
         f = f if d > dlim else 0.0
-        d2 = vx * nx + vy * ny + ph * lk
         f2 = max(kp * d2 + cp * (zx * nx + zy * ny + ps * lk), flo)
         f2 = f2 if d2 > dlim else 0.0
         s0x += f * nx
@@ -383,7 +412,8 @@ def _pin_sums_err(geo, g, ux, uy, th, wx, wy, om, kp, cp, dlim, flo, P, pb, nz, 
     """:func:`_pin_sums` with the pins' manufacturing errors (:mod:`rvdiag.dynamics.manufacturing`; Blanche & Yang
     1989): geometry index k is pin ``m = k + h``, whose radius error ``rho_m`` and groove position error ``v_m``
     (fixed frame) compress the contact by ``rho_m - (R(-B) v_m) . n_k`` more (``cB, sB`` the cosine and sine of the
-    disc's eccentric angle B in the fixed frame).  ``P[pb:]`` holds ``rho``, ``v_x``, ``v_y``, each twice over
+    disc's eccentric angle B in the fixed frame), and less the modified profile's clearance ``geo[g, 3, k]`` (0 for
+    unmodified discs).  ``P[pb:]`` holds ``rho``, ``v_x``, ``v_y``, each twice over
     (``2 Zp`` values), so ``k + h`` needs no wrap.  The pins stand still, so the rate is unchanged."""
     sx = sy = sm = 0.0
     bx = pb + 2 * nz
@@ -396,7 +426,7 @@ def _pin_sums_err(geo, g, ux, uy, th, wx, wy, om, kp, cp, dlim, flo, P, pb, nz, 
         vx = P[bx + m]
         vy = P[by + m]
         o = P[pb + m] - ((cB * vx + sB * vy) * nx + (cB * vy - sB * vx) * ny)
-        d = ux * nx + uy * ny + th * lk + o
+        d = ux * nx + uy * ny + th * lk + o - geo[g, 3, k]
         f = max(kp * d + cp * (wx * nx + wy * ny + om * lk), flo)
         f = f if d > dlim else 0.0
         sx += f * nx
@@ -410,7 +440,7 @@ def generalized_forces(y, P, planet, mt, geo, rot, Q):
     """Generalized forces Q(t, q, v) of all springs, contacts, dampers and the external torques
     (:func:`_generalized_forces`): a model without manufacturing errors runs a copy compiled without their terms,
     so that its arithmetic, and its output to the last bit, is that of the model before them."""
-    if P[I_MFG] != 0.0 or P[I_PINERR] != 0.0:
+    if P[I_MFG] != 0.0 or P[I_PINERR] != 0.0 or P[I_PINMOD] != 0.0:
         _generalized_forces(y, P, planet, mt, geo, rot, Q, True)
     else:
         _generalized_forces(y, P, planet, mt, geo, rot, Q, False)
@@ -629,6 +659,7 @@ def _generalized_forces(y, P, planet, mt, geo, rot, Q, errors):
     vR1 = y[n + iR + 1]
     vR2 = y[n + iR + 2]
     pb = (int(P[I_PINERR]) & 1048575) if errors else 0  # the pins' errors in P from here (0: none)
+    clear = errors and P[I_PINMOD] != 0.0  # the discs' profile modification: each pin's initial clearance
     nz = geo.shape[2] & 65535
     jd = 0
     while jd < D:
@@ -644,7 +675,7 @@ def _generalized_forces(y, P, planet, mt, geo, rot, Q, errors):
                                               rot[jd + 1, 2], rot[jd + 1, 3])
             else:
                 s0x, s0y, s0m, s1x, s1y, s1m = _pin_sums_pair(
-                    geo, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, kp, cp, dlim, dlim)
+                    geo, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, kp, cp, dlim, dlim, clear)
             r0, r1, r2 = _apply_pin_sums(jd, s0x, s0y, s0m, iD0, rr, rot, Q)
             R0 += r0
             R1 += r1
@@ -658,7 +689,7 @@ def _generalized_forces(y, P, planet, mt, geo, rot, Q, errors):
             r0, r1, r2 = _apply_pin_sums(jd, sx, sy, sm, iD0, rr, rot, Q)
             jd += 1
         else:
-            sx, sy, sm = _pin_sums(geo, 0 if gsh else jd, a0, a1, a2, a3, a4, a5, kp, cp, dlim, dlim)
+            sx, sy, sm = _pin_sums(geo, 0 if gsh else jd, a0, a1, a2, a3, a4, a5, kp, cp, dlim, dlim, clear)
             r0, r1, r2 = _apply_pin_sums(jd, sx, sy, sm, iD0, rr, rot, Q)
             jd += 1
         R0 += r0

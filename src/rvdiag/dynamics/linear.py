@@ -17,6 +17,7 @@ import scipy.linalg
 
 from rvdiag.dynamics import model as mdl
 from rvdiag.errors import SimulationError
+from rvdiag.gears.cycloid import modification_clearance
 
 
 def _residual(model: mdl.Model, t: float, q: np.ndarray) -> np.ndarray:
@@ -200,6 +201,11 @@ def potential_energy(model: mdl.Model, t: float, q: np.ndarray) -> float:
         cross_r = C[0] * n[:, 1] - C[1] * n[:, 0]
         delta = (n @ (q[dd:dd + 2] - ur) + q[dd + 2] * cross_d - q[R + 2] * cross_r
                  + rho - np.sum(n * vpin, axis=1))
+        if P[mdl.I_PINMOD] != 0:  # the modified profile's initial clearance at each pin's phase eta
+            cos_eta = pins @ ehat / Rp
+            sin_eta = (ehat[0] * pins[:, 1] - ehat[1] * pins[:, 0]) / Rp
+            delta -= modification_clearance(cos_eta, sin_eta, e * Zp / Rp, P[mdl.I_DRRP], P[mdl.I_DRP],
+                                            P[mdl.I_CLOSE])
         if bil == 0:
             delta = np.maximum(delta, 0.0)
         V += 0.5 * P[mdl.I_KPIN] * np.sum(delta**2)

@@ -26,7 +26,7 @@ kernels' arrays (docs/model.md section 3, "Manufacturing errors").  The sun's pi
   1989, J. Mech. Transm. Autom. Des. 111(3), 337-344): pin k has its radius off by ``rho_k`` and its groove's
   centre off by ``v_k = R_k e_r(gamma_k) + T_k e_t(gamma_k)`` (fixed frame, ``gamma_k = 2 pi k / Zp``); the contact
   of disc j with pin k is compressed by ``rho_k - v_k . n_jk`` more.  The means of ``rho`` and ``R`` (a pin-circle
-  radius error, i.e. the stage's clearance, which the model's unmodified profiles leave out) and of ``T`` (a
+  radius error, i.e. the stage's clearance, which the discs' profile modification sets) and of ``T`` (a
   rotation of the pin ring) are taken out.
 
 Every deviation is drawn uniformly within +- half its tolerance (the convention of the sun's pitch deviations,

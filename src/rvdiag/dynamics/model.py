@@ -28,7 +28,7 @@ import numpy as np
 
 from rvdiag.dynamics import kernels as kn
 from rvdiag.dynamics.kernels import (  # noqa: F401 (re-exported)
-    FASTMATH, N_P, P_FIELDS, P_INDEX, TWO_PI, accelerations, eval_time, frame_angles, frame_rotations,
+    FASTMATH, GEO_ROWS, N_P, P_FIELDS, P_INDEX, TWO_PI, accelerations, eval_time, frame_angles, frame_rotations,
     generalized_forces, interpolate_geometry, mesh_terms, pin_geometry, pin_geometry_cs, rhs, rhs_with_terms)
 from rvdiag.dynamics.layout import dof_layout, dof_names
 from rvdiag.dynamics.mesh import MeshTable
@@ -251,7 +251,7 @@ def load_kernels(model: Model) -> None:
 
 def work_arrays(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Fresh (geo, rot, Q) work arrays for :func:`rhs`; ``Q`` holds the n generalized forces."""
-    return (np.zeros((model.n_discs, 3, model.cosk.size)), np.zeros((model.n_discs, 4)),
+    return (np.zeros((model.n_discs, GEO_ROWS, model.cosk.size)), np.zeros((model.n_discs, 4)),
             np.zeros(model.n_dof))
 
 

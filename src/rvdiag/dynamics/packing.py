@@ -123,12 +123,42 @@ def _linearisation_load(profile: SpeedProfile, load: LoadProfile, T0: float, Ome
                         duration_s: float | None) -> float:
     """The load at which the pin stiffness is linearised: ``T0``, or with a gravity arm the mean of
     ``|T_L(t)|`` over the record (``duration_s``, else one output revolution)."""
+    return float(np.mean(np.abs(_load_over_record(profile, load, T0, Omega, duration_s))))
+
+
+def _load_over_record(profile: SpeedProfile, load: LoadProfile, T0: float, Omega: float,
+                      duration_s: float | None) -> np.ndarray:
+    """The load torque at 512 instants of the record (``duration_s``, else one output revolution); ``[T0]``
+    without a gravity arm."""
     if not load.has_arm:
-        return T0
+        return np.array([T0])
     span = duration_s if duration_s else 2.0 * math.pi / Omega
     t = np.linspace(0.0, span, 512)
     th, _, dw = profile.state(t, Omega, duration_s)
-    return float(np.mean(np.abs(load.torque(T0, th, dw))))
+    return load.torque(T0, th, dw)
+
+
+def _mean_load(profile: SpeedProfile, load: LoadProfile, T0: float, Omega: float, duration_s: float | None) -> float:
+    """The signed mean load torque over the record (``T0`` without a gravity arm): its sign says which half of
+    the pins carries the load."""
+    return float(np.mean(_load_over_record(profile, load, T0, Omega, duration_s)))
+
+
+def _pack_profile_modification(P: np.ndarray, s2, mean_load_Nm: float) -> None:
+    """The cycloid discs' equidistant and offset profile modifications (docs/model.md section 3): each pin's
+    initial clearance ``geo[g, 3, k]`` (:func:`rvdiag.dynamics.kernels.pin_geometry_cs`), with the disc's rotation
+    that takes it up on the half of the pins the mean load presses (``sense``: the arm ``l_k`` of those pins is
+    negative under a positive output torque)."""
+    from rvdiag.gears.cycloid import closing_offset
+
+    drrp, drp = s2.equidistant_modification, s2.offset_modification
+    if drrp == 0.0 and drp == 0.0:
+        return
+    k1 = s2.eccentricity * s2.pins / s2.pin_circle_radius
+    sense = -1 if mean_load_Nm >= 0.0 else 1
+    P[kn.I_PINMOD] = 1.0
+    P[kn.I_DRRP], P[kn.I_DRP] = drrp, drp
+    P[kn.I_CLOSE] = closing_offset(k1, drrp, drp, sense)
 
 
 def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: float, load_Nm: float,
@@ -137,11 +167,6 @@ def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: floa
     """The keyword arguments of :class:`rvdiag.dynamics.model.Model` (all but ``settings``) at one operating
     point; the arguments are those of :func:`rvdiag.dynamics.model.build_model`, validated here."""
     s1, s2, br, dmp = params.stage1, params.stage2, params.bearings, params.damping
-    if s2.equidistant_modification != 0.0 or s2.offset_modification != 0.0:
-        raise ParameterError(
-            "the dynamic model supports unmodified cycloid profiles only: set "
-            "stage2.equidistant_modification and stage2.offset_modification to 0"
-        )
     if not (math.isfinite(sun_speed_hz) and sun_speed_hz > 0):
         raise ParameterError(f"input speed must be > 0, got {sun_speed_hz} Hz")
     if not math.isfinite(load_Nm):
@@ -287,6 +312,7 @@ def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: floa
     P[kn.I_SENSX], P[kn.I_SENSY] = sp
     P[kn.I_NCH] = len(st.sensor_directions)
     P[kn.I_DISPLIM] = st.max_displacement_m
+    _pack_profile_modification(P, s2, _mean_load(profile, load, load_Nm, Omega, duration_s))
     P[kn.I_ROTLIM] = st.max_rotation_rad
 
     psi = TWO_PI * np.arange(N) / N

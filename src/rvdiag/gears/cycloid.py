@@ -148,3 +148,54 @@ def pin_contact_state(stage2, material, crank_angle_rad: float,
     """
     c = pin_contact(stage2, material, crank_angle_rad, torque_N_m, disc, direction)
     return c.in_contact, c.force_angle_rad, c.stiffness_N_per_m
+
+
+def modification_clearance(cos_eta, sin_eta, k1: float, equidistant: float, offset: float, closing: float):
+    """Initial clearance (m) between a pin and a modified disc flank, along the contact normal through the
+    pitch point, at pin phase ``eta`` (the pin's angle from the crank's eccentricity; ``phi_i`` of the module
+    doc, ``eta_k`` of docs/model.md section 3).
+
+    A disc ground with the pin radius enlarged by ``equidistant`` (Delta r_rp, "equidistant modification")
+    and the pin circle radius changed by ``offset`` (Delta r_p, "offset" or "moving-distance modification")
+    stands off a pin of the nominal geometry by
+
+        Delta(eta) = Delta r_rp - Delta r_p (1 - K1 cos eta) / S - closing sin(eta) / S,
+        S = sqrt(1 + K1^2 - 2 K1 cos eta)
+
+    (the initial clearance of the modified cycloid used throughout the cycloid-drive literature, e.g. Xu & Yang
+    2016, Mech. Mach. Theory 104, "Dynamic modeling and contact analysis of a cycloid-pin gear mechanism"; to
+    first order in the modifications, derived here): the equidistant term is a uniform offset of the flank
+    along its normal; the offset term is the normal component of the generating pin's radial shift (an
+    envelope moves by the normal component of its generator's displacement; ``e_r . n = (1 - K1 cos eta) /
+    S``); ``closing`` is the disc's rigid rotation that
+    takes up the clearance, as a normal displacement at unit arm (``l = e Zc sin(eta) / S``, so a rotation
+    ``b`` gives ``closing = e Zc b``); :func:`closing_offset` chooses it so that the tightest pin of the loaded
+    half just touches.  Works on floats and arrays alike.
+    """
+    s = np.sqrt(1.0 + k1 * k1 - 2.0 * k1 * cos_eta)
+    return equidistant - offset * (1.0 - k1 * cos_eta) / s - closing * sin_eta / s
+
+
+def closing_offset(k1: float, equidistant: float, offset: float, sense: int = 1, points: int = 20000) -> float:
+    """The disc rotation (as ``e Zc b``, m) that closes the modified profile's clearance on the loaded half of
+    the pins, those with ``sense * sin(eta) > 0``: the largest ``c`` with ``Delta(eta; c) >= 0`` there, found
+    on a grid of ``points`` phases (the clearance is smooth; 20,000 points resolve it to < 1e-12 m here).
+
+    For the usual positive equidistant and negative offset modification this is ``sense (Delta r_rp - Delta r_p
+    sqrt(1 - K1^2))``, the pin at ``cos eta = K1`` touching (tests/test_cycloid_modification.py).  Raises
+    :class:`~rvdiag.errors.ParameterError` when the flank interferes with the pins where no rotation can free
+    it (a negative radial clearance ``Delta r_rp - Delta r_p`` at the tooth tip and root).
+    """
+    if sense not in (1, -1):
+        raise ParameterError(f"sense must be 1 or -1, got {sense!r}")
+    if equidistant - offset < 0.0:
+        raise ParameterError(
+            f"cycloid profile modification: the radial clearance equidistant - offset = "
+            f"{(equidistant - offset) * 1e6:.2f} um is negative (the disc would interfere with the pins)")
+    if equidistant == 0.0 and offset == 0.0:
+        return 0.0
+    eta = np.linspace(0.0, 2.0 * math.pi, points, endpoint=False)
+    arm = sense * np.sin(eta) / np.sqrt(1.0 + k1 * k1 - 2.0 * k1 * np.cos(eta))
+    raw = modification_clearance(np.cos(eta), np.sin(eta), k1, equidistant, offset, 0.0)
+    loaded = arm > 1e-3
+    return float(sense * np.min(raw[loaded] / arm[loaded]))
