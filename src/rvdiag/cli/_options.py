@@ -154,6 +154,21 @@ def option_names(names: dict[str, str]) -> Iterator[None]:
 
 #: ``typer.Option`` arguments of the pitting and spalling severities (``rvdiag tvms``, ``rvdiag simulate``), by the
 #: keyword of :func:`fault_severities`.
+#: the tooth faults' severity options: parameter name -> (option, help)
+TOOTH_FAULT_OPTIONS: dict[str, tuple[str, str]] = {
+    "wear_depth_mm": ("--wear-depth", "Maximum wear depth (mm)."),
+    "crack_depth_mm": ("--crack-depth", "Crack depth (mm)."),
+    "crack_angle": ("--crack-angle", "Crack angle from the tooth centreline (deg)."),
+    "broken_fraction": ("--broken-fraction", "Lost fraction of the tooth height, (0, 1]."),
+}
+
+
+def tooth_fault(key: str) -> Any:
+    """The option of one wear, crack or breakage severity (:data:`TOOTH_FAULT_OPTIONS`)."""
+    name, help = TOOTH_FAULT_OPTIONS[key]
+    return typer.Option(None, name, help=help)
+
+
 SURFACE_FAULT_OPTIONS: dict[str, tuple[str, str]] = {
     "pit_area_fraction": ("--pit-area-fraction", "Pitted fraction of the pitting band, [0, 0.785) (pitting)."),
     "pit_radius_mm": ("--pit-radius", "Pit radius (mm) (pitting)."),
@@ -208,3 +223,16 @@ def fault_severities(
         ("spall_depth", mm_to_m("spall-depth", spall_depth_mm)),
     )
     return {key: value for key, value in values if value is not None}
+
+
+def save_plot(fig: Any, path: Any, dpi: int = 120) -> None:
+    """Write a matplotlib figure for a ``--plot PATH`` option and close it; an unwritable path is one
+    :class:`ParameterError` line."""
+    import matplotlib.pyplot as plt
+
+    try:
+        fig.savefig(path, dpi=dpi)
+    except OSError as exc:
+        raise ParameterError(f"cannot write --plot {path}: {exc}") from None
+    finally:
+        plt.close(fig)

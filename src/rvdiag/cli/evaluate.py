@@ -100,17 +100,9 @@ def read_bound(path: Path) -> dict:
 
 
 def _write_plot(path: Path, curve: list[dict], bounds: list[dict], title: str) -> None:
-    import matplotlib.pyplot as plt
-
     from rvdiag.evaluation.plots import plot_snr_curve
 
-    fig = plot_snr_curve(curve, bounds, title=title)
-    try:
-        fig.savefig(path, dpi=120)
-    except OSError as exc:
-        raise ParameterError(f"cannot write --plot {path}: {exc}") from None
-    finally:
-        plt.close(fig)
+    opt.save_plot(plot_snr_curve(curve, bounds, title=title), path)
 
 
 def _print(ev, loaded, data) -> None:

@@ -116,8 +116,7 @@ def _plot(res, path: Path, title: str, top: float) -> None:
     axes[2].set_title(f"TSA over {res['n_revolutions']} revolutions")
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    opt.save_plot(fig, path, dpi=110)
 
 
 def register(app: typer.Typer) -> None:

@@ -64,10 +64,10 @@ def register(app: typer.Typer) -> None:
     @app.command("simulate")
     def simulate_cmd(
         state: str = typer.Option("T1", "--state", help=f"Fault state: {states_help}."),
-        wear_depth_mm: Optional[float] = typer.Option(None, "--wear-depth", help="Maximum wear depth (mm)."),
-        crack_depth_mm: Optional[float] = typer.Option(None, "--crack-depth", help="Crack depth (mm)."),
-        crack_angle: Optional[float] = typer.Option(None, "--crack-angle", help="Crack angle from the tooth centreline (deg)."),
-        broken_fraction: Optional[float] = typer.Option(None, "--broken-fraction", help="Lost fraction of the tooth height, (0, 1]."),
+        wear_depth_mm: Optional[float] = opt.tooth_fault("wear_depth_mm"),
+        crack_depth_mm: Optional[float] = opt.tooth_fault("crack_depth_mm"),
+        crack_angle: Optional[float] = opt.tooth_fault("crack_angle"),
+        broken_fraction: Optional[float] = opt.tooth_fault("broken_fraction"),
         pit_area_fraction: Optional[float] = opt.surface_fault("pit_area_fraction"),
         pit_radius_mm: Optional[float] = opt.surface_fault("pit_radius_mm"),
         pit_depth_mm: Optional[float] = opt.surface_fault("pit_depth_mm"),

@@ -32,10 +32,10 @@ def register(app: typer.Typer) -> None:
         x1: float = typer.Option(0.0, "--x1", help="Profile shift coefficient of the driver (custom pair)."),
         x2: float = typer.Option(0.0, "--x2", help="Profile shift coefficient of the driven gear (custom pair)."),
         fault: str = typer.Option("healthy", "--fault", help=f"{'|'.join(FAULTS)} (or T1..T8)."),
-        wear_depth_mm: Optional[float] = typer.Option(None, "--wear-depth", help="Maximum wear depth (mm)."),
-        crack_depth_mm: Optional[float] = typer.Option(None, "--crack-depth", help="Crack depth (mm)."),
-        crack_angle: Optional[float] = typer.Option(None, "--crack-angle", help="Crack angle from the tooth centreline (deg)."),
-        broken_fraction: Optional[float] = typer.Option(None, "--broken-fraction", help="Lost fraction of the tooth height, (0, 1]."),
+        wear_depth_mm: Optional[float] = opt.tooth_fault("wear_depth_mm"),
+        crack_depth_mm: Optional[float] = opt.tooth_fault("crack_depth_mm"),
+        crack_angle: Optional[float] = opt.tooth_fault("crack_angle"),
+        broken_fraction: Optional[float] = opt.tooth_fault("broken_fraction"),
         pit_area_fraction: Optional[float] = opt.surface_fault("pit_area_fraction"),
         pit_radius_mm: Optional[float] = opt.surface_fault("pit_radius_mm"),
         pit_depth_mm: Optional[float] = opt.surface_fault("pit_depth_mm"),
@@ -92,12 +92,7 @@ def register(app: typer.Typer) -> None:
                          f"eps = {gp.contact_ratio:.3f}")
             ax.legend()
             fig.tight_layout()
-            try:
-                fig.savefig(plot, dpi=120)
-            except OSError as exc:
-                raise ParameterError(f"cannot write --plot {plot}: {exc}") from None
-            finally:
-                plt.close(fig)
+            opt.save_plot(fig, plot)
         if as_json:
             out = res.to_dict()
             typer.echo(json.dumps(out))
