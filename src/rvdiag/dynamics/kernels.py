@@ -245,7 +245,9 @@ def pin_geometry_cs(cb0, sb0, cw, sw, P, cosk, sink, geo, rot):
             geo[j, 0, k] = dx * inv
             geo[j, 1, k] = dy * inv
             geo[j, 2, k] = eZc * dy * inv
-    if P[I_PINMOD] != 0.0:  # the modified profile's clearance (rvdiag.gears.cycloid.modification_clearance)
+    # the modified profile's clearance (rvdiag.gears.cycloid.modification_clearance), in a loop of its own: folded
+    # into the loop above (a branch per pin), the normals of unmodified discs compiled to other last bits (measured)
+    if P[I_PINMOD] != 0.0:
         drrp = P[I_DRRP]
         drp = P[I_DRP]
         close = P[I_CLOSE]
