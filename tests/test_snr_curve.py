@@ -190,6 +190,44 @@ def test_evaluate_table_has_one_recall_column_per_class(model, store, capsys):
     assert "recall of each class (class columns)" in " ".join(table.split())  # the caption may wrap
 
 
+def test_a_level_gets_the_same_noise_whatever_levels_are_asked_with_it(model, store, capsys, monkeypatch):
+    """The noise of a level is seeded by the level itself, not by its place in the list."""
+    import rvdiag.dynamics.noise as noise
+
+    drawn, original = [], noise.add_awgn
+
+    def add_awgn(x, snr, rng):
+        noisy = original(x, snr, rng)
+        drawn.append((snr, noisy - x))  # the noise alone
+        return noisy
+
+    monkeypatch.setattr(noise, "add_awgn", add_awgn)
+    runs = []
+    for levels in ("--snr-db=0,30", "--snr-db=30,-3,0"):
+        drawn.clear()
+        code, out, err = run(["evaluate", model, store, levels, "--json", "-q"], capsys)
+        assert code == 0, err
+        runs.append(dict(drawn))
+    assert set(runs[0]) == {0.0, 30.0} and set(runs[1]) == {30.0, -3.0, 0.0}
+    np.testing.assert_array_equal(runs[0][0.0], runs[1][0.0])
+    np.testing.assert_array_equal(runs[0][30.0], runs[1][30.0])
+    # different levels draw independent noise, not one draw rescaled
+    assert abs(np.corrcoef(runs[1][0.0].ravel(), runs[1][-3.0].ravel())[0, 1]) < 0.05
+
+
+def test_figures_leave_the_users_matplotlib_backend_alone():
+    """Importing the evaluation's figures (and the report, the CLI) must not switch a notebook's backend."""
+    import subprocess
+    import sys
+
+    code = ("import matplotlib; matplotlib.use('svg'); import rvdiag.evaluation.plots as p, rvdiag.evaluation.report, "
+            "rvdiag.updating.plot, rvdiag.cli; fig = p.plot_confusion([[2, 1], [0, 3]], ['T1', 'T2']); "
+            "import io; b = io.BytesIO(); fig.savefig(b, format='png'); assert b.getvalue()[:4] == b'\\x89PNG'; "
+            "print(matplotlib.get_backend())")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "svg"
+
+
 @pytest.mark.parametrize("args, needle", [
     (["evaluate", "{model}", "{store}", "--plot", "{tmp}/p.png"], "--snr-db"),
     (["evaluate", "{model}", "{store}", "--bound", "{tmp}/b.json"], "--snr-db"),

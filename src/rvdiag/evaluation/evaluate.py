@@ -84,11 +84,17 @@ def evaluate_on_store(loaded, store, split: str = "test") -> Evaluation:
     return Evaluation(m, y_true, y_pred, s.X, s.meta, split, warnings)
 
 
+def _level_key(level: float) -> int:
+    """A non-negative integer that names an SNR level exactly (the bits of the float64), for seeding its noise."""
+    return int(np.float64(level).view(np.uint64))
+
+
 def accuracy_against_snr(loaded, ev: Evaluation, snr_db: list[float], seed: int = 0) -> list[dict]:
     """Score the evaluated samples again with white Gaussian noise added at each SNR in ``snr_db``.
 
-    The noise of level ``i`` comes from ``numpy.random.default_rng([seed, i])`` and is scaled per sample
-    to ``snr_db[i]`` below that sample's mean power (:func:`rvdiag.dynamics.noise.add_awgn`).  Added to a
+    The noise of a level comes from ``numpy.random.default_rng([seed, key])``, ``key`` the bits of the level as a
+    float64 (:func:`_level_key`), so one level gets the same noise whatever other levels are asked for with it;
+    it is scaled per sample to that level below that sample's mean power (:func:`rvdiag.dynamics.noise.add_awgn`).  Added to a
     sample that already holds noise at SNR ``s0``, the result has an SNR of
     ``-10 log10(10^(-s/10) + 10^(-s0/10) (1 + 10^(-s/10)))`` against the clean signal, within 0.05 dB of
     ``s`` for ``s <= 20`` dB and ``s0 >= 40`` dB; the store's own SNR column, when present, is reported as
@@ -103,7 +109,8 @@ def accuracy_against_snr(loaded, ev: Evaluation, snr_db: list[float], seed: int 
     labels = [str(c) for c in loaded.card["classes"]]
     out = []
     for i, level in enumerate(snr_db):
-        noisy = add_awgn(ev.X, float(level), np.random.default_rng([int(seed), i])).astype(np.float32)
+        rng = np.random.default_rng([int(seed), _level_key(level)])
+        noisy = add_awgn(ev.X, float(level), rng).astype(np.float32)
         pred = predict_in_chunks(loaded.estimator, loaded.inputs(noisy, ev.meta)).astype(str)
         m = classification_metrics(ev.y_true, pred, labels=labels)
         out.append({"snr_db": float(level), "accuracy": m["accuracy"], "f1_macro": m["f1_macro"],

@@ -1,7 +1,9 @@
 """Figures of an evaluation: confusion matrix, t-SNE map of learned features, waveforms and spectra.
 
-Every function returns a :class:`matplotlib.figure.Figure` (Agg backend, no display needed);
-:func:`figure_to_base64` turns one into the PNG text the HTML report embeds.
+Every function returns a :class:`matplotlib.figure.Figure` built without pyplot: it needs no display, does not
+change the user's matplotlib backend (a notebook keeps its inline one) and is not held by pyplot's figure list, so
+nothing has to close it; ``fig.savefig`` writes it, and :func:`figure_to_base64` turns one into the PNG text the
+HTML report embeds.
 """
 
 from __future__ import annotations
@@ -10,12 +12,10 @@ import base64
 import io
 from typing import Mapping, Sequence
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
+import numpy as np
+from matplotlib import colormaps
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 #: Characteristic frequencies marked on spectra (keys of ``rvdiag freqs --json``) and their labels.
 MARKED_FREQUENCIES = {
@@ -25,10 +25,9 @@ MARKED_FREQUENCIES = {
 
 
 def figure_to_base64(fig: Figure, dpi: int = 90) -> str:
-    """PNG of ``fig`` as base64 text (the figure is closed)."""
+    """PNG of ``fig`` as base64 text."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
-    plt.close(fig)
     return base64.b64encode(buf.getvalue()).decode("ascii")
 
 
@@ -37,7 +36,8 @@ def plot_confusion(confusion: Sequence[Sequence[int]], labels: Sequence[str], ti
     cm = np.asarray(confusion, dtype=float)
     share = cm / np.maximum(cm.sum(axis=1, keepdims=True), 1)
     n = len(labels)
-    fig, ax = plt.subplots(figsize=(1.0 + 0.75 * n, 0.8 + 0.7 * n))
+    fig = Figure(figsize=(1.0 + 0.75 * n, 0.8 + 0.7 * n))
+    ax = fig.subplots()
     ax.imshow(share, cmap="Blues", vmin=0, vmax=1)
     for i in range(n):
         for j in range(n):
@@ -65,10 +65,11 @@ def tsne_embedding(features: np.ndarray, random_state: int = 0) -> np.ndarray:
 def plot_tsne(embedding: np.ndarray, labels: Sequence[str], title: str = "") -> Figure:
     """Scatter of a 2-D embedding coloured by class."""
     labels = np.asarray(labels).astype(str)
-    fig, ax = plt.subplots(figsize=(6.0, 5.0))
+    fig = Figure(figsize=(6.0, 5.0))
+    ax = fig.subplots()
     for i, c in enumerate(sorted(set(labels.tolist()))):
         m = labels == c
-        ax.scatter(embedding[m, 0], embedding[m, 1], s=10, label=c, color=plt.cm.tab10(i % 10), alpha=0.8)
+        ax.scatter(embedding[m, 0], embedding[m, 1], s=10, label=c, color=colormaps["tab10"](i % 10), alpha=0.8)
     ax.legend(markerscale=2, fontsize=8, loc="best")
     ax.set_xticks([])
     ax.set_yticks([])
@@ -81,9 +82,10 @@ def plot_tsne_panels(panels: Sequence[tuple[str, np.ndarray | None, Sequence[str
     """One t-SNE scatter per panel ``(panel title, 2-D embedding or None, labels)``, side by side, one colour per
     class across all panels (``None``: too few points to embed, the panel says so)."""
     classes = sorted({str(c) for _, _, labels in panels for c in labels})
-    colour = {c: plt.cm.tab10(i % 10) for i, c in enumerate(classes)}
+    colour = {c: colormaps["tab10"](i % 10) for i, c in enumerate(classes)}
     n = max(1, len(panels))
-    fig, axes = plt.subplots(1, n, figsize=(4.2 * n, 4.2), squeeze=False)
+    fig = Figure(figsize=(4.2 * n, 4.2))
+    axes = fig.subplots(1, n, squeeze=False)
     for ax, (name, emb, labels) in zip(axes[0], panels):
         labels = np.asarray(labels).astype(str)
         if emb is None:
@@ -97,7 +99,7 @@ def plot_tsne_panels(panels: Sequence[tuple[str, np.ndarray | None, Sequence[str
         ax.set_xticks([])
         ax.set_yticks([])
         ax.set_title(name)
-    handles = [plt.Line2D([], [], ls="", marker="o", color=colour[c], label=c) for c in classes]
+    handles = [Line2D([], [], ls="", marker="o", color=colour[c], label=c) for c in classes]
     if handles:
         fig.legend(handles=handles, loc="lower center", ncol=min(len(handles), 8), fontsize=8, frameon=False)
     fig.suptitle(title or "t-SNE")
@@ -138,8 +140,9 @@ def plot_examples(examples: Mapping[str, np.ndarray], fs: float | None = None,
         low characteristic frequencies and the high-frequency resonances show on one plot.
     """
     states = list(examples)
-    fig, axes = plt.subplots(len(states), 2, figsize=(11, 1.9 * len(states) + 0.9), squeeze=False)
-    colors = [plt.cm.tab10(i) for i in (3, 0, 2, 4, 1, 6, 5, 7, 8)]
+    fig = Figure(figsize=(11, 1.9 * len(states) + 0.9))
+    axes = fig.subplots(len(states), 2, squeeze=False)
+    colors = [colormaps["tab10"](i) for i in (3, 0, 2, 4, 1, 6, 5, 7, 8)]
     handles = []
     for row, state in enumerate(states):
         x = np.asarray(examples[state], dtype=np.float64)
@@ -176,7 +179,8 @@ def plot_examples(examples: Mapping[str, np.ndarray], fs: float | None = None,
 def plot_history(history: Sequence[Mapping]) -> Figure:
     """Training loss and validation accuracy per epoch of a CNN."""
     ep = [h["epoch"] for h in history]
-    fig, ax = plt.subplots(figsize=(6, 3))
+    fig = Figure(figsize=(6, 3))
+    ax = fig.subplots()
     ax.plot(ep, [h["loss"] for h in history], "o-", ms=3, label="training loss")
     if any(h.get("val_loss") is not None for h in history):
         ax.plot(ep, [h["val_loss"] for h in history], "s-", ms=3, label="validation loss")
@@ -220,14 +224,15 @@ def plot_snr_curve(curve: Sequence[Mapping], bounds: Sequence[Mapping] = (), tit
     order: ``1 + n_classes + len(bounds)``."""
     rows = sorted(curve, key=lambda r: r["snr_db"])
     x = [r["snr_db"] for r in rows]
-    fig, ax = plt.subplots(figsize=(8.6, 4.2))
+    fig = Figure(figsize=(8.6, 4.2))
+    ax = fig.subplots()
     ax.plot(x, [100 * r["accuracy"] for r in rows], "k-o", lw=2, label="overall accuracy")
     classes = list(rows[0].get("per_class_recall", {})) if rows else []
     for i, c in enumerate(classes):
         ax.plot(x, [100 * r["per_class_recall"][c] for r in rows], "-", marker=".", lw=1,
-                color=plt.cm.tab10(i % 10), label=f"recall {c}")
+                color=colormaps["tab10"](i % 10), label=f"recall {c}")
     for j, b in enumerate(bounds):
-        ax.plot(b["snr_db"], [100 * v for v in b["accuracy_bound"]], "--", lw=1.8, color=plt.cm.Dark2(j % 8),
+        ax.plot(b["snr_db"], [100 * v for v in b["accuracy_bound"]], "--", lw=1.8, color=colormaps["Dark2"](j % 8),
                 label=bound_label(b))
     ax.set_xlabel("added white-noise SNR (dB)")
     ax.set_ylabel("accuracy / recall (%)")

@@ -12,14 +12,13 @@ from rvdiag.updating.tuner import UpdateResult
 
 def before_after_figure(result: UpdateResult, path: str | Path, title: str = "") -> None:
     """Write a PNG with the feature the objective compares (log spectrum, envelope spectrum or record) of the
-    measured record, the base simulation and the updated simulation, PCCs in the legend."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    measured record, the base simulation and the updated simulation, PCCs in the legend.  The figure is built
+    without pyplot, so the caller's matplotlib backend is left as it is."""
+    from matplotlib.figure import Figure
 
     obj = Objective(result.objective, result.measured, result.fs, result.signal_after.size)
-    fig, ax = plt.subplots(figsize=(9, 4.5), layout="constrained")
+    fig = Figure(figsize=(9, 4.5), layout="constrained")
+    ax = fig.subplots()
     curves = (("measured", result.measured, "k", None),
               ("base model", result.signal_before, "tab:blue", result.pcc_before),
               ("updated model", result.signal_after, "tab:red", result.pcc_after))
@@ -38,4 +37,3 @@ def before_after_figure(result: UpdateResult, path: str | Path, title: str = "")
     ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
     fig.savefig(path, dpi=120)
-    plt.close(fig)
