@@ -115,6 +115,27 @@ def channel(help: str = "Regular expression picking one channel (may be left out
     return typer.Option(None, *VOCABULARY["channel"], help=help)
 
 
+#: The angle-source options that ``orders`` and ``dataset from-files`` share (:mod:`rvdiag.io.angles`).
+ANGLE_OPTIONS: dict[str, tuple[str, str]] = {
+    "angle_channel": ("--angle-channel", "Regex of {whose} input-shaft angle channel (rad, or counts with --ppr){why}."),
+    "tacho_channel": ("--tacho-channel", "Regex of {whose} tachometer pulse channel on the input shaft (--ppr pulses "
+                                         "per revolution, default 1){why}."),
+    "ppr": ("--ppr", "Tachometer pulses per input revolution (default 1); with --angle-channel, the counts per "
+                     "revolution of an angle counter."),
+    "speed_range": ("--speed-range", "MIN:MAX plausible input speed, rev/min (default 1:10000); {whose_angle} outside "
+                                     "it is an error."),
+}
+
+
+def angle_source(key: str, per_file: bool = False) -> Any:
+    """One option of :data:`ANGLE_OPTIONS`, its help worded for one record (``orders``) or for each file of a
+    folder (``per_file``: ``dataset from-files``, which records each window's speed from it)."""
+    name, help = ANGLE_OPTIONS[key]
+    help = help.format(whose="each file's" if per_file else "the record's", whose_angle="a file" if per_file else "an angle",
+                       why=": record each window's speed" if per_file else "")
+    return typer.Option(None, name, help=help)
+
+
 def deprecated(old: str, *, flag: bool = False) -> Any:
     """A hidden option under the old spelling ``old`` of :data:`DEPRECATED`; pass its value to :func:`resolve`."""
     return typer.Option(False if flag else None, old, hidden=True, help=f"Deprecated: use {DEPRECATED[old]}.")

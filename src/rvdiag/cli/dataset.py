@@ -82,21 +82,14 @@ def register(app: typer.Typer) -> None:
                                                       "windows; block K goes to 'test', the others to 'train'."),
         scalar: List[str] = typer.Option([], "--scalar",
                                          help="NAME=REGEX: record the file's scalar matching REGEX as column NAME (e.g. rpm=RPM)."),
-        angle_channel: Optional[str] = typer.Option(None, "--angle-channel",
-                                                    help="Regex of each file's input-shaft angle channel (rad, or "
-                                                         "counts with --ppr): record each window's speed."),
-        tacho_channel: Optional[str] = typer.Option(None, "--tacho-channel",
-                                                    help="Regex of each file's tachometer pulse channel on the input "
-                                                         "shaft (--ppr pulses per revolution, default 1)."),
-        ppr: Optional[int] = typer.Option(None, "--ppr", help="Tachometer pulses per input revolution; with "
-                                          "--angle-channel, the counts per revolution of an angle counter."),
+        angle_channel: Optional[str] = opt.angle_source("angle_channel", per_file=True),
+        tacho_channel: Optional[str] = opt.angle_source("tacho_channel", per_file=True),
+        ppr: Optional[int] = opt.angle_source("ppr"),
         estimate_speed: bool = typer.Option(False, "--estimate-speed",
                                             help="Without an angle channel, tachometer or speed group in "
                                                  "--meta-regex: take each file's stored angles (rvdiag simulate "
                                                  "records) or estimate its speed from the stage-1 mesh peak."),
-        speed_range: Optional[str] = typer.Option(None, "--speed-range",
-                                                  help="MIN:MAX plausible input speed, rev/min (default 1:10000); "
-                                                       "a file outside it is an error."),
+        speed_range: Optional[str] = opt.angle_source("speed_range", per_file=True),
         params: Optional[Path] = opt.params("Reducer parameter TOML for the angle source (ratio, sun teeth; "
                                             "default: built-in RV-20E)."),
         out: Path = opt.out("Store to write (PATH.zarr)."),

@@ -130,19 +130,13 @@ def register(app: typer.Typer) -> None:
         output_speed: Optional[float] = typer.Option(None, "--output-speed", help="Output (carrier) speed, deg/s."),
         input_speed: Optional[float] = typer.Option(None, "--input-speed", help="Motor (sun) speed, rpm."),
         rpm: Optional[float] = typer.Option(None, "--rpm", help="Speed of the analysed shaft itself, rev/min."),
-        tacho_channel: Optional[str] = typer.Option(None, "--tacho-channel",
-                                                    help="Regex of a tachometer pulse channel on the input shaft."),
-        ppr: Optional[int] = typer.Option(None, "--ppr", help="Tachometer pulses per input revolution (default 1); "
-                                          "with --angle-channel, the counts per revolution of an angle counter."),
-        angle_channel: Optional[str] = typer.Option(None, "--angle-channel",
-                                                    help="Regex of an input-shaft angle channel (rad, or counts "
-                                                         "with --ppr)."),
+        tacho_channel: Optional[str] = opt.angle_source("tacho_channel"),
+        ppr: Optional[int] = opt.angle_source("ppr"),
+        angle_channel: Optional[str] = opt.angle_source("angle_channel"),
         meta_regex: Optional[str] = typer.Option(None, "--meta-regex",
                                                  help="Regex on the file name with a group (?P<rpm>...) (input "
                                                       "rev/min) or (?P<speed_dps>...) (output deg/s)."),
-        speed_range: Optional[str] = typer.Option(None, "--speed-range",
-                                                  help="MIN:MAX plausible input speed, rev/min (default 1:10000); "
-                                                       "an angle outside it is an error."),
+        speed_range: Optional[str] = opt.angle_source("speed_range"),
         channel: str = opt.channel(),
         fs: float = opt.fs("Sampling rate in Hz (overrides the file's)."),
         params: Optional[Path] = opt.params(),
