@@ -43,6 +43,7 @@ _BUILTIN: frozenset[str] = frozenset({
     "rvdiag.features.tsa.OrderSpectrumFeatures",
     "rvdiag.models.cnn_features.CNNFeatures",
     "rvdiag.models.kelm.KELMClassifier",
+    "rvdiag.models.multilabel.CompoundFaultClassifier",
     "rvdiag.models.tuning.TunedKELM",
     "sklearn.pipeline.Pipeline",
     "sklearn.preprocessing._data.StandardScaler",

@@ -4,7 +4,7 @@
                  [--features time|spectrum|spectrum-abs|logspec|envelope|bearing-envelope|wpd|eemd|none|cnn]
                  [--epochs N] [--device auto|cpu|cuda] [--seed N] [--repeat N]
                  [--bearing-geometry N_BALLS,D_BALL_MM,D_PITCH_MM,CONTACT_DEG] [--rpm-column NAME]
-                 [--streaming | --no-streaming]
+                 [--streaming | --no-streaming] [--multilabel]
 
 Feature sets join with '+' (``--features spectrum-abs+bearing-envelope``).  ``bearing-envelope`` needs the
 bearing's geometry and reads each sample's shaft speed (rev/min) from the store's metadata column
@@ -15,6 +15,10 @@ With no options it trains the setup docs/results.md recommends (:data:`rvdiag.re
 :mod:`rvdiag.registry`.  Trains on the store's ``train`` split, scores the ``test`` split (when present) into
 the model card, and with ``--repeat N`` trains N seeds (seed, seed+1, ...) and prints best / mean accuracy per
 class.
+
+``--multilabel`` (classical models, stores of the states T1..T6) trains three binary classifiers (broken, worn,
+cracked) instead of one six-class classifier and decodes each sample to the state of largest joint probability
+(:mod:`rvdiag.models.multilabel`); the model still predicts T1..T6.
 
 ``--streaming`` (CNN models) reads the training samples from the store a block at a time instead of loading the
 split (:mod:`rvdiag.models.streaming`): memory stays flat whatever the library's size.  A CNN streams without being
@@ -110,8 +114,11 @@ def build_estimator(model: str, features: str | None, *, epochs: int, device: st
                     batch_size: int, lr: float, input_length: int | None, patience: int,
                     validation_fraction: float, normalize: str = "window", representation: str = "waveform",
                     bearing_geometry: str | None = None, rpm_column: str = "rpm", fs: float | None = None,
-                    speed_column: str = "output_speed_deg_s"):
+                    speed_column: str = "output_speed_deg_s", multilabel: bool = False):
     """A fresh, unfitted estimator for a ``--model`` name (``fs``: the store's, for bearing-envelope)."""
+    if multilabel and model not in CLASSICAL_MODELS:
+        raise ParameterError(f"--multilabel applies to the classical models ({'|'.join(CLASSICAL_MODELS)}), "
+                             f"not {model!r}")
     if model in CNN_MODELS:
         if features is not None:
             raise ParameterError(f"--features does not apply to the CNN model {model!r} (it learns its features); "
@@ -130,7 +137,7 @@ def build_estimator(model: str, features: str | None, *, epochs: int, device: st
         kw = features_kw(feats, epochs=epochs, device=device, seed=seed, lr=lr, batch_size=batch_size,
                          bearing_geometry=bearing_geometry, rpm_column=rpm_column, fs=fs,
                          speed_column=speed_column)
-        return make_classical_model(model, feats, seed=seed, features_kw=kw)
+        return make_classical_model(model, feats, seed=seed, features_kw=kw, multilabel=multilabel)
     raise ParameterError(f"unknown model {model!r}; use one of {'|'.join(CNN_MODELS + CLASSICAL_MODELS)}")
 
 
@@ -238,6 +245,10 @@ def register(app: typer.Typer) -> None:
                                                       "at a time (memory flat in the store's size) instead of "
                                                       "loading the split. Default: stream when the training split's "
                                                       "signals exceed 2 GiB."),
+        multilabel: bool = typer.Option(False, "--multilabel",
+                                        help="Classical models: three binary labels (broken, worn, cracked) "
+                                             "instead of six exclusive classes, decoded to the most probable of "
+                                             "T1..T6 (stores whose states are T1..T6 only; docs/models.md)."),
     ) -> None:
         """Train a classifier on the train split of a store and save it as a model directory.
 
@@ -258,7 +269,7 @@ def register(app: typer.Typer) -> None:
                                           patience=patience, validation_fraction=validation_fraction,
                                           normalize=normalize, representation=representation,
                                           bearing_geometry=bearing_geometry, rpm_column=rpm_column,
-                                          speed_column=speed_column)
+                                          speed_column=speed_column, multilabel=multilabel)
         with opt.option_names(CNN_OPTION_NAMES):
             probe = new_estimator(seed=seed)  # checks --model/--features before any work
         if model in CNN_MODELS or "cnn" in (features or "").split("+"):
@@ -268,6 +279,10 @@ def register(app: typer.Typer) -> None:
         store = SampleStore.open(data)
         if "train" not in store.splits():
             raise StoreError(f"{data} has no 'train' split (splits: {', '.join(store.splits())})")
+        if multilabel:
+            from rvdiag.models.multilabel import check_states
+
+            check_states(store.classes, where=f"the store {data}'s classes")
         from rvdiag.features.combine import input_metadata, with_metadata
 
         meta_cols = input_metadata(probe)

@@ -4,16 +4,17 @@ directory (card + weights) that ``rvdiag train`` writes and ``evaluate`` / ``dia
 The public names below are imported on first use (PEP 562), so ``import rvdiag.models`` and the classical
 pipelines do not import torch; only the CNN names do.
 
-======================  ===========================================================================
-make_classical_model    ``features -> StandardScaler -> svm | kelm | kelm-mpa | kelm-ga | kelm-pso``
-feature_names           every ``features`` name of the pipelines (signal feature sets and ``cnn``)
-KELMClassifier          kernel extreme learning machine (Huang et al. 2012)
-TunedKELM               KELM with (C, sigma) tuned by MPA, GA or PSO
-CNNClassifier           1-D CNN classifier with the scikit-learn API (cnn1d, cnn1d-lean, mcsa-cnn)
-CNNFeatures             the ``cnn`` feature set: a CNN's last hidden layer as features
-save_model, load_model  model directories (card.json + model.safetensors | model.skops)
-read_card               the one reader of the model card
-======================  ===========================================================================
+========================  ===========================================================================
+make_classical_model      ``features -> StandardScaler -> svm | kelm | kelm-mpa | kelm-ga | kelm-pso``
+feature_names             every ``features`` name of the pipelines (signal feature sets and ``cnn``)
+KELMClassifier            kernel extreme learning machine (Huang et al. 2012)
+TunedKELM                 KELM with (C, sigma) tuned by MPA, GA or PSO
+CompoundFaultClassifier   three binary classifiers (broken, worn, cracked) decoded to T1..T6 (--multilabel)
+CNNClassifier             1-D CNN classifier with the scikit-learn API (cnn1d, cnn1d-lean, mcsa-cnn)
+CNNFeatures               the ``cnn`` feature set: a CNN's last hidden layer as features
+save_model, load_model    model directories (card.json + model.safetensors | model.skops)
+read_card                 the one reader of the model card
+========================  ===========================================================================
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import importlib
 _EXPORTS = {
     "CNNClassifier": "rvdiag.models.torch_estimator",
     "CNNFeatures": "rvdiag.models.cnn_features",
+    "CompoundFaultClassifier": "rvdiag.models.multilabel",
     "KELMClassifier": "rvdiag.models.kelm",
     "LoadedModel": "rvdiag.models.persistence",
     "MODEL_NAMES": "rvdiag.models.pipelines",

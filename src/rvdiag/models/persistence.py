@@ -26,7 +26,8 @@ policy for long samples; for ``--representation orders``/``orders-residual`` als
 ``training_store`` (``path``, ``config_hash``, ``kind``, ``n_train``), ``metrics`` (on the
 held-out test split), ``seed``, ``rvdiag_version``, ``created`` (UTC ISO time); CNN cards also hold
 ``params`` (the estimator's ``get_params``), the learned scalars and ``history``; classical cards hold
-``estimator``, ``sklearn_version`` and ``skops_version``.
+``estimator``, ``sklearn_version`` and ``skops_version``, and those trained with ``--multilabel``
+``multilabel`` (``labels``: broken, worn, cracked; ``decoding``).
 
 Loading a directory that is no model, a card of another format/version, or weights that do not fit the
 card (missing or extra tensors, wrong shapes) raises :class:`rvdiag.errors.ModelFileError`.
@@ -137,6 +138,12 @@ def base_card(estimator, *, model: str, features: str | None = None, fs: float |
     else:
         card["kind"] = "classical"
         card["preprocessing"] = {"features": features, "scaling": "StandardScaler on the features"}
+        from rvdiag.models.multilabel import FAULT_LABELS, CompoundFaultClassifier
+
+        steps = getattr(estimator, "steps", None)
+        if steps and isinstance(steps[-1][1], CompoundFaultClassifier):
+            card["multilabel"] = {"labels": list(FAULT_LABELS),
+                                  "decoding": "largest joint probability over the training states' combinations"}
     card.update(extra or {})
     return jsonable(card)
 

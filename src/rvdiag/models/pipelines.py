@@ -18,7 +18,10 @@ kelm-ga    ... with a genetic algorithm
 kelm-pso   ... with particle swarm optimisation   (Tu et al. 2023, EEMD-MPA-KELM, and its comparisons)
 =========  =====================================================================================
 
-and the feature-set names of :func:`feature_names`: those of :func:`rvdiag.features.make_features`
+With ``multilabel=True`` the classifier is wrapped in :class:`~rvdiag.models.multilabel.CompoundFaultClassifier`
+(three binary copies, broken / worn / cracked, decoded to T1..T6 by the largest joint probability).
+
+The feature-set names are those of :func:`feature_names`: those of :func:`rvdiag.features.make_features`
 (``time|spectrum|spectrum-abs|logspec|envelope|bearing-envelope|wpd|eemd|none``) plus ``cnn``
 (:class:`rvdiag.models.cnn_features.CNNFeatures`), or several joined by ``+``.
 
@@ -44,6 +47,7 @@ from rvdiag.errors import ModelFileError, ParameterError
 from rvdiag.models.card import atomic_write, card_text, read_card, write_card
 from rvdiag.models.cnn_features import CNNFeatures
 from rvdiag.models.kelm import KELMClassifier
+from rvdiag.models.multilabel import CompoundFaultClassifier
 from rvdiag.models.tuning import OPTIMIZERS, TunedKELM
 from rvdiag.registry import CLASSICAL_MODELS
 from rvdiag.registry import TRUSTED_TYPES, register_trusted_type  # noqa: F401  (public names, re-exported)
@@ -103,7 +107,8 @@ def _classifier(model: str, seed: int, grid: bool, model_kw: dict):
 
 
 def make_classical_model(model: str, features: str, *, features_kw: dict | None = None,
-                         model_kw: dict | None = None, seed: int = 0, grid: bool = False) -> Pipeline:
+                         model_kw: dict | None = None, seed: int = 0, grid: bool = False,
+                         multilabel: bool = False) -> Pipeline:
     """Unfitted pipeline ``features -> StandardScaler -> classifier``.
 
     Parameters
@@ -119,6 +124,10 @@ def make_classical_model(model: str, features: str, *, features_kw: dict | None 
         The ``random_state`` of the SVM, its CV folds and the tuners (``rvdiag train --seed``).
     grid : bool
         SVM only: choose C by a small cross-validated grid.
+    multilabel : bool
+        The classifier becomes a :class:`~rvdiag.models.multilabel.CompoundFaultClassifier`: one binary copy
+        per fault (broken, worn, cracked), decoded to the most probable of the states T1..T6
+        (``rvdiag train --multilabel``).
     """
     if model not in MODEL_NAMES:
         raise ParameterError(f"unknown model {model!r}; use one of {'|'.join(MODEL_NAMES)}")
@@ -127,6 +136,8 @@ def make_classical_model(model: str, features: str, *, features_kw: dict | None 
         clf = _classifier(model, int(seed), bool(grid), dict(model_kw or {}))
     except TypeError as exc:
         raise ParameterError(f"bad options for model {model!r}: {exc}") from None
+    if multilabel:
+        clf = CompoundFaultClassifier(clf)
     return Pipeline([
         ("features", make_feature_set(features, **dict(features_kw or {}))),
         ("scale", StandardScaler()),
