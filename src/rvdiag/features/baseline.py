@@ -92,8 +92,8 @@ class HealthyBaselineFeatures(SignalTransformer):
         meta = self.input_metadata()
         n = A.shape[1] - len(meta)
         if n < 1:
-            raise ParameterError(f"X has {A.shape[1]} columns; HealthyBaselineFeatures reads {len(meta)} metadata "
-                                 f"column(s) {list(meta)} after each window's points")
+            raise ParameterError(f"X has {A.shape[1]} columns (n_features = {A.shape[1]}); HealthyBaselineFeatures "
+                                 f"reads {len(meta)} metadata column(s) {list(meta)} after each window's points")
         inner = input_metadata(self._inner())
         part = A[:, : n + len(inner)]
         values = np.column_stack([A[:, n + meta.index(c)] for c in self._columns()])
@@ -125,7 +125,7 @@ class HealthyBaselineFeatures(SignalTransformer):
         healthy = y == str(self.healthy)
         if healthy.sum() < 2:
             raise ParameterError(f"HealthyBaselineFeatures needs at least 2 healthy samples (label {self.healthy!r}); "
-                                 f"y has {int(healthy.sum())}")
+                                 f"y has {int(healthy.sum())} of n_samples = {A.shape[0]}")
         self.features_ = clone(self._inner())
         F = np.asarray(self.features_.fit_transform(part, y), dtype=np.float64)
         self.n_features_in_ = A.shape[1]
