@@ -153,11 +153,25 @@ def test_relative_params_path_is_relative_to_the_config(tmp_path):
 
 
 @pytest.mark.parametrize("name", ["paper", "demo", "independent", "transfer", "experiments/independent20",
-                                  "experiments/snr"])
+                                  "experiments/snr", "experiments/independent-speed"])
 def test_shipped_configs_are_valid(name):
     cfg = LibraryConfig.load(ROOT / "configs" / f"{name}.toml")
     assert cfg.classes == ["T1", "T2", "T3", "T4", "T5", "T6"]
     assert len(make_plan(cfg)) == cfg.n_simulations
+
+
+def test_independent_speed_config_draws_as_independent():
+    """experiments/independent-speed records the rotor speed with the draws of independent.toml, unit for unit (its
+    fixed 120 dB noise level still takes the SNR's draw)."""
+    a = make_plan(LibraryConfig.load(ROOT / "configs" / "independent.toml"))
+    cfg = LibraryConfig.load(ROOT / "configs" / "experiments" / "independent-speed.toml")
+    b = make_plan(cfg)
+    assert cfg.channel == "speed" and cfg.model["signal"] == "current"
+    assert len(a) == len(b) == 360
+    for u, v in zip(a, b):
+        assert (u.state, u.speed, u.load_Nm, u.severity, u.scales, u.split, u.profile, u.mounting) == \
+               (v.state, v.speed, v.load_Nm, v.severity, v.scales, v.split, v.profile, v.mounting)
+        assert v.noise_snr_db == 120.0
 
 
 def test_paper_config_is_the_paper():

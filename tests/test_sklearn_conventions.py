@@ -20,7 +20,9 @@ from rvdiag.features import (
     feature_names as signal_feature_names,
     make_features,
 )
+from rvdiag.features.baseline import HealthyBaselineFeatures
 from rvdiag.features.bearing import BearingEnvelopeFeatures
+from rvdiag.features.tsa import TSAIndicatorFeatures
 from rvdiag.models.cnn_features import CNNFeatures
 from rvdiag.models.kelm import KELMClassifier
 from rvdiag.models.pipelines import MODEL_NAMES, feature_names, make_feature_set
@@ -38,7 +40,8 @@ def _estimators():
     ests = [make_feature_set(name, **TINY.get(name, {})) for name in feature_names()]
     ests += [CharacteristicBandEnergy(), EnvelopeSpectrumFeatures(centers=(0.1,)), BearingEnvelopeFeatures(),
              BearingEnvelopeFeatures(speed_column="rpm"),
-             CombinedFeatures([("time", TimeDomainFeatures()), ("spectrum", SpectrumFeatures(n_bands=2))])]
+             CombinedFeatures([("time", TimeDomainFeatures()), ("spectrum", SpectrumFeatures(n_bands=2))]),
+             HealthyBaselineFeatures(TimeDomainFeatures(), columns=("c",), healthy="0", min_count=2)]
     ests += [KELMClassifier(), TunedKELM(epoch=1, pop_size=10, cv=2),
              CNNClassifier(max_epochs=1, batch_size=64, validation_fraction=0.0, device="cpu")]
     return ests
@@ -75,7 +78,24 @@ EXPECTED["CNNClassifier"] = {c: _CNN_TRAIN for c in (
     "check_classifiers_train(readonly_memmap=True,X_dtype=float32)")}
 
 
+#: tsa-ci-z / tsa-mod-z: the TSA's windows, two metadata columns and a healthy class T1 in y
+_HEALTHY_TSA = {check: "tsa-ci-z needs windows of a shaft revolution, speed and load columns and T1 in y; sklearn's "
+                "check data have 1-10 points and integer labels"
+                for check in SHORT_DATA_CHECKS + ("check_fit2d_1feature", "check_fit2d_1sample")}
+
+
+#: the generic HealthyBaselineFeatures (time features, one metadata column, healthy label 0): these checks fit
+#: 2-column data (one point left for the time features) or labels without two 0s
+_HEALTHY_GENERIC = {check: "sklearn's check data: 2 columns leave 1 point beside the metadata column, or y holds "
+                    "fewer than 2 of the healthy label 0" for check in (
+                        "check_estimators_overwrite_params", "check_estimators_fit_returns_self",
+                        "check_readonly_memmap_input", "check_estimators_dtypes", "check_estimators_nan_inf",
+                        "check_fit_idempotent", "check_fit_check_is_fitted", "check_n_features_in")}
+
+
 def _expected(est):
+    if isinstance(est, HealthyBaselineFeatures):
+        return _HEALTHY_TSA if isinstance(est.features, TSAIndicatorFeatures) else _HEALTHY_GENERIC
     return EXPECTED.get(type(est).__name__, {})
 
 

@@ -41,6 +41,7 @@ _BUILTIN: frozenset[str] = frozenset({
     "rvdiag.features.eemd.EEMDFeatures",
     "rvdiag.features.tsa.TSAIndicatorFeatures",
     "rvdiag.features.tsa.OrderSpectrumFeatures",
+    "rvdiag.features.baseline.HealthyBaselineFeatures",
     "rvdiag.models.cnn_features.CNNFeatures",
     "rvdiag.models.kelm.KELMClassifier",
     "rvdiag.models.multilabel.CompoundFaultClassifier",

@@ -1,5 +1,5 @@
-"""``rvdiag evaluate MODEL_DIR DATA.zarr [--split test|train|all] [--json] [--report FILE.html]
-[--snr-db=LEVELS [--plot FILE.png] [--bound BOUND.json]]``."""
+"""``rvdiag evaluate MODEL_DIR DATA.zarr [--split test|train|all] [--where COND]... [--merge A=B,...] [--json]
+[--report FILE.html] [--snr-db=LEVELS [--plot FILE.png] [--bound BOUND.json]]``."""
 
 from __future__ import annotations
 
@@ -33,12 +33,21 @@ def register(app: typer.Typer) -> None:
         bound: list[Path] = typer.Option(None, "--bound", metavar="BOUND.json", help="With --snr-db: a separability bound written by "
                                          "'rvdiag separability --out' (repeatable): drawn dashed on --plot, copied "
                                          "into the JSON (key 'bound')."),
+        where: list[str] = typer.Option(None, "--where", metavar="COND",
+                                        help="Score only the samples of the split whose metadata satisfy COND, "
+                                             "COLUMN OP VALUE with OP < <= > >= == != (repeatable; all must hold), "
+                                             "e.g. --where 'noise_snr_db>=20'."),
+        merge: str = typer.Option(None, "--merge", metavar="A=B,...",
+                                  help="Also score with classes merged, true and predicted alike: T4=T1,T6=T5 counts "
+                                       "a crack as its state without it (the crack-free decision); JSON key 'merged'."),
         quiet: bool = opt.quiet(),
     ) -> None:
         """Score a saved model on a split of a sample store (progress with an ETA on stderr; -q: none)."""
         from rvdiag.cli._progress import progress_bars
         from rvdiag.datasets import SampleStore
-        from rvdiag.evaluation.evaluate import accuracy_against_snr, accuracy_by, evaluate_on_store, report_html
+        from rvdiag.datasets import parse_condition
+        from rvdiag.evaluation.evaluate import (accuracy_against_snr, accuracy_by, evaluate_on_store, merged_metrics,
+                                                report_html)
         from rvdiag.evaluation.report import write_report
         from rvdiag.models.persistence import load_model
 
@@ -52,12 +61,16 @@ def register(app: typer.Typer) -> None:
         if plot is not None and (plot.is_dir() or not plot.parent.is_dir()):
             raise ParameterError(f"--plot {plot}: not a writable file path")
         bounds = [read_bound(b) for b in bound or ()]
+        for w in where or ():
+            parse_condition(w)  # a malformed condition fails before the model is loaded
         loaded = load_model(model_dir)
+        merge_map = parse_merge(merge, loaded.card["classes"]) if merge is not None else None
         store = SampleStore.open(data)
         with progress_bars(quiet):
-            ev = evaluate_on_store(loaded, store, split)
+            ev = evaluate_on_store(loaded, store, split, where or ())
             groups = accuracy_by(ev, by) if by else None
             curve = accuracy_against_snr(loaded, ev, levels, seed) if levels else None
+        merged = merged_metrics(ev, merge_map, loaded.card["classes"]) if merge_map else None
         for w in ev.warnings:
             typer.echo(w, err=True)
         if report is not None:
@@ -68,6 +81,8 @@ def register(app: typer.Typer) -> None:
             out = dict(ev.metrics)
             if groups is not None:
                 out["by"] = {"column": by, "groups": groups}
+            if merged is not None:
+                out["merged"] = merged
             if curve is not None:
                 out["snr"] = curve
             if bounds:
@@ -75,6 +90,10 @@ def register(app: typer.Typer) -> None:
             typer.echo(json.dumps(out, indent=2))
         else:
             _print(ev, loaded, data)
+            if merged is not None:
+                typer.echo(f"merged {','.join(f'{a}={b}' for a, b in merge_map.items())}: accuracy "
+                           f"{100 * merged['accuracy']:.2f} %, "
+                           + ", ".join(f"{c} recall {100 * v['recall']:.1f} %" for c, v in merged["per_class"].items()))
             if groups is not None:
                 _print_by(by, groups)
             if curve is not None:
@@ -83,6 +102,23 @@ def register(app: typer.Typer) -> None:
             typer.echo(f"report: {report.resolve()}", err=json_out)
         if plot is not None:
             typer.echo(f"plot: {plot.resolve()}", err=json_out)
+
+
+def parse_merge(text: str, classes) -> dict[str, str]:
+    """``{"T4": "T1", "T6": "T5"}`` from ``--merge T4=T1,T6=T5``; both names must be classes of the model."""
+    out: dict[str, str] = {}
+    known = [str(c) for c in classes]
+    for part in str(text).split(","):
+        a, eq, b = (x.strip() for x in part.partition("="))
+        if not (eq and a and b):
+            raise ParameterError(f"--merge {text}: expected CLASS=CLASS pairs joined by ',' (e.g. T4=T1,T6=T5)")
+        for c in (a, b):
+            if c not in known:
+                raise ParameterError(f"--merge {text}: {c!r} is not a class of the model ({', '.join(known)})")
+        out[a] = b
+    if any(b in out for b in out.values()):
+        raise ParameterError(f"--merge {text}: a class merged into is itself merged away")
+    return out
 
 
 def read_bound(path: Path) -> dict:

@@ -4,7 +4,7 @@
                  [--features time|spectrum|spectrum-abs|logspec|envelope|bearing-envelope|wpd|eemd|none|cnn]
                  [--epochs N] [--device auto|cpu|cuda] [--seed N] [--repeat N]
                  [--bearing-geometry N_BALLS,D_BALL_MM,D_PITCH_MM,CONTACT_DEG] [--rpm-column NAME]
-                 [--streaming | --no-streaming] [--multilabel]
+                 [--where COND]... [--streaming | --no-streaming] [--multilabel]
 
 Feature sets join with '+' (``--features spectrum-abs+bearing-envelope``).  ``bearing-envelope`` needs the
 bearing's geometry and reads each sample's shaft speed (rev/min) from the store's metadata column
@@ -105,7 +105,7 @@ def features_kw(features: str, *, epochs: int, device: str, seed: int, lr: float
                 raise ParameterError("--features bearing-envelope needs --bearing-geometry "
                                      "N_BALLS,D_BALL_MM,D_PITCH_MM,CONTACT_DEG (e.g. 9,7.94,39.04,0 for a 6205)")
             kw[name] = {**geometry_from_mm(bearing_geometry), "fs": fs, "speed_column": rpm_column}
-        elif name in ("tsa-ci", "tsa-mod", "orders"):  # angle-domain features: the store's rate and each window's speed
+        elif name in ("tsa-ci", "tsa-mod", "tsa-ci-z", "tsa-mod-z", "orders"):  # angle-domain features: the store's rate and each window's speed
             kw[name] = {"fs": fs, "speed_column": speed_column}
     return kw if len(parts) > 1 else kw.get(features, {})
 
@@ -200,8 +200,8 @@ def register(app: typer.Typer) -> None:
                                        "setup of docs/results.md)"),
         features: str = typer.Option(None, "--features", "-f",
                                      help="Classical models: time | spectrum | spectrum-abs | logspec | envelope | "
-                                          "bearing-envelope | wpd | eemd | none | cnn, or several joined by '+' "
-                                          "(default wpd)."),
+                                          "bearing-envelope | wpd | eemd | tsa-ci | tsa-mod | tsa-ci-z | tsa-mod-z | "
+                                          "orders | none | cnn, or several joined by '+' (default wpd)."),
         out: Path = opt.out("Model directory to write."),
         epochs: int = typer.Option(RECOMMENDED_TRAINING["epochs"], "--epochs",
                                    help="CNN: maximum epochs (early stopping may end sooner)."),
@@ -240,6 +240,11 @@ def register(app: typer.Typer) -> None:
                                          help="tsa-ci / orders features and --representation orders: the store's "
                                               "metadata column holding each sample's speed, output deg/s (name ending in _deg_s, as a library "
                                               "writes) or input rev/min (ending in _rpm)."),
+        conditions: list[str] = typer.Option(None, "--where", metavar="COND",
+                                        help="Train only on the training samples whose metadata satisfy COND, COLUMN "
+                                             "OP VALUE with OP < <= > >= == != (repeatable; all must hold), e.g. "
+                                             "--where 'simulation<10' (a learning curve); the test split is scored "
+                                             "whole."),
         streaming: Optional[bool] = typer.Option(None, "--streaming/--no-streaming",
                                                  help="CNN models: read the training samples from the store a block "
                                                       "at a time (memory flat in the store's size) instead of "
@@ -283,6 +288,10 @@ def register(app: typer.Typer) -> None:
             from rvdiag.models.multilabel import check_states
 
             check_states(store.classes, where=f"the store {data}'s classes")
+        conditions = list(conditions or ())
+        train_idx = store.indices("train", conditions)
+        if conditions and not train_idx.size:
+            raise StoreError(f"{data}: no training sample where {' and '.join(conditions)}")
         from rvdiag.features.combine import input_metadata, with_metadata
 
         meta_cols = input_metadata(probe)
@@ -298,11 +307,11 @@ def register(app: typer.Typer) -> None:
         if stream:
             from rvdiag.models.streaming import DEFAULT_BUFFER_SAMPLES, StoreSamples, predict_store
 
-            tr = StoreSamples(store, store.indices("train"), meta_cols, where=where)
+            tr = StoreSamples(store, train_idx, meta_cols, where=where)
             te = StoreSamples(store, store.indices("test"), meta_cols, where=where) if "test" in store.splits() else None
             Xtr = Xte = None
         else:
-            tr = store.load("train")
+            tr = store.load(index=train_idx) if conditions else store.load("train")
             te = store.load("test") if "test" in store.splits() else None
             if snr_db is not None:
                 tr, te = _with_noise(tr, snr_db, [seed, 0]), (None if te is None else _with_noise(te, snr_db, [seed, 1]))
@@ -347,6 +356,8 @@ def register(app: typer.Typer) -> None:
                       "kind": store.attrs.get("kind"), "n_train": int(len(tr.y)), **_signal_info(store)}
         extra = {} if snr_db is None else {"added_noise": {"snr_db": float(snr_db), "seed": [seed, 0],
                                                            "applies_to": "train and test splits"}}
+        if conditions:
+            extra["train_where"] = conditions
         if stream:
             extra["streaming"] = {"buffer_samples": int(est.stream_buffer_samples_)}
         scalars = (store.attrs.get("config") or {}).get("scalars") or {}

@@ -1,5 +1,5 @@
 """Sample stores (Zarr): the one format shared by simulated libraries and measured datasets."""
 
-from rvdiag.datasets.store import SampleStore, Samples, StoreBuilder, config_hash, write_store
+from rvdiag.datasets.store import SampleStore, Samples, StoreBuilder, config_hash, parse_condition, write_store
 
-__all__ = ["SampleStore", "Samples", "StoreBuilder", "config_hash", "write_store"]
+__all__ = ["SampleStore", "Samples", "StoreBuilder", "config_hash", "parse_condition", "write_store"]

@@ -41,10 +41,55 @@ import numpy as np
 import zarr
 
 from rvdiag import __version__
-from rvdiag.errors import StoreError
+from rvdiag.errors import ParameterError, StoreError
 
 STORE_FORMAT = "rvdiag-store/1"
 REQUIRED_META = ("split", "unit")
+
+
+#: The comparison operators of a sample condition (:func:`parse_condition`), longest first.
+CONDITION_OPERATORS = ("<=", ">=", "==", "!=", "<", ">", "=")
+
+
+def parse_condition(text: str) -> tuple[str, str, float | str]:
+    """``(column, operator, value)`` of a sample condition ``COLUMN OP VALUE`` (``OP`` one of ``< <= > >= == !=``,
+    ``=`` meaning ``==``): the value is a number when it reads as one, else a string (``state==T1``).
+
+    >>> parse_condition("noise_snr_db>=20")
+    ('noise_snr_db', '>=', 20.0)
+    >>> parse_condition("state = T4")
+    ('state', '==', 'T4')
+    """
+    t = str(text)
+    for op in CONDITION_OPERATORS:
+        if op in t:
+            column, _, value = (x.strip() for x in t.partition(op))
+            if column and value and not any(o in value for o in "<>=!"):
+                try:
+                    v: float | str = float(value)
+                except ValueError:
+                    v = value
+                return column, ("==" if op == "=" else op), v
+            break
+    raise ParameterError(f"condition {text!r}: expected COLUMN OP VALUE with OP one of < <= > >= == != "
+                         "(e.g. noise_snr_db>=20, simulation<10, state==T1)")
+
+
+def _compare(values: np.ndarray, op: str, value: float | str, where: str) -> np.ndarray:
+    """Boolean mask of ``values OP value`` (numbers compared as numbers, strings as strings)."""
+    import operator
+
+    fn = {"<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge, "==": operator.eq,
+          "!=": operator.ne}[op]
+    if isinstance(value, float):
+        try:
+            v = np.asarray(values, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise StoreError(f"{where}: the column is not numeric") from None
+        return np.asarray(fn(v, value), dtype=bool)
+    if op not in ("==", "!="):
+        raise StoreError(f"{where}: {op} needs a number")
+    return np.asarray(fn(np.asarray(values).astype(str), value), dtype=bool)
 
 
 def config_hash(config: Mapping[str, Any]) -> str:
@@ -123,13 +168,22 @@ class SampleStore:
         """Split names present in the store."""
         return sorted(set(self.meta["split"].tolist()))
 
-    def indices(self, split: str = "all") -> np.ndarray:
-        """Sample indices of a split (``"all"`` = every sample)."""
+    def indices(self, split: str = "all", where: Iterable[str] = ()) -> np.ndarray:
+        """Sample indices of a split (``"all"`` = every sample), keeping only the samples that satisfy every
+        condition of ``where`` (``"noise_snr_db>=20"``, ``"simulation<10"``: :func:`parse_condition`)."""
         if split == "all":
-            return np.arange(self.n_samples)
-        if split not in self.splits():
+            idx = np.arange(self.n_samples)
+        elif split not in self.splits():
             raise StoreError(f"{self.path}: no split {split!r} (has {', '.join(self.splits())}, or 'all')")
-        return np.flatnonzero(self.meta["split"] == split)
+        else:
+            idx = np.flatnonzero(self.meta["split"] == split)
+        for text in where or ():
+            column, op, value = parse_condition(text)
+            if column not in self.meta:
+                raise StoreError(f"{self.path}: no metadata column {column!r} for the condition {text!r} "
+                                 f"(columns: {', '.join(sorted(self.meta))})")
+            idx = idx[_compare(self.meta[column][idx], op, value, f"{self.path}: condition {text!r}")]
+        return idx
 
     def load(self, split: str = "all", index: Iterable[int] | None = None) -> Samples:
         """Load the samples of a split (or of explicit indices) into memory."""

@@ -64,7 +64,7 @@ def predict_in_chunks(estimator, X: np.ndarray, chunk: int = 512) -> np.ndarray:
     return np.concatenate(parts) if parts else np.asarray(estimator.predict(X))
 
 
-def evaluate_on_store(loaded, store, split: str = "test") -> Evaluation:
+def evaluate_on_store(loaded, store, split: str = "test", where=()) -> Evaluation:
     """Predict every sample of ``split`` and score it.
 
     Parameters
@@ -72,11 +72,15 @@ def evaluate_on_store(loaded, store, split: str = "test") -> Evaluation:
     loaded : :class:`rvdiag.models.persistence.LoadedModel`
     store : :class:`rvdiag.datasets.SampleStore`
     split : "test" | "train" | "all" | any split of the store
+    where : conditions on the metadata (``"noise_snr_db>=20"``; :meth:`rvdiag.datasets.SampleStore.indices`):
+        only the samples of ``split`` that satisfy all of them are scored
     """
     warnings = check_store_matches(loaded.card, store)
-    s = store.load(split)
+    where = list(where or ())
+    s = store.load(index=store.indices(split, where)) if where else store.load(split)
     if len(s.y) == 0:
-        raise ModelFileError(f"the split {split!r} of {store.path} is empty")
+        raise ModelFileError(f"the split {split!r} of {store.path} is empty"
+                             + (f" where {' and '.join(where)}" if where else ""))
     X = loaded.inputs(s.X, s.meta, where=f"the store {store.path}")
     y_pred = predict_in_chunks(loaded.estimator, X).astype(str)
     y_true = np.asarray(s.y).astype(str)
@@ -208,6 +212,18 @@ def report_html(loaded, store, ev: Evaluation, max_tsne: int = 600, seed: int = 
                          examples=examples, fs=store.fs, frequencies=freqs, embedding=emb,
                          embedding_labels=ev.y_true[pick], notes=notes,
                          indicators=indicators_by_class(ev, store.fs, seed=seed, notes=notes))
+
+
+def merged_metrics(ev: Evaluation, merge: dict[str, str], labels) -> dict:
+    """The metrics of ``ev`` with classes merged, true and predicted alike (``{"T4": "T1", "T6": "T5"}``: the
+    crack-free decision, a crack counted as its state without the crack)."""
+    from rvdiag.evaluation.metrics import classification_metrics
+
+    def m(a):
+        return np.asarray([merge.get(str(c), str(c)) for c in a])
+
+    kept = list(dict.fromkeys(merge.get(str(c), str(c)) for c in labels))
+    return {"merge": dict(merge), **classification_metrics(m(ev.y_true), m(ev.y_pred), labels=kept)}
 
 
 def accuracy_by(ev: Evaluation, column: str, n_bins: int = 6) -> list[dict]:

@@ -20,6 +20,10 @@ tsa-ci            :class:`~rvdiag.features.tsa.TSAIndicatorFeatures`   Decker 20
                   (FM0, FM4, NA4, NB4, M6A, M8A... of the TSA)
 tsa-mod           the same with ``modulation=True``: + sideband   Randall 1982; McFadden & Smith 1985;
                   asymmetry, phase modulation of the mesh         McFadden 1986
+tsa-ci-z          :class:`~rvdiag.features.baseline.HealthyBaselineFeatures`  Dempsey & Zakrajsek 2001
+                  of ``tsa-ci``: z-scores against the healthy     (load-normalised NA4*)
+                  training samples of the same speed and load
+                  bin (``tsa-mod-z``: of ``tsa-mod``)
 orders            :class:`~rvdiag.features.tsa.OrderSpectrumFeatures`  Fyfe & Munck 1997 (computed order
                   (order-spectrum bands, envelope fault orders) tracking); docs/orders.md
 none              :class:`RawSignal` (the samples themselves)
@@ -39,6 +43,7 @@ from typing import Callable
 
 from rvdiag.errors import ParameterError
 from rvdiag.features._base import SignalTransformer, as_signal_matrix
+from rvdiag.features.baseline import HealthyBaselineFeatures, healthy_modulation_features, healthy_tsa_features
 from rvdiag.features.bearing import BearingEnvelopeFeatures
 from rvdiag.features.combine import CombinedFeatures, input_metadata, with_metadata
 from rvdiag.features.eemd import EEMDFeatures, eemd, emd
@@ -93,6 +98,8 @@ _REGISTRY: dict[str, Callable[..., object]] = {
     "none": RawSignal,
     "tsa-ci": TSAIndicatorFeatures,
     "tsa-mod": modulation_indicator_features,
+    "tsa-ci-z": healthy_tsa_features,
+    "tsa-mod-z": healthy_modulation_features,
     "orders": OrderSpectrumFeatures,
 }
 
@@ -122,10 +129,11 @@ def make_features(name: str, **kw):
 
 
 __all__ = [
-    "BearingEnvelopeFeatures", "CharacteristicBandEnergy", "CombinedFeatures", "EEMDFeatures",
+    "BearingEnvelopeFeatures", "CharacteristicBandEnergy", "HealthyBaselineFeatures", "CombinedFeatures", "EEMDFeatures",
     "EnvelopeSpectrumFeatures", "OrderSpectrumFeatures", "RawSignal", "SignalTransformer", "SpectrumFeatures", "TIME_FEATURE_NAMES",
     "TSAIndicatorFeatures", "TimeDomainFeatures", "WaveletPacketEnergy", "absolute_spectrum_features", "as_signal_matrix",
     "modulation_indicator_features",
+    "healthy_modulation_features", "healthy_tsa_features",
     "bearing_defect_frequencies", "eemd", "emd", "feature_names", "input_metadata", "log_spectrum_features",
     "make_features", "register_features", "time_features", "with_metadata",
 ]
