@@ -1,4 +1,4 @@
-"""``rvdiag evaluate MODEL_DIR DATA.zarr [--split test|train|all] [--where COND]... [--merge A=B,...] [--json]
+"""``rvdiag evaluate MODEL_DIR DATA.zarr [--split test|train|all] [--where COND]... [--merge A=B,...] [--records] [--json]
 [--report FILE.html] [--snr-db=LEVELS [--plot FILE.png] [--bound BOUND.json]]``."""
 
 from __future__ import annotations
@@ -40,6 +40,11 @@ def register(app: typer.Typer) -> None:
         merge: str = typer.Option(None, "--merge", metavar="A=B,...",
                                   help="Also score with classes merged, true and predicted alike: T4=T1,T6=T5 counts "
                                        "a crack as its state without it (the crack-free decision); JSON key 'merged'."),
+        records: bool = typer.Option(False, "--records",
+                                     help="Also score whole records (each simulation of a library, each file of "
+                                          "'dataset from-files': metadata column unit), their windows decided "
+                                          "together by mean probability as 'rvdiag diagnose' decides a file; "
+                                          "JSON key 'records'."),
         quiet: bool = opt.quiet(),
     ) -> None:
         """Score a saved model on a split of a sample store (progress with an ETA on stderr; -q: none)."""
@@ -47,7 +52,7 @@ def register(app: typer.Typer) -> None:
         from rvdiag.datasets import SampleStore
         from rvdiag.datasets import parse_condition
         from rvdiag.evaluation.evaluate import (accuracy_against_snr, accuracy_by, evaluate_on_store, merged_metrics,
-                                                report_html)
+                                                record_metrics, report_html)
         from rvdiag.evaluation.report import write_report
         from rvdiag.models.persistence import load_model
 
@@ -71,6 +76,7 @@ def register(app: typer.Typer) -> None:
             groups = accuracy_by(ev, by) if by else None
             curve = accuracy_against_snr(loaded, ev, levels, seed) if levels else None
         merged = merged_metrics(ev, merge_map, loaded.card["classes"]) if merge_map else None
+        by_record = record_metrics(loaded, ev, "unit", merge_map) if records else None
         for w in ev.warnings:
             typer.echo(w, err=True)
         if report is not None:
@@ -83,6 +89,8 @@ def register(app: typer.Typer) -> None:
                 out["by"] = {"column": by, "groups": groups}
             if merged is not None:
                 out["merged"] = merged
+            if by_record is not None:
+                out["records"] = by_record
             if curve is not None:
                 out["snr"] = curve
             if bounds:
@@ -94,6 +102,8 @@ def register(app: typer.Typer) -> None:
                 typer.echo(f"merged {','.join(f'{a}={b}' for a, b in merge_map.items())}: accuracy "
                            f"{100 * merged['accuracy']:.2f} %, "
                            + ", ".join(f"{c} recall {100 * v['recall']:.1f} %" for c, v in merged["per_class"].items()))
+            if by_record is not None:
+                _print_records(by_record)
             if groups is not None:
                 _print_by(by, groups)
             if curve is not None:
@@ -102,6 +112,17 @@ def register(app: typer.Typer) -> None:
             typer.echo(f"report: {report.resolve()}", err=json_out)
         if plot is not None:
             typer.echo(f"plot: {plot.resolve()}", err=json_out)
+
+
+def _print_records(r: dict) -> None:
+    lo, hi = r["windows_per_record"]
+    windows = f"{lo}" if lo == hi else f"{lo}-{hi}"
+    line = (f"records ({r['n_records']} of {windows} windows, decided by {r['decision']}): accuracy "
+            f"{100 * r['accuracy']:.2f} %, " + ", ".join(f"{c} recall {100 * v['recall']:.1f} %"
+                                                        for c, v in r["per_class"].items()))
+    if "merged" in r:
+        line += f"; merged: accuracy {100 * r['merged']['accuracy']:.2f} %"
+    typer.echo(line)
 
 
 def parse_merge(text: str, classes) -> dict[str, str]:

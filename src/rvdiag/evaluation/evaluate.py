@@ -226,6 +226,52 @@ def merged_metrics(ev: Evaluation, merge: dict[str, str], labels) -> dict:
     return {"merge": dict(merge), **classification_metrics(m(ev.y_true), m(ev.y_pred), labels=kept)}
 
 
+def record_metrics(loaded, ev: Evaluation, column: str = "unit", merge: dict[str, str] | None = None) -> dict:
+    """The metrics of whole records: the windows of each record (one value of the metadata ``column``: a
+    simulation of a library, a file of ``rvdiag dataset from-files``) decided together by their mean class
+    probability, as ``rvdiag diagnose`` decides a file (a model without ``predict_proba``: the majority of its
+    windows' predictions).  A record's true class is that of its windows (a record whose windows disagree is an
+    error).  Returns the metrics of :func:`rvdiag.evaluation.metrics.classification_metrics` plus ``column``,
+    ``n_records``, ``windows_per_record`` (min, max) and ``decision``; with ``merge``, also ``merged``
+    (:func:`merged_metrics` of the records' decisions)."""
+    from rvdiag.errors import StoreError
+    from rvdiag.evaluation.metrics import classification_metrics
+
+    if column not in ev.meta:
+        raise StoreError(f"no metadata column {column!r} to group windows into records "
+                         f"(columns: {', '.join(sorted(ev.meta))})")
+    labels = [str(c) for c in loaded.card["classes"]]
+    records = np.asarray(ev.meta[column])
+    keys, inverse = np.unique(records, return_inverse=True)
+    estimator = loaded.estimator
+    if hasattr(estimator, "predict_proba"):
+        X = loaded.inputs(ev.X, ev.meta, where="the evaluated samples")
+        P = np.concatenate([np.asarray(estimator.predict_proba(X[i:i + 512]), dtype=float)
+                            for i in range(0, len(X), 512)])
+        classes = [str(c) for c in estimator.classes_]
+        sums = np.zeros((keys.size, len(classes)))
+        np.add.at(sums, inverse, P)
+        decided = np.asarray(classes)[sums.argmax(axis=1)]
+        decision = "mean probability"
+    else:
+        decided = np.asarray([max(labels, key=list(ev.y_pred[inverse == k]).count) for k in range(keys.size)])
+        decision = "majority of the windows"
+    truth = []
+    for k in range(keys.size):
+        states = np.unique(ev.y_true[inverse == k])
+        if states.size != 1:
+            raise StoreError(f"record {keys[k]!r} of column {column!r} holds windows of several classes "
+                             f"({', '.join(states)}): not a record")
+        truth.append(states[0])
+    truth = np.asarray(truth)
+    counts = np.bincount(inverse)
+    out = {"column": column, "n_records": int(keys.size), "windows_per_record": [int(counts.min()), int(counts.max())],
+           "decision": decision, **classification_metrics(truth, decided, labels=labels)}
+    if merge:
+        out["merged"] = merged_metrics(Evaluation({}, truth, decided, None, {}, ev.split), merge, labels)
+    return out
+
+
 def accuracy_by(ev: Evaluation, column: str, n_bins: int = 6) -> list[dict]:
     """Accuracy per value (or per equal-width bin) of a metadata column, e.g. ``noise_snr_db``.
 
