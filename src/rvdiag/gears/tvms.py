@@ -201,10 +201,12 @@ def _healthy_table(pair: GearPair, which: str) -> _SectionTable:
     return cache
 
 
-@functools.lru_cache(maxsize=512)
+@functools.lru_cache(maxsize=64)
 def _damaged_table(pair: GearPair, which: str, faults: tuple) -> _SectionTable:
-    """Section table of a damaged tooth, cached: fault libraries ask for the same shapes often
-    (GearPair, Gear and the faults are frozen, hashable dataclasses)."""
+    """Section table of a damaged tooth, cached: a library at fixed severities asks for the same few shapes again
+    and again (GearPair, Gear and the faults are frozen, hashable dataclasses).  A library that draws its severities
+    never asks twice, and every entry holds about 0.14 MB for the life of a worker: 64 entries keep that under
+    10 MB (512 grew each worker of a 100,000-sample build by tens of MB; bench/HISTORY.md)."""
     gear = pair.driver if which == "driver" else pair.driven
     return _SectionTable.build(damaged_profile(pair, which, faults), gear.face_width)
 
