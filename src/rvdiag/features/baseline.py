@@ -32,7 +32,7 @@ from sklearn.base import clone
 
 from rvdiag.errors import ParameterError
 from rvdiag.features._base import SignalTransformer, as_signal_matrix
-from rvdiag.features.combine import input_metadata
+from rvdiag.features.combine import input_metadata, points_before_metadata
 
 
 class HealthyBaselineFeatures(SignalTransformer):
@@ -90,10 +90,7 @@ class HealthyBaselineFeatures(SignalTransformer):
     def _split(self, A):
         """(the inner transformer's input, the bin columns' values) of the checked matrix ``A``."""
         meta = self.input_metadata()
-        n = A.shape[1] - len(meta)
-        if n < 1:
-            raise ParameterError(f"X has {A.shape[1]} columns (n_features = {A.shape[1]}); HealthyBaselineFeatures "
-                                 f"reads {len(meta)} metadata column(s) {list(meta)} after each window's points")
+        n = points_before_metadata(A, meta, "HealthyBaselineFeatures reads")
         inner = input_metadata(self._inner())
         part = A[:, : n + len(inner)]
         values = np.column_stack([A[:, n + meta.index(c)] for c in self._columns()])

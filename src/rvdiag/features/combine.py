@@ -33,6 +33,17 @@ def input_metadata(estimator) -> tuple[str, ...]:
     return tuple(fn()) if callable(fn) else ()
 
 
+def points_before_metadata(A: np.ndarray, meta, reader: str) -> int:
+    """The number of signal points of each row of ``A``, whose last ``len(meta)`` columns are the metadata columns
+    ``meta`` (the model input convention above); fewer than one point is a one-line error in which ``reader``, a
+    subject and its verb (``"the parts read"``), names who reads them."""
+    n = A.shape[1] - len(meta)
+    if n < 1:
+        raise ParameterError(f"X has {A.shape[1]} columns (n_features = {A.shape[1]}); {reader} {len(meta)} metadata "
+                             f"column(s) {list(meta)} after each window's points")
+    return n
+
+
 def with_metadata(X, meta: Mapping[str, np.ndarray] | None, columns, where: str = "the data") -> np.ndarray:
     """``X`` with the metadata ``columns`` appended (float64), the input of a model that reads them.
 
@@ -102,10 +113,7 @@ class CombinedFeatures(SignalTransformer):
     def _inputs(self, A):
         """(name, transformer, its input) for each part of the checked matrix ``A``."""
         meta = self.input_metadata()
-        n = A.shape[1] - len(meta)
-        if n < 1:
-            raise ParameterError(f"X has {A.shape[1]} columns; the parts read {len(meta)} metadata column(s) "
-                                 f"{list(meta)} after each window's points")
+        n = points_before_metadata(A, meta, "the parts read")
         for name, t in self._parts():
             extra = [n + meta.index(c) for c in input_metadata(t)]
             yield name, t, (A[:, :n] if not extra else np.ascontiguousarray(A[:, list(range(n)) + extra]))
@@ -126,4 +134,4 @@ class CombinedFeatures(SignalTransformer):
         return [f"{name}__{f}" for name, t in self.transformers_ for f in t.get_feature_names_out()]
 
 
-__all__ = ["CombinedFeatures", "input_metadata", "with_metadata"]
+__all__ = ["CombinedFeatures", "input_metadata", "points_before_metadata", "with_metadata"]
