@@ -53,15 +53,17 @@ def check_store_matches(card: dict, store) -> list[str]:
     return warnings
 
 
-def predict_in_chunks(estimator, X: np.ndarray, chunk: int = 512) -> np.ndarray:
-    """``estimator.predict(X)``, ``chunk`` samples at a time, each chunk reported to :mod:`rvdiag.progress`
-    (stage ``scoring``).  The same predictions: every model here predicts each sample on its own."""
+def predict_in_chunks(estimator, X: np.ndarray, chunk: int = 512, method: str = "predict") -> np.ndarray:
+    """``estimator.predict(X)`` (or another ``method``, e.g. ``"predict_proba"``), ``chunk`` samples at a time, each
+    chunk reported to :mod:`rvdiag.progress` (stage ``scoring``).  The same result: every model here predicts each
+    sample on its own."""
+    predict = getattr(estimator, method)
     n = len(X)
     parts = []
     for i in range(0, n, chunk):
-        parts.append(np.asarray(estimator.predict(X[i:i + chunk])))
+        parts.append(np.asarray(predict(X[i:i + chunk])))
         report("scoring", min(i + chunk, n), n)
-    return np.concatenate(parts) if parts else np.asarray(estimator.predict(X))
+    return np.concatenate(parts) if parts else np.asarray(predict(X))
 
 
 def evaluate_on_store(loaded, store, split: str = "test", where=()) -> Evaluation:
@@ -246,8 +248,7 @@ def record_metrics(loaded, ev: Evaluation, column: str = "unit", merge: dict[str
     estimator = loaded.estimator
     if hasattr(estimator, "predict_proba"):
         X = loaded.inputs(ev.X, ev.meta, where="the evaluated samples")
-        P = np.concatenate([np.asarray(estimator.predict_proba(X[i:i + 512]), dtype=float)
-                            for i in range(0, len(X), 512)])
+        P = predict_in_chunks(estimator, X, method="predict_proba").astype(float)
         classes = [str(c) for c in estimator.classes_]
         sums = np.zeros((keys.size, len(classes)))
         np.add.at(sums, inverse, P)
