@@ -141,8 +141,7 @@ class HealthyBaselineFeatures(SignalTransformer):
         self.scale_ = np.empty(shape + (n_f,))
         self.count_ = np.empty(shape, dtype=np.int64)
         for idx in itertools.product(*(range(s) for s in shape)):
-            rows = np.ones(len(F), dtype=bool)
-            for r in range(max(shape)):  # widen the neighbourhood until it holds min_count samples
+            for r in range(max(shape)):  # widen the neighbourhood until it holds min_count samples (at most all)
                 rows = np.all(np.abs(cell - np.asarray(idx)) <= r, axis=1)
                 if rows.sum() >= int(self.min_count):
                     break
