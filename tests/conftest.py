@@ -92,3 +92,24 @@ def potential_gradient(model, t: float, q):
         dq[i] = h
         grad[i] = (potential_energy(model, t, q + dq) - potential_energy(model, t, q - dq)) / (2 * h)
     return grad
+
+
+#: The relative spread (of the largest absolute value) that a simulation may show between two x86-64 CPUs.  numba
+#: compiles for the host CPU (vector width, FMA contraction), so the last bits of a stored array are those of the
+#: machine that wrote it.  Measured on the golden signals of tests/golden/before_manufacturing_errors.npz: 1.7e-13
+#: between this machine's native target (AMD EPYC, AVX-512) and ``NUMBA_CPU_NAME=generic`` (no AVX, no FMA);
+#: 1.9e-13 between the kernels' two compiled copies (with and without the manufacturing errors' terms) in one run.
+#: 1e-10 leaves a margin of ~500x; any change of the model moves these signals by more than 1e-3 (each test
+#: that uses this bound also shows that).
+CROSS_CPU_RTOL = 1e-10
+
+
+def assert_close_across_cpus(actual, expected) -> None:
+    """``actual`` equals ``expected`` (e.g. a stored golden array) within :data:`CROSS_CPU_RTOL` of its largest
+    absolute value: the same model on any x86-64 CPU."""
+    import numpy as np
+
+    actual, expected = np.asarray(actual), np.asarray(expected)
+    assert actual.shape == expected.shape
+    scale = float(np.max(np.abs(expected)))
+    np.testing.assert_allclose(actual, expected, rtol=0, atol=CROSS_CPU_RTOL * scale)

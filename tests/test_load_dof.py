@@ -2,8 +2,9 @@
 ``[bearings] output_torsional`` (an elastic joint: Spong 1987, "Modeling and control of elastic joint robots",
 J. Dyn. Syst. Meas. Control 109), present only when J_L > 0.
 
-Checked here: without it the model is the one before it to the last bit (the golden signals of
-tests/golden/before_manufacturing_errors.npz, written by an earlier model); the layout; the static solution (the
+Checked here: without it the model is the one before it (the golden signals of
+tests/golden/before_manufacturing_errors.npz, written by an earlier model, to the cross-CPU spread of
+``conftest.CROSS_CPU_RTOL``); the layout; the static solution (the
 coupling carries the load torque); the new mode against a two-inertia estimate; forces as minus the gradient of the
 NumPy potential; the drive's acceleration feed-forward with the load's share; how J_L is chosen (stated, the gravity
 arm's M L^2, or none); bad values.  The NumPy right-hand side is compared in tests/test_reference_rhs.py.
@@ -24,7 +25,7 @@ from rvdiag.dynamics import model as mdl
 from rvdiag.dynamics.linear import natural_frequencies, static_equilibrium
 from rvdiag.errors import ConfigError, ParameterError
 from rvdiag.params import ReducerParams
-from conftest import potential_gradient
+from conftest import assert_close_across_cpus, potential_gradient
 
 P0 = ReducerParams.default()
 OFF = {"planet_runout_grade": 0, "crank_hole_position": 0.0, "crank_phase_arcmin": 0.0, "pin_radius": 0.0,
@@ -35,17 +36,19 @@ GOLDEN = Path(__file__).parent / "golden" / "before_manufacturing_errors.npz"
 J_ARM = 15.0 * 0.5**2  # the motor-current rig's 15 kg arm at 0.5 m: 3.75 kg m^2
 
 
-def test_no_load_inertia_is_the_model_before_it_bit_for_bit():
-    """J_L = 0 (given, or stated in the parameter set) runs the kernels without the load DOF: the signals equal, to
-    the last bit, those of a model older than the load DOF (the golden file); a load inertia changes them."""
+def test_no_load_inertia_is_the_model_before_it():
+    """J_L = 0 (given, or stated in the parameter set) runs the kernels without the load DOF: the signals equal
+    those of a model older than the load DOF (the golden file, within the cross-CPU spread: its last bits are those
+    of the machine that wrote it), and a stated J_L = 0 equals a given one to the last bit (the same run); a load
+    inertia changes them by far more than that spread."""
     g = np.load(GOLDEN)
     p_off = P0.replace(manufacturing=OFF, stage2=UNMODIFIED)
     r = simulate(p_off, output_speed_deg_s=60.0, duration_s=0.02, signal="both", load_inertia_kg_m2=0.0)
-    assert np.array_equal(r.signal, g["healthy_vibration"])
-    assert np.array_equal(r.current, g["healthy_current"])
+    assert_close_across_cpus(r.signal, g["healthy_vibration"])
+    assert_close_across_cpus(r.current, g["healthy_current"])
     stated = simulate(p_off.replace(operation={"load_inertia": 0.0}), output_speed_deg_s=60.0, duration_s=0.02,
                       signal="both")
-    assert np.array_equal(stated.signal, g["healthy_vibration"])
+    assert np.array_equal(stated.signal, r.signal) and np.array_equal(stated.current, r.current)
     loaded = simulate(p_off, output_speed_deg_s=60.0, duration_s=0.02, signal="both", load_inertia_kg_m2=J_ARM)
     assert loaded.settings["load_inertia_kg_m2"] == J_ARM and "load_inertia_kg_m2" not in r.settings
     assert np.max(np.abs(loaded.signal - g["healthy_vibration"])) > 1e-3 * np.max(np.abs(g["healthy_vibration"]))
