@@ -69,7 +69,8 @@ def record_speed(sig, meta: dict[str, float] | None = None, params=None) -> dict
     speed = float(got.rev_per_s) * 360.0 / p.ratio
     detail = got.detail
     if out_speed is not None or in_speed is not None:
-        detail = f"--output-speed {out_speed:g}" if out_speed is not None else f"--meta {SPEED_META[1]}={in_speed:g}"
+        detail = f"--meta {SPEED_META[0] if out_speed is not None else SPEED_META[1]}=" \
+                 f"{out_speed if out_speed is not None else in_speed:g}"
     if got.source == "estimate":
         check = confirm_speed(sig.data, float(sig.fs), p, speed)
         if not check["confirmed"]:
@@ -292,6 +293,9 @@ def build_diagnosis(loaded, sig, values: dict, *, is_current: bool, output_speed
     from rvdiag.models.conditions import class_limits
 
     x = np.asarray(sig.data, dtype=np.float64)
+    if x.size < loaded.input_length:
+        raise DataFileError(f"the signal has {x.size} points, shorter than one window of {loaded.input_length} "
+                            "points (the model's input length); give a longer recording")
     if output_speed is not None:
         values = {**values, SPEED_META[0]: float(output_speed)}
     flat = flat_reason(x, loaded.input_length)
@@ -303,6 +307,8 @@ def build_diagnosis(loaded, sig, values: dict, *, is_current: bool, output_speed
                "windows": [], "warnings": []}
     speed = record_speed(sig, values) if not is_current else {"output_speed_deg_s": values.get(SPEED_META[0]),
                                                               "stated": values.get(SPEED_META[0]) is not None}
+    if output_speed is not None and speed.get("detail"):
+        speed["detail"] = f"--output-speed {output_speed:g}"
     rec = recognition(loaded, x, sig.fs, res, speed, is_current)
     res.update({"recognised": rec["recognised"], "reason": rec["reason"], "checks": rec["checks"]})
     if not rec["recognised"]:
