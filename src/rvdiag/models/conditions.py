@@ -75,7 +75,8 @@ def condition_warnings(rng: Mapping | None, *, conditions: Mapping[str, float | 
         r = rng.get(column)
         if value is None or not r:
             continue
-        if not r["min"] <= value <= r["max"]:
+        tol = 1e-6 * max(abs(r["min"]), abs(r["max"]), 1.0)  # a speed computed back from revolutions
+        if not r["min"] - tol <= value <= r["max"] + tol:
             span = _fmt(r["min"]) if r["min"] == r["max"] else f"{_fmt(r['min'])}-{_fmt(r['max'])}"
             out.append(f"warning: {column} {_fmt(value)} {r['unit']} lies outside the training range {span} "
                        f"{r['unit']}: the model has not seen this operating point")
