@@ -147,18 +147,29 @@ def test_diagnose_needs_the_speed_and_gives_the_nine_indicators(orders_model, tm
 
 
 def test_diagnose_estimates_the_speed_without_one(tmp_path, capsys, orders_model):
-    """A waveform model reads no metadata: the indicators' speed comes from the stage-1 mesh peak."""
-    f = tmp_path / "mesh.npy"
-    x = _shaft_signal(45.0, 8192, orders=((1, 0.3, 0.3), (11, 1.0, 2.0)))  # the stage-1 mesh dominates
-    np.save(f, x + 0.05 * np.random.default_rng(0).standard_normal(8192))
-    from rvdiag.cli.diagnose import file_indicators
+    """A waveform model reads no metadata: the indicators' speed comes from the stage-1 mesh peak, when the
+    cycloid-pin mesh (order 13 of the sun relative to the carrier) confirms it; without that line it is refused
+    (issue 28.4: speed unknown rather than indicators at a wrong speed)."""
+    from rvdiag.cli.diagnose import file_indicators, record_speed
     from rvdiag.io import read_signal
 
-    res = file_indicators(read_signal(f, fs=FS))
+    f = tmp_path / "mesh.npy"
+    noise = 0.05 * np.random.default_rng(0).standard_normal(8192)
+    x = _shaft_signal(45.0, 8192, orders=((1, 0.3, 0.3), (11, 1.0, 2.0), (13, 0.8, 1.0)))  # the stage-1 mesh dominates
+    np.save(f, x + noise)
+    sig = read_signal(f, fs=FS)
+    res = file_indicators(sig, record_speed(sig))
     assert res["indicators_source"]["speed_source"].startswith("estimated from the stage-1 mesh peak")
+    assert "confirmed by the cycloid-pin mesh" in res["indicators_source"]["speed_source"]
     assert res["indicators_source"]["shaft_hz"] == pytest.approx(15.0, rel=1e-3)
-    res = file_indicators(read_signal(f))
+    sig = read_signal(f)
+    res = file_indicators(sig, record_speed(sig))
     assert res["indicators"] is None and "sampling rate" in res["indicators_source"]["error"]
+    np.save(f, _shaft_signal(45.0, 8192, orders=((1, 0.3, 0.3), (11, 1.0, 2.0))) + noise)
+    sig = read_signal(f, fs=FS)
+    speed = record_speed(sig)
+    assert speed["output_speed_deg_s"] is None and "does not confirm" in speed["error"]
+    assert file_indicators(sig, speed)["indicators"] is None
 
 
 def test_report_has_the_indicator_section(orders_model, speeds_store, tmp_path, capsys):

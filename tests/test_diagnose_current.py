@@ -121,8 +121,10 @@ def test_diagnose_reads_the_phase_current_by_name_and_gives_the_line_table(curre
     assert "indicators" not in out
     # the same window read as i_b by --channel gives another signal, so the channel choice is real
     code, out_b, err = run(["diagnose", model, csv, "--channel", "^i_b$", "--json"], capsys)
-    assert code == 0 and json.loads(out_b)["channel"] == "i_b"
-    assert json.loads(out_b)["windows"][0]["probabilities"] != out["windows"][0]["probabilities"]
+    out_b = json.loads(out_b)
+    assert code == 0 and out_b["channel"] == "i_b"
+    # i_b lags i_a by 120 deg: the model (trained on i_a) either scores it otherwise or does not recognise it
+    assert out_b["recognised"] is False or out_b["windows"][0]["probabilities"] != out["windows"][0]["probabilities"]
 
 
 def test_diagnose_reads_i_a_of_a_simulated_current_npz(current_model, capsys):

@@ -110,6 +110,16 @@ def fs(help: str, default: Any = None) -> Any:
     return typer.Option(default, *VOCABULARY["fs"], help=help)
 
 
+def output_speed(help: str = "Output (carrier) speed, deg/s.") -> Any:
+    """``--output-speed``: the reducer's output speed in deg/s (``orders``, ``diagnose``)."""
+    return typer.Option(None, "--output-speed", help=help)
+
+
+def load(help: str = "Output load torque, N m: checked against the model's training range.") -> Any:
+    """``--load``: the output load torque in N m."""
+    return typer.Option(None, "--load", help=help)
+
+
 def channel(help: str = "Regular expression picking one channel (may be left out when the file holds one).") -> Any:
     """``-c/--channel``."""
     return typer.Option(None, *VOCABULARY["channel"], help=help)

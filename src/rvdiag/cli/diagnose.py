@@ -41,35 +41,68 @@ MAX_ROWS = 40
 SPEED_META = ("output_speed_deg_s", "input_speed_rpm")
 
 
-def file_indicators(sig, meta: dict[str, float] | None = None) -> dict:
-    """Gear condition indicators of the signal ``sig`` (:class:`rvdiag.io.readers.MeasuredSignal`) on the sun shaft.
+def record_speed(sig, meta: dict[str, float] | None = None, params=None) -> dict:
+    """The record's output speed and where it came from: ``--output-speed`` / ``--meta output_speed_deg_s=...``
+    (or ``input_speed_rpm=...``), else the speed a simulated record states, else the stage-1 mesh peak
+    (:func:`rvdiag.io.angles.input_revolutions`), accepted only when the stage-2 (carrier) mesh confirms it
+    (:func:`rvdiag.features.mesh_lines.confirm_speed`).
+
+    Returns ``{"output_speed_deg_s", "source", "stated", "detail", "input_revs"}``, with ``output_speed_deg_s`` None
+    and ``error`` the reason when the speed is unknown (no sampling rate, an unconfirmed estimate)."""
+    from rvdiag.errors import RvdiagError
+    from rvdiag.features.mesh_lines import confirm_speed
+    from rvdiag.io.angles import AngleSpec, input_revolutions
+    from rvdiag.params import ReducerParams
+
+    meta = meta or {}
+    p = params or ReducerParams.default()
+    out_speed, in_speed = meta.get(SPEED_META[0]), meta.get(SPEED_META[1])
+    if out_speed is not None and in_speed is not None:
+        in_speed = None  # the output speed is the one a library records
+    unknown = {"output_speed_deg_s": None, "source": None, "stated": False, "input_revs": None}
+    try:
+        if not sig.fs:
+            raise ParameterError("the file states no sampling rate: give --fs")
+        got = input_revolutions(sig, AngleSpec(output_speed_deg_s=out_speed, input_speed_rpm=in_speed), p)
+    except RvdiagError as exc:
+        return {**unknown, "error": str(exc)}
+    speed = float(got.rev_per_s) * 360.0 / p.ratio
+    detail = got.detail
+    if out_speed is not None or in_speed is not None:
+        detail = f"--meta {SPEED_META[0] if out_speed is not None else SPEED_META[1]}=" \
+                 f"{out_speed if out_speed is not None else in_speed:g}"
+    if got.source == "estimate":
+        check = confirm_speed(sig.data, float(sig.fs), p, speed)
+        if not check["confirmed"]:
+            return {**unknown, "estimate": check,
+                    "error": f"speed unknown: the stage-1 mesh peak gives {speed:.4g} deg/s, which the record's "
+                             f"cycloid-pin mesh does not confirm (no line at {check['stage2_hz']:.5g} Hz); give "
+                             "--output-speed"}
+        detail += f", confirmed by the cycloid-pin mesh line at {check['stage2_peak_hz']:.5g} Hz"
+    return {"output_speed_deg_s": speed, "source": got.source, "stated": got.source != "estimate", "detail": detail,
+            "input_revs": got.revs}
+
+
+def file_indicators(sig, speed: dict) -> dict:
+    """Gear condition indicators of the signal ``sig`` (:class:`rvdiag.io.readers.MeasuredSignal`) on the sun shaft,
+    at the speed :func:`record_speed` found (none when it is unknown).
 
     Returns ``{"indicators": {name: value} or None, "indicators_source": {"shaft", "speed_source",
     "shaft_hz", "n_revolutions", "samples_per_rev"} or {"shaft", "error"}}``."""
-    from rvdiag.cli.orders import _angle
     from rvdiag.errors import RvdiagError
     from rvdiag.features import orders as o
     from rvdiag.params import ReducerParams
 
-    meta = meta or {}
-    out_speed, in_speed = meta.get(SPEED_META[0]), meta.get(SPEED_META[1])
-    if out_speed is not None and in_speed is not None:
-        in_speed = None  # the output speed is the one a library records
+    if speed.get("input_revs") is None:
+        return {"indicators": None, "indicators_source": {"shaft": "sun", "error": speed.get("error")}}
+    p = ReducerParams.default()
     try:
-        if not sig.fs:
-            raise ParameterError("the file states no sampling rate: give --fs")
-        p = ReducerParams.default()
-        revs, _, what = _angle(sig, "sun", p, output_speed=out_speed, input_speed=in_speed, rpm=None,
-                               tacho_channel=None, ppr=None, angle_channel=None, meta_regex=None, speed_range=None,
-                               fs=sig.fs)
-        if out_speed is not None or in_speed is not None:
-            what = f"--meta {SPEED_META[0] if out_speed is not None else SPEED_META[1]}=" \
-                   f"{out_speed if out_speed is not None else in_speed:g}"
+        revs = speed["input_revs"] * o.shaft_ratio("sun", p)
         res = o.analyse(np.asarray(sig.data, dtype=np.float64), float(sig.fs), revs, "sun", p)
     except RvdiagError as exc:
         return {"indicators": None, "indicators_source": {"shaft": "sun", "error": str(exc)}}
     return {"indicators": {k: float(v) for k, v in res["indicators"].items()},
-            "indicators_source": {"shaft": "sun", "speed_source": what, "shaft_hz": res["shaft_hz"],
+            "indicators_source": {"shaft": "sun", "speed_source": speed["detail"], "shaft_hz": res["shaft_hz"],
                                   "n_revolutions": int(res["n_revolutions"]),
                                   "samples_per_rev": int(res["samples_per_rev"])}}
 
@@ -147,8 +180,16 @@ def diagnose_signal(loaded, x: np.ndarray, fs: float | None, meta: dict[str, flo
     P = np.asarray(loaded.estimator.predict_proba(X), dtype=float)
     classes = [str(c) for c in loaded.estimator.classes_]
     overall = P.mean(axis=0)
+    ood = None
+    if loaded.novelty is not None:
+        from rvdiag.models.novelty import learned_features
+
+        d = loaded.novelty.distances(learned_features(loaded.estimator, X))
+        ood = {"distances": [float(v) for v in d], "threshold": loaded.novelty.threshold,
+               "share_beyond": float(np.mean(d > loaded.novelty.threshold)), "rate": loaded.novelty.rate}
     return {
         "diagnosis": classes[int(overall.argmax())],
+        "novelty": ood,
         "probabilities": {c: float(p) for c, p in zip(classes, overall)},
         "n_windows": k,
         "window_length": L,
@@ -161,6 +202,135 @@ def diagnose_signal(loaded, x: np.ndarray, fs: float | None, meta: dict[str, flo
     }
 
 
+#: a window is flat when its standard deviation is at most this fraction of the record's largest |value| (or 0)
+FLAT_FRACTION = 1e-9
+
+
+def state_name(c: str) -> str:
+    """``T2 (broken tooth)``: a state with its fault's name (:data:`rvdiag.gears.faults.STATES`); other classes as
+    they are."""
+    from rvdiag.gears.faults import STATES
+
+    names = {"healthy": "healthy", "broken": "broken tooth", "wear": "wear", "crack": "root crack",
+             "broken+wear": "broken tooth + wear", "broken+wear+crack": "broken tooth + wear + root crack"}
+    kind = STATES.get(str(c))
+    return str(c) if kind is None else f"{c} ({names.get(kind, kind)})"
+
+
+def flat_reason(x: np.ndarray, L: int) -> str | None:
+    """Why the record is flat (a constant or dead signal), or None: every point equal, or most windows of ``L``
+    points without variation (:data:`FLAT_FRACTION`)."""
+    x = np.asarray(x, dtype=np.float64)
+    if not np.all(np.isfinite(x)):
+        return "the signal holds non-finite values"
+    if np.ptp(x) == 0:
+        return f"the signal is constant ({x[0]:g} at every point): a dead or disconnected sensor?"
+    k = x.size // L
+    if k:
+        W = x[: k * L].reshape(k, L)
+        flat = W.std(axis=1) <= FLAT_FRACTION * np.max(np.abs(x))
+        if flat.mean() > 0.5:
+            return f"{int(flat.sum())} of {k} windows are flat (no variation): a dead or saturated sensor?"
+    return None
+
+
+def recognition(loaded, x: np.ndarray, fs: float | None, res: dict, speed: dict, is_current: bool) -> dict:
+    """Does the record look like the reducer the model knows?  ``{"recognised", "reason", "checks"}``, the reason
+    the first failed check: a flat signal (:func:`flat_reason`); no mesh line at a stated speed
+    (:func:`rvdiag.features.mesh_lines.mesh_lines`, vibration models trained on a simulated reducer library);
+    windows far outside the training distribution (:mod:`rvdiag.models.novelty`)."""
+    from rvdiag.features.mesh_lines import mesh_lines
+    from rvdiag.models.novelty import RECORD_SHARE
+    from rvdiag.params import ReducerParams
+
+    checks: dict = {"flat": flat_reason(x, loaded.input_length)}
+    if checks["flat"]:
+        return {"recognised": False, "reason": checks["flat"], "checks": checks}
+    reducer = (loaded.card.get("training_store") or {}).get("kind") == "simulated" and not is_current
+    if reducer and fs and speed.get("stated"):
+        lines = mesh_lines(x, fs, ReducerParams.default(), speed["output_speed_deg_s"])
+        checks["mesh_lines"] = lines
+        if not lines["present"]:
+            return {"recognised": False, "checks": checks,
+                    "reason": f"no mesh line at the stated speed {speed['output_speed_deg_s']:.4g} deg/s: neither "
+                              f"the stage-1 mesh ({lines['stage1']['hz']:.5g} Hz) nor the cycloid-pin mesh "
+                              f"({lines['stage2']['hz']:.5g} Hz) stands {lines['threshold_db']:g} dB above its floor"}
+    ood = res.get("novelty")
+    if ood is not None:
+        checks["novelty"] = {k: v for k, v in ood.items() if k != "distances"}
+        if ood["share_beyond"] > RECORD_SHARE:
+            return {"recognised": False, "checks": checks,
+                    "reason": f"{100 * ood['share_beyond']:.0f} % of the windows lie far outside the training data "
+                              f"(Mahalanobis distance of the model's features above {ood['threshold']:.4g}, which "
+                              f"{100 * ood['rate']:g} % of held-out training windows exceed)"}
+    return {"recognised": True, "reason": None, "checks": checks}
+
+
+def trust_warnings(loaded, res: dict, speed: dict, load: float | None, fs: float | None, x: np.ndarray) -> list[str]:
+    """The warnings that qualify an answer: the OOD check unavailable (an older model), the operating point or the
+    level outside the training range, the answer a class the model confuses (:mod:`rvdiag.models.conditions`)."""
+    from rvdiag.models.conditions import answer_warnings, class_limits, condition_warnings, signal_rms
+
+    out = []
+    if loaded.novelty is None:
+        out.append("warning: this model was trained before rvdiag stored an out-of-distribution check: it cannot "
+                   "tell a record unlike its training data (retrain it to get one)")
+    conditions = {"output_speed_deg_s": speed.get("output_speed_deg_s") if speed.get("stated") else None,
+                  "load_Nm": load}
+    out += condition_warnings(loaded.card.get("operating_range"), conditions=conditions, fs=fs,
+                              level_rms=float(signal_rms(x[None, :])[0]))
+    if res.get("diagnosis") is not None:
+        out += answer_warnings(class_limits(loaded.card.get("metrics")), res["diagnosis"], state_name)
+    return out
+
+
+def build_diagnosis(loaded, sig, values: dict, *, is_current: bool, output_speed: float | None = None,
+                    load: float | None = None) -> dict:
+    """The whole answer of ``rvdiag diagnose`` for one record (the dict of ``--json``), apart from its printing:
+    the windows' probabilities (:func:`diagnose_signal`), the speed (:func:`record_speed`), whether the record is
+    recognised (:func:`recognition`; when not, no state is named: ``diagnosis`` None and no probabilities), the
+    model's held-out recall of the answer, the warnings that qualify it, and the indicators or current lines."""
+    from rvdiag.models.conditions import class_limits
+
+    x = np.asarray(sig.data, dtype=np.float64)
+    if x.size < loaded.input_length:
+        raise DataFileError(f"the signal has {x.size} points, shorter than one window of {loaded.input_length} "
+                            "points (the model's input length); give a longer recording")
+    if output_speed is not None:
+        values = {**values, SPEED_META[0]: float(output_speed)}
+    flat = flat_reason(x, loaded.input_length)
+    if flat is None:
+        res = diagnose_signal(loaded, x, sig.fs, values)
+    else:  # a constant window has no z-score: nothing to classify
+        res = {"diagnosis": None, "novelty": None, "n_windows": x.size // loaded.input_length,
+               "window_length": loaded.input_length, "fs": sig.fs, "training_fs": loaded.fs, "metadata": {},
+               "windows": [], "warnings": []}
+    speed = record_speed(sig, values) if not is_current else {"output_speed_deg_s": values.get(SPEED_META[0]),
+                                                              "stated": values.get(SPEED_META[0]) is not None}
+    if output_speed is not None and speed.get("detail"):
+        speed["detail"] = f"--output-speed {output_speed:g}"
+    rec = recognition(loaded, x, sig.fs, res, speed, is_current)
+    res.update({"recognised": rec["recognised"], "reason": rec["reason"], "checks": rec["checks"]})
+    if not rec["recognised"]:
+        res.update({"diagnosis": None, "state": None, "probabilities": None,
+                    "windows": [{"start": w["start"]} for w in res["windows"]]})
+    else:
+        res["state"] = state_name(res["diagnosis"])
+        res["model_recall"] = class_limits(loaded.card.get("metrics")).get("recall", {}).get(res["diagnosis"])
+    res["operating_point"] = {"output_speed_deg_s": speed.get("output_speed_deg_s"),
+                              "speed_source": speed.get("detail") or speed.get("error"), "load_Nm": load}
+    res["warnings"] += trust_warnings(loaded, res, speed, load, sig.fs, x)
+    if is_current:
+        res.update(file_current_lines(sig, values))
+        if res["current_lines"] is None:
+            res["warnings"].append(f"WARNING: no current line table: {res['current_lines_error']}")
+    else:
+        res.update(file_indicators(sig, speed))
+        if res["indicators"] is None:
+            res["warnings"].append(f"WARNING: no gear condition indicators: {res['indicators_source']['error']}")
+    return res
+
+
 def register(app: typer.Typer) -> None:
     @app.command("diagnose")
     def diagnose(
@@ -169,6 +339,8 @@ def register(app: typer.Typer) -> None:
         channel: str = opt.channel(),
         fs: float = opt.fs("Sampling rate in Hz (overrides the file's)."),
         json_out: bool = opt.json_flag("Print the result as JSON."),
+        output_speed: float = opt.output_speed(),
+        load: float = opt.load(),
         meta: List[str] = typer.Option([], "--meta",
                                        help="NAME=VALUE: a metadata value the model reads, e.g. rpm=1797 (default: "
                                             "the file's scalar the training store read, e.g. X105RPM)."),
@@ -183,17 +355,9 @@ def register(app: typer.Typer) -> None:
         sig = _read_trained_channel(file, channel, fs, trained.get("channel")) if is_current \
             else read_signal(file, channel_regex=channel, fs=fs)
         values = _metadata_values(loaded, sig, meta)
-        res = diagnose_signal(loaded, np.asarray(sig.data, dtype=np.float64), sig.fs, values)
+        res = build_diagnosis(loaded, sig, values, is_current=is_current, output_speed=output_speed, load=load)
         res.update({"file": str(file), "channel": sig.channel, "model": str(model_dir),
                     "signal": "current" if is_current else "vibration"})
-        if is_current:
-            res.update(file_current_lines(sig, values))
-            if res["current_lines"] is None:
-                res["warnings"].append(f"WARNING: no current line table: {res['current_lines_error']}")
-        else:
-            res.update(file_indicators(sig, values))
-            if res["indicators"] is None:
-                res["warnings"].append(f"WARNING: no gear condition indicators: {res['indicators_source']['error']}")
         for w in res["warnings"]:
             typer.echo(w, err=True)
         if json_out:
@@ -236,6 +400,10 @@ def _print(res: dict) -> None:
     from rich.table import Table
 
     con = Console()
+    if not res["recognised"]:
+        con.print(f"{res['file']} [{res['channel']}]: [bold]not recognised[/bold]: this record does not look like "
+                  f"the reducer the model knows: {res['reason']}", soft_wrap=True)
+        return
     classes = list(res["probabilities"])
     t = Table(title=f"{res['file']} [{res['channel']}]: {res['n_windows']} window(s) of {res['window_length']} points")
     t.add_column("window")
@@ -251,7 +419,10 @@ def _print(res: dict) -> None:
     t.add_row("overall", "", res["diagnosis"], *(f"{res['probabilities'][c]:.3f}" for c in classes), style="bold")
     con.print(t)
     p = res["probabilities"][res["diagnosis"]]
-    con.print(f"diagnosis: [bold]{res['diagnosis']}[/bold] (mean probability {p:.3f} over {res['n_windows']} windows)")
+    recall = res.get("model_recall")
+    con.print(f"diagnosis: [bold]{res['state']}[/bold] (mean probability {p:.3f} over {res['n_windows']} windows"
+              + ("" if recall is None else f"; the model recognises {100 * recall:.0f} % of its held-out "
+                                           f"{res['diagnosis']} samples") + ")", soft_wrap=True)
     if res.get("current_lines"):
         cl = res["current_lines"]
         lt = Table(title=f"motor-current lines (output speed {cl['output_speed_deg_s']:.4g} deg/s from "

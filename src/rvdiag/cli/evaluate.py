@@ -10,6 +10,7 @@ import typer
 
 from rvdiag.cli import _options as opt
 from rvdiag.errors import ParameterError
+from rvdiag.evaluation.metrics import headline
 
 
 def register(app: typer.Typer) -> None:
@@ -99,8 +100,7 @@ def register(app: typer.Typer) -> None:
         else:
             _print(ev, loaded, data)
             if merged is not None:
-                typer.echo(f"merged {','.join(f'{a}={b}' for a, b in merge_map.items())}: accuracy "
-                           f"{100 * merged['accuracy']:.2f} %, "
+                typer.echo(f"merged {','.join(f'{a}={b}' for a, b in merge_map.items())}: {headline(merged)}; "
                            + ", ".join(f"{c} recall {100 * v['recall']:.1f} %" for c, v in merged["per_class"].items()))
             if by_record is not None:
                 _print_records(by_record)
@@ -117,11 +117,10 @@ def register(app: typer.Typer) -> None:
 def _print_records(r: dict) -> None:
     lo, hi = r["windows_per_record"]
     windows = f"{lo}" if lo == hi else f"{lo}-{hi}"
-    line = (f"records ({r['n_records']} of {windows} windows, decided by {r['decision']}): accuracy "
-            f"{100 * r['accuracy']:.2f} %, " + ", ".join(f"{c} recall {100 * v['recall']:.1f} %"
-                                                        for c, v in r["per_class"].items()))
+    line = (f"records ({r['n_records']} of {windows} windows, decided by {r['decision']}): {headline(r)}; "
+            + ", ".join(f"{c} recall {100 * v['recall']:.1f} %" for c, v in r["per_class"].items()))
     if "merged" in r:
-        line += f"; merged: accuracy {100 * r['merged']['accuracy']:.2f} %"
+        line += f"; merged: {headline(r['merged'])}"
     typer.echo(line)
 
 
@@ -169,7 +168,7 @@ def _print(ev, loaded, data) -> None:
     m = ev.metrics
     con = Console()
     con.print(f"{loaded.card.get('model')} on {data} [{ev.split}], {m['n_samples']} samples: "
-              f"accuracy {100 * m['accuracy']:.2f} %, macro F1 {100 * m['f1_macro']:.2f} %, kappa {m['kappa']:.4f}")
+              f"{headline(m)}, macro F1 {100 * m['f1_macro']:.2f} %, kappa {m['kappa']:.4f}")
     t = Table()
     for col in ("class", "precision", "recall", "f1", "support"):
         t.add_column(col, justify="left" if col == "class" else "right")
@@ -192,17 +191,20 @@ def _print_snr(curve: list[dict]) -> None:
 
     classes = list(curve[0].get("per_class_recall", {})) if curve else []
     t = Table(title="accuracy against added-noise SNR (same samples at every level)",
-              caption="SNR in dB; accuracy, macro F1" + (" and the recall of each class (class columns)" if classes
+              caption="SNR in dB; accuracy, macro F1, false alarms (share of the healthy samples called faulty)"
+                      + (" and the recall of each class (class columns)" if classes
                                                          else "") + " in %")
     t.add_column("SNR", justify="right")
     t.add_column("accuracy", justify="right")
     t.add_column("F1", justify="right")
     t.add_column("kappa", justify="right")
+    t.add_column("false alarms", justify="right")
     for c in classes:
         t.add_column(c, justify="right")
     for row in curve:
         t.add_row(f"{row['snr_db']:g}", f"{100 * row['accuracy']:.2f}", f"{100 * row['f1_macro']:.2f}",
-                  f"{row['kappa']:.3f}", *(f"{100 * row['per_class_recall'][c]:.1f}" for c in classes))
+                  f"{row['kappa']:.3f}", _pct_or_dash(row.get("false_alarm_rate")),
+                  *(f"{100 * row['per_class_recall'][c]:.1f}" for c in classes))
     Console().print(t)
 
 
@@ -214,7 +216,15 @@ def _print_by(column: str, groups: list[dict]) -> None:
     t.add_column(column, justify="right")
     t.add_column("samples", justify="right")
     t.add_column("accuracy", justify="right")
+    t.add_column("healthy recall", justify="right")
+    t.add_column("false alarms", justify="right")
     for g in groups:
         rng = f"{g['lo']:.4g}" if g["lo"] == g["hi"] else f"{g['lo']:.4g} .. {g['hi']:.4g}"
-        t.add_row(rng, str(g["n"]), f"{100 * g['accuracy']:.2f} %")
+        t.add_row(rng, str(g["n"]), f"{100 * g['accuracy']:.2f} %", _pct_or_dash(g.get("healthy_recall")),
+                  _pct_or_dash(g.get("false_alarm_rate")))
     Console().print(t)
+
+
+def _pct_or_dash(x) -> str:
+    """A share as ``12.3 %``, or ``-`` where it is undefined (no healthy sample in the group)."""
+    return "-" if x is None else f"{100 * x:.1f} %"

@@ -127,7 +127,7 @@ def register(app: typer.Typer) -> None:
         file: Path = typer.Argument(..., help="Signal file: CSV/CSV.gz, MAT, NPY, NPZ, WAV, TDMS."),
         shaft: str = typer.Option("sun", "--shaft", help="sun (relative to the carrier: stage-1 mesh) | crank "
                                   "(relative to the carrier: stage-2 mesh) | output (the carrier)."),
-        output_speed: Optional[float] = typer.Option(None, "--output-speed", help="Output (carrier) speed, deg/s."),
+        output_speed: Optional[float] = opt.output_speed(),
         input_speed: Optional[float] = typer.Option(None, "--input-speed", help="Motor (sun) speed, rpm."),
         rpm: Optional[float] = typer.Option(None, "--rpm", help="Speed of the analysed shaft itself, rev/min."),
         tacho_channel: Optional[str] = opt.angle_source("tacho_channel"),

@@ -259,7 +259,7 @@ def register(app: typer.Typer) -> None:
 
         With no options: the recommended setup of docs/results.md (mcsa-cnn on the log spectrum)."""
         from rvdiag.datasets import SampleStore
-        from rvdiag.evaluation.metrics import classification_metrics, repeat_summary
+        from rvdiag.evaluation.metrics import classification_metrics, headline, repeat_summary
         from rvdiag.models.persistence import save_model
         from rvdiag.models.torch_estimator import window_starts
 
@@ -347,15 +347,18 @@ def register(app: typer.Typer) -> None:
                 predicted = predict_store(est, te) if stream else est.predict(Xte)
                 metrics = classification_metrics(te.y, predicted, labels=[str(c) for c in est.classes_])
                 runs.append(metrics)
-                echo(f"seed {s}: test accuracy {100 * metrics['accuracy']:.2f} %  kappa {metrics['kappa']:.4f}")
+                echo(f"seed {s}: test {headline(metrics)}, kappa {metrics['kappa']:.4f}")
             if r == 0:
                 first = (est, metrics)
         est, metrics = first
+        novelty, op_range = _novelty_and_range(est, store, train_idx, tr, te, Xtr, Xte, meta_cols, seed, stream,
+                                               where)
         store_info = {"path": str(Path(data).resolve()),
                       "config_hash": store.attrs.get("config_hash") or _content_hash(store),
                       "kind": store.attrs.get("kind"), "n_train": int(len(tr.y)), **_signal_info(store)}
         extra = {} if snr_db is None else {"added_noise": {"snr_db": float(snr_db), "seed": [seed, 0],
                                                            "applies_to": "train and test splits"}}
+        extra["operating_range"] = op_range
         if conditions:
             extra["train_where"] = conditions
         if stream:
@@ -368,7 +371,8 @@ def register(app: typer.Typer) -> None:
             summary = repeat_summary(runs)
             extra["repeat"] = {"seeds": list(range(seed, seed + repeat)), **summary}
         save_model(est, out, model=model, features=(features or "wpd") if model in CLASSICAL_MODELS else None,
-                   fs=store.fs, training_store=store_info, metrics=metrics or {}, seed=seed, extra=extra)
+                   fs=store.fs, training_store=store_info, metrics=metrics or {}, seed=seed, extra=extra,
+                   novelty=novelty)
         if summary is not None:
             (Path(out) / "repeat.json").write_text(json.dumps(summary, indent=2))
         if json_out:
@@ -377,6 +381,43 @@ def register(app: typer.Typer) -> None:
         if summary is not None:
             _print_repeat(summary, seed, repeat)
         echo(f"saved model to {out}" + (" (the first seed's model; repeat.json holds the summary)" if repeat > 1 else ""))
+
+
+#: at most this many training (and test) samples fit and calibrate the out-of-distribution check
+MAX_NOVELTY_SAMPLES = 2000
+
+
+def _novelty_and_range(est, store, train_idx, tr, te, Xtr, Xte, meta_cols, seed: int, stream: bool, where: str):
+    """The out-of-distribution check of the model (:func:`rvdiag.models.novelty.fit_novelty`: fitted on at most
+    :data:`MAX_NOVELTY_SAMPLES` training samples drawn with ``[seed, 2]``, its threshold from as many test samples)
+    and the card's ``operating_range`` (:func:`rvdiag.models.conditions.operating_range`) of the training
+    samples (of those drawn, when the samples are streamed)."""
+    from rvdiag.features.combine import with_metadata
+    from rvdiag.models.conditions import operating_range
+    from rvdiag.models.novelty import fit_novelty
+
+    rng = np.random.default_rng([seed, 2])
+
+    def draw(n: int) -> np.ndarray:
+        return np.sort(rng.choice(n, size=min(n, MAX_NOVELTY_SAMPLES), replace=False))
+
+    if stream:
+        rows = np.asarray(train_idx)[draw(len(train_idx))]
+        sub = store.load(index=rows)
+        X_fit, raw, meta = with_metadata(sub.X, sub.meta, meta_cols, where=where), sub.X, sub.meta
+        test_idx = store.indices("test") if te is not None else np.zeros(0, np.int64)
+        X_cal = None
+        if len(test_idx):
+            t = store.load(index=np.asarray(test_idx)[draw(len(test_idx))])
+            X_cal = with_metadata(t.X, t.meta, meta_cols, where=where)
+    else:
+        pick = draw(len(Xtr))
+        X_fit, raw, meta = Xtr[pick], tr.X, tr.meta
+        X_cal = None if Xte is None or not len(Xte) else Xte[draw(len(Xte))]
+    signal = _signal_info(store)["signal"]
+    unit = ("A" if signal == "current" else "m/s^2") if store.attrs.get("kind") == "simulated" else None
+    op = operating_range(meta, raw, store.fs, unit=unit, normalize=getattr(est, "normalize", None))
+    return fit_novelty(est, X_fit, X_cal), op
 
 
 def _signal_info(store) -> dict:

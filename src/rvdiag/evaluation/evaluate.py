@@ -9,6 +9,7 @@ import numpy as np
 
 from rvdiag.errors import ModelFileError
 from rvdiag.evaluation.metrics import classification_metrics
+from rvdiag.models.novelty import learned_features
 from rvdiag.progress import report
 
 
@@ -108,7 +109,8 @@ def accuracy_against_snr(loaded, ev: Evaluation, snr_db: list[float], seed: int 
     one of noise alone (each level done is reported to :mod:`rvdiag.progress`): unlike ``--by noise_snr_db`` on a library whose simulations each drew an SNR, the
     states do not mix differently from one level to the next.
 
-    Returns one dict per level: ``snr_db, accuracy, f1_macro, kappa, n``.
+    Returns one dict per level: ``snr_db, accuracy, f1_macro, kappa, n, healthy_recall, false_alarm_rate,
+    per_class_recall`` (:func:`rvdiag.evaluation.metrics.classification_metrics`).
     """
     from rvdiag.dynamics.noise import add_awgn
 
@@ -120,7 +122,8 @@ def accuracy_against_snr(loaded, ev: Evaluation, snr_db: list[float], seed: int 
         pred = predict_in_chunks(loaded.estimator, loaded.inputs(noisy, ev.meta)).astype(str)
         m = classification_metrics(ev.y_true, pred, labels=labels)
         out.append({"snr_db": float(level), "accuracy": m["accuracy"], "f1_macro": m["f1_macro"],
-                    "kappa": m["kappa"], "n": int(len(pred)), "per_class_recall":
+                    "kappa": m["kappa"], "n": int(len(pred)), "healthy_recall": m["healthy_recall"],
+                    "false_alarm_rate": m["false_alarm_rate"], "per_class_recall":
                     {c: v["recall"] for c, v in m["per_class"].items()}})
         report("SNR levels", i + 1, len(snr_db))
     store_snr = ev.meta.get("noise_snr_db")
@@ -128,16 +131,6 @@ def accuracy_against_snr(loaded, ev: Evaluation, snr_db: list[float], seed: int 
         vals = np.asarray(store_snr, dtype=float)
         out[0]["store_snr_db"] = {"min": float(np.nanmin(vals)), "max": float(np.nanmax(vals))}
     return out
-
-
-def learned_features(estimator, X: np.ndarray) -> np.ndarray:
-    """The model's internal representation of samples: CNN last hidden layer, or the standardised
-    features of a classical pipeline (every step but the classifier)."""
-    if hasattr(estimator, "embed"):
-        return estimator.embed(X)
-    if hasattr(estimator, "steps") and len(estimator.steps) > 1:
-        return np.asarray(estimator[:-1].transform(X))
-    return np.asarray(X)
 
 
 #: Speed columns the report's indicator section reads, in order of preference.
@@ -278,8 +271,11 @@ def accuracy_by(ev: Evaluation, column: str, n_bins: int = 6) -> list[dict]:
 
     A column with at most 12 distinct values is grouped by value, otherwise into ``n_bins`` equal-width
     bins between its minimum and maximum (the last bin closed).  Returns one dict per group:
-    ``{"lo", "hi", "n", "accuracy"}`` (``lo == hi`` for a single value).
+    ``{"lo", "hi", "n", "accuracy", "healthy_recall", "false_alarm_rate"}`` (``lo == hi`` for a single value; the
+    last two None in a group without a healthy sample, or for a model without a healthy class).
     """
+    from rvdiag.evaluation.metrics import healthy_class
+
     from rvdiag.errors import StoreError
 
     if column not in ev.meta:
@@ -290,6 +286,8 @@ def accuracy_by(ev: Evaluation, column: str, n_bins: int = 6) -> list[dict]:
         raise StoreError(f"metadata column {column!r} is not numeric") from None
     ok = np.isfinite(v)
     correct = ev.y_true == ev.y_pred
+    healthy = healthy_class(ev.metrics.get("labels") or sorted(set(ev.y_true.tolist())))
+    is_healthy = ev.y_true == healthy
     out = []
     values = np.unique(v[ok])
     if values.size <= 12:
@@ -302,5 +300,8 @@ def accuracy_by(ev: Evaluation, column: str, n_bins: int = 6) -> list[dict]:
             groups.append((edges[i], edges[i + 1], ok & (v >= edges[i]) & hi_ok))
     for lo, hi, m in groups:
         if m.any():
-            out.append({"lo": float(lo), "hi": float(hi), "n": int(m.sum()), "accuracy": float(correct[m].mean())})
+            h = m & is_healthy
+            h_recall = float(correct[h].mean()) if h.any() else None
+            out.append({"lo": float(lo), "hi": float(hi), "n": int(m.sum()), "accuracy": float(correct[m].mean()),
+                        "healthy_recall": h_recall, "false_alarm_rate": None if h_recall is None else 1.0 - h_recall})
     return out

@@ -10,6 +10,17 @@ Keys of :func:`classification_metrics` (also the keys of ``rvdiag evaluate --jso
 ``kappa``            Cohen's kappa (Cohen 1960): (p_o - p_e) / (1 - p_e), agreement beyond chance; the
                      EEMD-MPA-KELM study (Tu et al. 2023) reports it (0.82)
 ``per_class``        {class: {precision, recall, f1, support}}
+``recall``           {class: recall}: the share of each class's samples diagnosed as that class (None for a
+                     class absent from ``y_true``)
+``healthy_class``    the healthy state among ``labels`` (:func:`healthy_class`: ``T1``, or a class named
+                     ``healthy``/``normal``), or None
+``healthy_recall``   the recall of ``healthy_class`` (None without one, or without a healthy sample)
+``false_alarm_rate`` the share of the healthy samples diagnosed as any other (faulty) class, 1 - healthy recall
+                     (None as ``healthy_recall``).  The same definition holds for whatever is scored: windows,
+                     whole records (``evaluate --records``) and merged classes (``--merge``: e.g. with ``T4=T1``
+                     the healthy class holds the cracked samples too, and a false alarm is a crack-free decision
+                     other than healthy).  An accuracy is never shown without these two figures
+                     (:func:`headline`): a model that calls every healthy sample faulty can still score 80 %.
 ``confusion``        confusion matrix as a list of rows: row = true class, column = predicted, in the
                      order of ``labels``
 ``labels``           the class order of ``confusion``
@@ -30,8 +41,41 @@ from sklearn.metrics import (
     precision_recall_fscore_support,
 )
 
-METRIC_KEYS = ("accuracy", "precision_macro", "recall_macro", "f1_macro", "kappa", "per_class", "confusion")
+METRIC_KEYS = ("accuracy", "precision_macro", "recall_macro", "f1_macro", "kappa", "per_class", "confusion",
+               "recall", "healthy_class", "healthy_recall", "false_alarm_rate")
 
+#: class names, besides the library's healthy state (``T1``), read as the healthy class (case ignored)
+HEALTHY_NAMES = ("healthy", "normal")
+
+
+def healthy_class(labels: Sequence[str]) -> str | None:
+    """The healthy state among ``labels``: the library's healthy state (``T1``,
+    :data:`rvdiag.gears.faults.STATES`), else the first label named as in :data:`HEALTHY_NAMES`, else None.
+
+    >>> healthy_class(["T1", "T2"]), healthy_class(["normal", "inner race"]), healthy_class(["a", "b"])
+    ('T1', 'normal', None)
+    """
+    from rvdiag.gears.faults import STATES
+
+    labels = [str(c) for c in labels]
+    healthy = [k for k, v in STATES.items() if v == "healthy"]
+    for c in labels:
+        if c in healthy:
+            return c
+    return next((c for c in labels if c.strip().lower() in HEALTHY_NAMES), None)
+
+
+def headline(m: dict, pct_digits: int = 2) -> str:
+    """``accuracy 72.85 %, healthy (T1) recall 97.7 %, false-alarm rate 2.3 %`` of a metrics dict: the accuracy
+    is never printed alone (a model that calls every healthy sample faulty can still score a high accuracy)."""
+    acc = f"accuracy {100 * m['accuracy']:.{pct_digits}f} %"
+    h = m.get("healthy_class")
+    if h is None:
+        return acc + " (no healthy class: no false-alarm rate)"
+    if m.get("healthy_recall") is None:
+        return acc + f", no healthy ({h}) sample: no false-alarm rate"
+    return (acc + f", healthy ({h}) recall {100 * m['healthy_recall']:.1f} %, false-alarm rate "
+            f"{100 * m['false_alarm_rate']:.1f} %")
 
 def classification_metrics(y_true, y_pred, labels: Sequence[str] | None = None) -> dict:
     """Accuracy, macro precision/recall/F1, Cohen's kappa, per-class figures and the confusion matrix.
@@ -66,6 +110,10 @@ def classification_metrics(y_true, y_pred, labels: Sequence[str] | None = None) 
         kappa = cohen_kappa_score(yt, yp, labels=labels)
     if not np.isfinite(kappa):  # one label only in both: agreement is perfect or nil
         kappa = 1.0 if np.all(yt == yp) else 0.0
+    healthy = healthy_class(labels)
+    h_recall = None
+    if healthy is not None and s[labels.index(healthy)] > 0:
+        h_recall = float(r[labels.index(healthy)])
     return {
         "accuracy": float(accuracy_score(yt, yp)),
         "precision_macro": float(np.mean(p[present])),
@@ -79,6 +127,10 @@ def classification_metrics(y_true, y_pred, labels: Sequence[str] | None = None) 
         "confusion": confusion_matrix(yt, yp, labels=labels).astype(int).tolist(),
         "labels": labels,
         "n_samples": int(yt.size),
+        "recall": {c: (float(r[i]) if s[i] > 0 else None) for i, c in enumerate(labels)},
+        "healthy_class": healthy,
+        "healthy_recall": h_recall,
+        "false_alarm_rate": None if h_recall is None else 1.0 - h_recall,
     }
 
 

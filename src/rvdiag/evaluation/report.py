@@ -154,11 +154,19 @@ def render_report(*, title: str, metrics: Mapping[str, Any], card: Mapping[str, 
         f"({metrics['n_samples']} samples, store kind {html.escape(str(store_info.get('kind')))}); rvdiag {__version__}"
         + (f"; <b>{len(notes)} caveat(s)</b>, see Caveats" if notes else "") + "</p>")
     # summary
-    parts.append("<h2>Summary</h2><table class='big'><tr><th>accuracy</th><th>precision (macro)</th>"
+    h = metrics.get("healthy_class")
+    h_recall, fa = metrics.get("healthy_recall"), metrics.get("false_alarm_rate")
+    parts.append("<h2>Summary</h2><table class='big summary'><tr><th>accuracy</th>"
+                 f"<th>healthy recall{' (' + html.escape(str(h)) + ')' if h else ''}</th>"
+                 "<th>false-alarm rate</th><th>precision (macro)</th>"
                  "<th>recall (macro)</th><th>F1 (macro)</th><th>Cohen's kappa</th></tr><tr>"
-                 f"<td>{_pct(metrics['accuracy'])}</td><td>{_pct(metrics['precision_macro'])}</td>"
+                 f"<td>{_pct(metrics['accuracy'])}</td>"
+                 f"<td>{'n/a' if h_recall is None else _pct(h_recall)}</td>"
+                 f"<td>{'n/a' if fa is None else _pct(fa)}</td><td>{_pct(metrics['precision_macro'])}</td>"
                  f"<td>{_pct(metrics['recall_macro'])}</td><td>{_pct(metrics['f1_macro'])}</td>"
-                 f"<td>{metrics['kappa']:.4f}</td></tr></table>")
+                 f"<td>{metrics['kappa']:.4f}</td></tr></table>"
+                 "<p class='muted'>False-alarm rate: the share of the healthy samples diagnosed as a fault "
+                 "(1 - healthy recall)" + ("" if h else "; n/a: the model has no healthy class") + ".</p>")
     # per class + confusion
     rows = "".join(
         f"<tr class='{'ok' if v['recall'] >= 0.99 else ('bad' if v['recall'] < 0.9 else '')}'>"

@@ -27,7 +27,10 @@ policy for long samples; for ``--representation orders``/``orders-residual`` als
 held-out test split), ``seed``, ``rvdiag_version``, ``created`` (UTC ISO time); CNN cards also hold
 ``params`` (the estimator's ``get_params``), the learned scalars and ``history``; classical cards hold
 ``estimator``, ``sklearn_version`` and ``skops_version``, and those trained with ``--multilabel``
-``multilabel`` (``labels``: broken, worn, cracked; ``decoding``).
+``multilabel`` (``labels``: broken, worn, cracked; ``decoding``).  Models written by ``rvdiag train`` also
+hold ``operating_range`` (speed, load, sampling rate and signal level of the training samples:
+:func:`rvdiag.models.conditions.operating_range`) and ``novelty`` (the out-of-distribution check, its arrays in
+``MODEL_DIR/novelty.safetensors``: :mod:`rvdiag.models.novelty`); both are optional, so earlier models load.
 
 Loading a directory that is no model, a card of another format/version, or weights that do not fit the
 card (missing or extra tensors, wrong shapes) raises :class:`rvdiag.errors.ModelFileError`.
@@ -66,11 +69,13 @@ class LoadedModel:
     estimator : fitted scikit-learn-compatible classifier (``predict``, ``predict_proba``, ``classes_``)
     card : dict, the card fields listed in the module docstring
     path : Path
+    novelty : :class:`rvdiag.models.novelty.NoveltyDetector` or None (a model written without one)
     """
 
     estimator: Any
     card: dict
     path: Path
+    novelty: Any = None
 
     @property
     def classes(self) -> list[str]:
@@ -148,19 +153,29 @@ def base_card(estimator, *, model: str, features: str | None = None, fs: float |
     return jsonable(card)
 
 
-def save_model(estimator, directory: str | Path, **card_fields) -> Path:
+def save_model(estimator, directory: str | Path, novelty=None, **card_fields) -> Path:
     """Save a fitted classifier as a model directory; returns the directory.
 
     Parameters
     ----------
     estimator : CNNClassifier or a classical pipeline from :func:`rvdiag.models.pipelines.make_classical_model`
     directory : path, created if needed (existing model files in it are replaced)
+    novelty : :class:`rvdiag.models.novelty.NoveltyDetector` or None: written to ``novelty.safetensors``, its
+        threshold to the card's ``novelty`` (without one, a file of an earlier model there is removed)
     **card_fields : keyword arguments of :func:`base_card` (``model`` is required)
     """
+    from rvdiag.models.novelty import NOVELTY_FILE
+
     d = Path(directory)
     if d.exists() and not d.is_dir():
         raise ModelFileError(f"{d} exists and is not a directory")
     card = base_card(estimator, **card_fields)
+    d.mkdir(parents=True, exist_ok=True)
+    if novelty is not None:
+        novelty.save(d)
+        card["novelty"] = novelty.card()
+    else:
+        (d / NOVELTY_FILE).unlink(missing_ok=True)
     if card["kind"] == "classical":
         from rvdiag.models.pipelines import save_classical
 
@@ -184,6 +199,8 @@ def save_model(estimator, directory: str | Path, **card_fields) -> Path:
 
 def load_model(directory: str | Path) -> LoadedModel:
     """Load a model directory written by :func:`save_model`; :class:`ModelFileError` if it is not one."""
+    from rvdiag.models.novelty import load_novelty
+
     d = Path(directory)
     card = read_card(d)
     if card["kind"] == "classical":
@@ -193,8 +210,8 @@ def load_model(directory: str | Path) -> LoadedModel:
         got = [str(c) for c in getattr(est, "classes_", [])]
         if got != [str(c) for c in card["classes"]]:
             raise ModelFileError(f"{d}: classes in model.skops {got} do not match the card {card['classes']}")
-        return LoadedModel(est, card, d)
-    return LoadedModel(_load_cnn(d, card), card, d)
+        return LoadedModel(est, card, d, load_novelty(d, card))
+    return LoadedModel(_load_cnn(d, card), card, d, load_novelty(d, card))
 
 
 def _load_cnn(d: Path, card: dict) -> CNNClassifier:
