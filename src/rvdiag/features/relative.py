@@ -38,8 +38,8 @@ from rvdiag.features._base import as_signal_matrix
 from rvdiag.features.combine import input_metadata, points_before_metadata
 
 #: names of :func:`tsa_change_features`, in order
-TSA_CHANGE_NAMES = ("tsa_change", "residual_change", "na4_star", "tooth_peak", "tsa_change_z",
-                    "residual_change_z", "tooth_peak_z")
+TSA_CHANGE_NAMES = ("log10_tsa_change", "log10_residual_change", "log10_na4_star", "log10_tooth_peak",
+                    "log10_tsa_change_z", "log10_residual_change_z", "log10_tooth_peak_z")
 
 
 def relative_features(F, B) -> np.ndarray:
@@ -112,7 +112,7 @@ def tsa_change_features(x, output_speed_deg_s: float, baseline: Sequence[np.ndar
     Returns
     -------
     array (7,)
-        ``tsa_change`` ||T - T_b|| / ||T_b||, ``residual_change`` the same of their residuals, ``na4_star``
+        log10 of (ratios spanning decades, as the indicators of ``tsa-ci``): ``tsa_change`` ||T - T_b|| / ||T_b||, ``residual_change`` the same of their residuals, ``na4_star``
         mean(r^4) / var(r_b)^2 of the residual r of the change (Decker, Handschuh & Zakrajsek 1994, NA4* with the
         healthy baseline's variance), ``tooth_peak`` the mean of the N largest half-pitch energies of r over their
         median (N planets: a tooth meets N planets per revolution), and the first two and the last over the median
@@ -139,7 +139,8 @@ def tsa_change_features(x, output_speed_deg_s: float, baseline: Sequence[np.ndar
             cj, crj, _, _, pj = _change(Tb[j], np.mean(Tb[:j] + Tb[j + 1:], axis=0), mesh, slots, planets)
             loo.append((cj, crj, pj))
         own = np.median(loo, axis=0)
-    return np.array([c, cr, na4, peak, c / own[0], cr / own[1], peak / own[2]])
+    v = np.array([c, cr, na4, peak, c / own[0], cr / own[1], peak / own[2]])
+    return np.log10(np.maximum(v, 1e-12), where=np.isfinite(v), out=np.full(v.size, np.nan))
 
 
 class BaselineReferencedFeatures(TransformerMixin, BaseEstimator):
