@@ -31,7 +31,9 @@ none              :class:`RawSignal` (the samples themselves)
 
 Names joined by ``+`` (``spectrum-abs+bearing-envelope``) put feature sets side by side
 (:class:`~rvdiag.features.combine.CombinedFeatures`, built by :func:`rvdiag.models.pipelines.make_feature_set`).
-Also :class:`CharacteristicBandEnergy` (bands at the reducer's characteristic frequencies).  Extensions add
+Also :class:`CharacteristicBandEnergy` (bands at the reducer's characteristic frequencies) and
+:class:`~rvdiag.features.relative.BaselineReferencedFeatures` (what changed in a window since its reducer's own
+baseline windows: docs/monitoring.md).  Extensions add
 names with :func:`register_features`.  The learned ``cnn`` feature set trains a network, so it lives in the models layer
 (:class:`rvdiag.models.cnn_features.CNNFeatures`, named by :func:`rvdiag.models.pipelines.feature_names`);
 this package never imports torch.
@@ -47,6 +49,7 @@ from rvdiag.features.baseline import HealthyBaselineFeatures, healthy_modulation
 from rvdiag.features.bearing import BearingEnvelopeFeatures
 from rvdiag.features.combine import CombinedFeatures, input_metadata, with_metadata
 from rvdiag.features.eemd import EEMDFeatures, eemd, emd
+from rvdiag.features.relative import BaselineReferencedFeatures, relative_features, tsa_change_features
 from rvdiag.features.spectrum import (
     CharacteristicBandEnergy,
     EnvelopeSpectrumFeatures,
@@ -129,6 +132,7 @@ def make_features(name: str, **kw):
 
 
 __all__ = [
+    "BaselineReferencedFeatures", "relative_features", "tsa_change_features",
     "BearingEnvelopeFeatures", "CharacteristicBandEnergy", "HealthyBaselineFeatures", "CombinedFeatures", "EEMDFeatures",
     "EnvelopeSpectrumFeatures", "OrderSpectrumFeatures", "RawSignal", "SignalTransformer", "SpectrumFeatures", "TIME_FEATURE_NAMES",
     "TSAIndicatorFeatures", "TimeDomainFeatures", "WaveletPacketEnergy", "absolute_spectrum_features", "as_signal_matrix",

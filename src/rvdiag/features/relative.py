@@ -1,0 +1,243 @@
+"""Baseline-referenced features: what changed in a monitored window since the same reducer's healthy baseline at
+the nearest operating point (issue 27; docs/monitoring.md).
+
+A reducer is compared with itself.  The classical gear indicators do this: NA4 divides the fourth moment of the
+residual signal by the variance of the machine's own earlier records (Zakrajsek, Townsend & Decker 1993, NASA
+TM-105950), NA4* by the variance of the healthy machine at the same load (Decker, Handschuh & Zakrajsek 1994,
+NASA TM-106553; Dempsey & Zakrajsek 2001, NASA/TM-2001-210671), and ISO 13373-1/-2 and ISO 17359 monitor a
+machine by the trend of its own indicators against its commissioning baseline.  Two families here:
+
+- :func:`relative_features`: any feature vector (log band powers, log condition indicators) minus the mean of the
+  baseline windows' vectors, so a log10 power becomes a change in decades (x 10 = dB).  What the reducer's
+  manufacturing errors, build and sensor path put into the features, the baseline holds too, and the difference
+  cancels it to first order.
+- :func:`tsa_change_features`: the TSA of the window on the sun shaft (relative to the carrier) compared with the
+  TSA of the baseline windows after a circular alignment (the start angle of a record is not known to a fraction
+  of a tooth): the change of the whole TSA and of its residual (mesh harmonics and shaft orders removed, Lebold et
+  al. 2000), NA4* of the change (its fourth moment over the squared variance of the baseline's own residual,
+  Decker et al. 1994), and the per-tooth deviation (the largest energies of the change in half-pitch slots over
+  their median: a tooth fault acts on one tooth once per planet pass, a load or temperature change on every
+  tooth).  Each change is also given relative to the baseline's own spread (the leave-one-out change of each
+  baseline window against the others), the reducer's run-to-run variation.
+
+This module knows nothing of stores or models: it takes arrays.  Matching a sample with its baseline windows is
+:func:`rvdiag.datasets.store.match_baseline`; the health index and the alarm are in :mod:`rvdiag.models.monitoring`.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from sklearn.base import BaseEstimator, TransformerMixin, clone
+
+from rvdiag.errors import ParameterError
+from rvdiag.features import orders as _o
+from rvdiag.features._base import as_signal_matrix
+from rvdiag.features.combine import input_metadata, points_before_metadata
+
+#: names of :func:`tsa_change_features`, in order
+TSA_CHANGE_NAMES = ("log10_tsa_change", "log10_residual_change", "log10_na4_star", "log10_tooth_peak",
+                    "log10_tsa_change_z", "log10_residual_change_z", "log10_tooth_peak_z")
+
+
+def relative_features(F, B) -> np.ndarray:
+    """``F - mean(B)``: each window's features (rows of ``F``) minus the mean of its baseline windows' features
+    ``B`` (rows; the same columns).  For log10 features this is the change in decades since the baseline (the
+    ISO 13373-2 trend of an indicator against its reference value)."""
+    F = np.atleast_2d(np.asarray(F, dtype=np.float64))
+    B = np.atleast_2d(np.asarray(B, dtype=np.float64))
+    if B.shape[0] < 1 or B.shape[1] != F.shape[1]:
+        raise ParameterError(f"baseline features of shape {B.shape} do not match window features of shape "
+                             f"{F.shape}")
+    return F - B.mean(axis=0)
+
+
+def align(t: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """``t`` circularly shifted (whole samples) to the lag of its largest cross-correlation with ``ref``."""
+    c = np.fft.irfft(np.fft.rfft(ref) * np.conj(np.fft.rfft(t)), t.size)
+    return np.roll(t, int(np.argmax(c)))
+
+
+def sun_tsa(x, fs: float, output_speed_deg_s: float, samples_per_rev: int, params=None) -> np.ndarray:
+    """TSA of ``x`` on the sun shaft relative to the carrier at a constant output speed, ``samples_per_rev``
+    points per revolution (computed order tracking, :func:`rvdiag.features.orders.resample_to_angle`)."""
+    f = _o.shaft_frequency("sun", params, output_speed_deg_s=float(output_speed_deg_s))
+    revs = _o.angle_from_speed(np.asarray(x).size, float(fs), f)
+    return _o.tsa(_o.resample_to_angle(np.asarray(x, dtype=np.float64), float(fs), revs, samples_per_rev),
+                  samples_per_rev)
+
+
+def _residual(t, mesh: int, shaft_orders: int = 2) -> np.ndarray:
+    return _o.gear_signals(t, mesh, shaft_orders)["residual"]
+
+
+def _tooth_peak(d, slots: int, peaks: int) -> float:
+    """Mean of the ``peaks`` largest slot energies of ``d`` over their median (``slots`` equal slots)."""
+    n = d.size - d.size % slots
+    e = np.sort((d[:n].reshape(slots, -1) ** 2).sum(axis=1))
+    med = float(np.median(e))
+    return float(e[-peaks:].mean() / med) if med > 0 else 0.0
+
+
+def _change(t, ref, mesh: int, slots: int, peaks: int):
+    d = align(t, ref) - ref
+    dr = _residual(d, mesh)
+    rr = _residual(ref, mesh)
+    return (float(np.linalg.norm(d) / max(np.linalg.norm(ref), 1e-300)),
+            float(np.linalg.norm(dr) / max(np.linalg.norm(rr), 1e-300)),
+            dr, float(np.var(rr)), _tooth_peak(dr, slots, peaks))
+
+
+def tsa_change_features(x, output_speed_deg_s: float, baseline: Sequence[np.ndarray],
+                        baseline_speeds: Sequence[float], fs: float, params=None,
+                        samples_per_rev: int | None = None) -> np.ndarray:
+    """The TSA-change features (:data:`TSA_CHANGE_NAMES`) of the window ``x`` against its baseline windows.
+
+    Parameters
+    ----------
+    x : array (n,)
+        The monitored window, at output speed ``output_speed_deg_s``.
+    baseline : sequence of arrays
+        The same reducer's healthy windows at (about) the same operating point, each at its speed in
+        ``baseline_speeds``; two or more give the baseline's own spread (the ``*_z`` features), one gives NaN there.
+    fs : float
+        Sampling rate, Hz.
+    params : reducer parameters (default the built-in RV-20E): the sun's teeth Z1 and the planets N.
+    samples_per_rev : int, optional
+        Angular samples per sun revolution (default from the window's speed,
+        :func:`rvdiag.features.orders.default_samples_per_rev`).
+
+    Returns
+    -------
+    array (7,)
+        log10 of (ratios spanning decades, as the indicators of ``tsa-ci``): ``tsa_change`` ||T - T_b|| / ||T_b||, ``residual_change`` the same of their residuals, ``na4_star``
+        mean(r^4) / var(r_b)^2 of the residual r of the change (Decker, Handschuh & Zakrajsek 1994, NA4* with the
+        healthy baseline's variance), ``tooth_peak`` the mean of the N largest half-pitch energies of r over their
+        median (N planets: a tooth meets N planets per revolution), and the first two and the last over the median
+        of the same figure for each baseline window left out against the others.
+    """
+    p = _o._params(params)
+    mesh, planets = int(p.stage1.sun_teeth), int(p.stage1.n_planets)
+    if len(baseline) < 1 or len(baseline) != len(baseline_speeds):
+        raise ParameterError(f"tsa_change_features needs >= 1 baseline window with its speed, got "
+                             f"{len(baseline)} windows and {len(baseline_speeds)} speeds")
+    f = _o.shaft_frequency("sun", p, output_speed_deg_s=float(output_speed_deg_s))
+    spr = int(samples_per_rev or _o.default_samples_per_rev(float(fs), f, mesh))
+    slots = 2 * mesh
+    Tb = [sun_tsa(b, fs, v, spr, p) for b, v in zip(baseline, baseline_speeds)]
+    Tb = [Tb[0]] + [align(t, Tb[0]) for t in Tb[1:]]
+    ref = np.mean(Tb, axis=0)
+    t = sun_tsa(x, fs, output_speed_deg_s, spr, p)
+    c, cr, dr, var_b, peak = _change(t, ref, mesh, slots, planets)
+    na4 = float(np.mean((dr - dr.mean()) ** 4) / var_b**2) if var_b > 0 else 0.0
+    own = np.full(3, np.nan)
+    if len(Tb) >= 2:
+        loo = []
+        for j in range(len(Tb)):
+            cj, crj, _, _, pj = _change(Tb[j], np.mean(Tb[:j] + Tb[j + 1:], axis=0), mesh, slots, planets)
+            loo.append((cj, crj, pj))
+        own = np.median(loo, axis=0)
+    v = np.array([c, cr, na4, peak, c / own[0], cr / own[1], peak / own[2]])
+    return np.log10(np.maximum(v, 1e-12), where=np.isfinite(v), out=np.full(v.size, np.nan))
+
+
+class BaselineReferencedFeatures(TransformerMixin, BaseEstimator):
+    """What changed in each window since its reducer's baseline windows: :func:`relative_features` of the
+    ``features`` transformer's output and, with ``tsa_change``, :func:`tsa_change_features` (module docstring).
+
+    Rows of ``X`` and of ``baseline`` follow :mod:`rvdiag.features.combine`: a window's points, then the metadata
+    columns of :meth:`input_metadata` (the inner transformer's, then ``speed_column`` when ``tsa_change`` needs it).
+    :meth:`transform` takes, besides ``X``, the baseline rows and ``groups``: for each row of ``X`` the indices of
+    its baseline rows (:func:`rvdiag.datasets.store.match_baseline`).  The baseline rows' features are computed once.
+
+    Parameters
+    ----------
+    features : transformer or None
+        The window features compared (default :class:`rvdiag.features.tsa.OrderSpectrumFeatures` at ``fs`` with the
+        speed column: the order-spectrum bands and the envelope lines at the fault orders); ``None`` with
+        ``tsa_change=False`` is refused.
+    tsa_change : bool
+        Append :func:`tsa_change_features` (needs the output speed in ``speed_column``).
+    fs : float
+        Sampling rate, Hz.
+    speed_column : str
+        Metadata column of each window's output speed in deg/s.
+    params : reducer parameters (str path or ReducerParams; default the built-in RV-20E).
+    """
+
+    def __init__(self, features=None, tsa_change: bool = True, fs: float = 48000.0,
+                 speed_column: str = "output_speed_deg_s", params=None):
+        self.features = features
+        self.tsa_change = tsa_change
+        self.fs = fs
+        self.speed_column = speed_column
+        self.params = params
+
+    def _inner(self):
+        if self.features is not None:
+            return self.features
+        from rvdiag.features.tsa import OrderSpectrumFeatures
+
+        return OrderSpectrumFeatures(fs=self.fs, speed_column=self.speed_column, params=self.params)
+
+    def input_metadata(self) -> tuple[str, ...]:
+        """The inner transformer's metadata columns, then the speed column when :func:`tsa_change_features` needs
+        it and the inner one does not read it."""
+        inner = tuple(input_metadata(self._inner()))
+        extra = (str(self.speed_column),) if self.tsa_change and self.speed_column not in inner else ()
+        return inner + extra
+
+    def fit(self, X, y=None, **kw):
+        """Fit the inner transformer on ``X`` (its own fit; it learns the window length); returns ``self``."""
+        A = as_signal_matrix(X, 2)
+        meta = self.input_metadata()
+        n = points_before_metadata(A, meta, "BaselineReferencedFeatures reads")
+        self.features_ = clone(self._inner()).fit(A[:, : n + len(input_metadata(self._inner()))])
+        self.n_features_in_ = A.shape[1]
+        return self
+
+    def _parts(self, A):
+        meta = self.input_metadata()
+        n = points_before_metadata(A, meta, "BaselineReferencedFeatures reads")
+        inner = A[:, : n + len(input_metadata(self.features_))]
+        speed = A[:, n + meta.index(self.speed_column)] if self.tsa_change else None
+        return inner, A[:, :n], speed
+
+    def transform(self, X, baseline=None, groups=None):
+        """The change of every window of ``X`` against the mean of its baseline rows ``baseline[groups[i]]``."""
+        from sklearn.utils.validation import check_is_fitted
+
+        check_is_fitted(self, "features_")
+        if baseline is None or groups is None:
+            raise ParameterError("BaselineReferencedFeatures needs each window's baseline windows (baseline, groups)")
+        A, B = as_signal_matrix(X, 2), as_signal_matrix(baseline, 2)
+        for M, what in ((A, "X"), (B, "the baseline")):
+            if M.shape[1] != self.n_features_in_:
+                raise ParameterError(f"{what} has {M.shape[1]} columns; BaselineReferencedFeatures was fitted on "
+                                     f"{self.n_features_in_}")
+        if len(groups) != A.shape[0]:
+            raise ParameterError(f"groups holds {len(groups)} baseline groups for {A.shape[0]} windows")
+        ia, wa, va = self._parts(A)
+        ib, wb, vb = self._parts(B)
+        Fa = np.asarray(self.features_.transform(ia), dtype=np.float64)
+        Fb = np.asarray(self.features_.transform(ib), dtype=np.float64)
+        out = []
+        for i, g in enumerate(groups):
+            g = np.asarray(g, dtype=np.int64)
+            if g.size == 0 or g.min() < 0 or g.max() >= B.shape[0]:
+                raise ParameterError(f"window {i}: its baseline group must index 1..{B.shape[0]} baseline rows")
+            row = relative_features(Fa[i:i + 1], Fb[g])[0]
+            if self.tsa_change:
+                row = np.r_[row, tsa_change_features(wa[i], va[i], list(wb[g]), vb[g], self.fs, self.params)]
+            out.append(row)
+        return np.array(out)
+
+    def get_feature_names_out(self, input_features=None):
+        names = [f"d_{f}" for f in self.features_.get_feature_names_out()]
+        return np.asarray(names + (list(TSA_CHANGE_NAMES) if self.tsa_change else []), dtype=object)
+
+
+__all__ = ["TSA_CHANGE_NAMES", "BaselineReferencedFeatures", "align", "relative_features", "sun_tsa",
+           "tsa_change_features"]

@@ -1,0 +1,173 @@
+"""Monitoring a reducer against its own baseline (issue 27): baseline-referenced features, the calibrated alarm,
+matching with the baseline, the saved monitor."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from rvdiag.datasets.store import is_paired, match_baseline
+from rvdiag.errors import ParameterError
+from rvdiag.features.orders import shaft_frequency
+from rvdiag.features.relative import BaselineReferencedFeatures, relative_features, tsa_change_features
+from rvdiag.features.timedomain import TimeDomainFeatures
+from rvdiag.models.monitoring import BaselineMonitor, conformal_threshold, save_monitor
+
+FS = 4000.0
+
+
+def _paired(n_reducers=40, n_base=4, n_healthy=6, n_fault=6, step=0.10, seed=0):
+    """A synthetic paired set: each reducer's level a_r is log-uniform over a factor 2 (the population spread),
+    each record's gain varies +-1 % (its run-to-run variation), and the fault raises the level by ``step``: inside
+    the population's spread, far outside the reducer's own."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(800) / FS
+    rows, base, groups, y, red = [], [], [], [], []
+    for r in range(n_reducers):
+        a = 2.0 ** rng.uniform(0, 1)
+        f = rng.uniform(90, 110)
+
+        def rec(level):
+            g = level * (1 + 0.01 * rng.uniform(-1, 1))
+            return g * np.sin(2 * np.pi * f * t) + 0.05 * a * rng.standard_normal(t.size)
+
+        b0 = len(base)
+        base += [rec(a) for _ in range(n_base)]
+        for state, n, level in (("T1", n_healthy, a), ("T2", n_fault, a * (1 + step))):
+            for _ in range(n):
+                rows.append(rec(level))
+                groups.append(np.arange(b0, b0 + n_base))
+                y.append(state)
+                red.append(r)
+    return np.array(rows), np.array(base), groups, np.array(y), np.array(red)
+
+
+def test_relative_features_find_a_change_inside_the_population_spread():
+    X, B, groups, y, red = _paired()
+    fx = BaselineReferencedFeatures(TimeDomainFeatures(), tsa_change=False).fit(X)
+    D = fx.transform(X, B, groups)
+    A = TimeDomainFeatures().fit(X).transform(X)  # absolute: the same features, not referenced
+    train, test = red < 20, red >= 20
+    rel = BaselineMonitor(alpha=0.05).fit(D[train], y[train], groups=red[train])
+    ab = BaselineMonitor(alpha=0.05).fit(A[train], y[train], groups=red[train])
+    det_rel = rel.alarm(D[test & (y == "T2")]).mean()
+    det_abs = ab.alarm(A[test & (y == "T2")]).mean()
+    assert det_rel >= 0.95, det_rel
+    assert det_abs <= 0.30, det_abs
+    assert rel.alarm(D[test & (y == "T1")]).mean() <= 0.15
+
+
+def test_relative_features_subtract_the_baseline_mean():
+    F = np.array([[1.0, 5.0]])
+    B = np.array([[0.0, 4.0], [2.0, 2.0]])
+    np.testing.assert_allclose(relative_features(F, B), [[0.0, 2.0]])
+    with pytest.raises(ParameterError):
+        relative_features(F, np.ones((2, 3)))
+
+
+def test_conformal_threshold_is_the_stated_order_statistic():
+    s = np.arange(1.0, 100.0)  # n = 99, alpha = 0.01: ceil(100 * 0.99) = 99th smallest
+    assert conformal_threshold(s, 0.01) == 99.0
+    assert conformal_threshold(s, 0.10) == 90.0
+    assert math.isinf(conformal_threshold(np.arange(10.0), 0.01))  # too few records for 1 %
+
+
+def test_alarm_rate_on_held_out_healthy_pairs_is_alpha():
+    """Heavy-tailed healthy rows (Student t, 3 dof): a chi-square threshold would not hold the rate, the
+    conformal one does, within a binomial tolerance (4 sigma of calibration and test together)."""
+    rng = np.random.default_rng(1)
+    k, alpha = 5, 0.01  # the default rate
+    D = rng.standard_t(3, size=(10000, k))
+    y = np.array(["T1"] * 10000)
+    groups = np.repeat(np.arange(1000), 10)
+    m = BaselineMonitor(alpha=alpha).fit(D, y, groups=groups)
+    held = rng.standard_t(3, size=(20000, k))
+    rate = m.alarm(held).mean()
+    tol = 4 * math.sqrt(alpha * (1 - alpha) * (1 / held.shape[0] + 1 / m.n_calibration_))
+    assert abs(rate - alpha) <= tol, (rate, tol)
+    from scipy.stats import chi2
+
+    naive = (m._distance(held) > chi2.ppf(1 - alpha, k)).mean()
+    assert abs(naive - alpha) > tol  # the Gaussian threshold misses the stated rate on these tails
+    p = m.p_value(held)
+    assert np.all((p > 0) & (p <= 1)) and abs((p <= alpha).mean() - rate) < 0.01
+
+
+def test_monitor_refuses_too_few_healthy_groups_and_bad_alpha():
+    D = np.zeros((6, 2))
+    y = np.array(["T1"] * 6)
+    with pytest.raises(ParameterError, match="at least 4"):
+        BaselineMonitor().fit(D, y, groups=np.array([0, 0, 1, 1, 2, 2]))
+    with pytest.raises(ParameterError, match="alpha"):
+        BaselineMonitor(alpha=1.5).fit(D, y)
+
+
+def test_match_baseline_picks_the_nearest_operating_point_of_the_reducer():
+    base = {"reducer": np.array([0, 0, 0, 0, 1]), "output_speed_deg_s": np.array([30.0, 30.2, 60.0, 30.0, 60.1]),
+            "load_Nm": np.array([50.0, 51.0, 50.0, 130.0, 50.0]), "role": np.array(["baseline"] * 5)}
+    mon = {"reducer": np.array([0, 1, 0]), "output_speed_deg_s": np.array([30.4, 59.5, 60.5]),
+           "load_Nm": np.array([49.0, 51.0, 52.0])}
+    g = match_baseline(mon, base, fs=48000.0, baseline_fs=48000.0)
+    assert [list(x) for x in g] == [[0, 1], [4], [2]]
+
+
+def test_match_baseline_refuses_beyond_tolerance_and_other_rates():
+    base = {"output_speed_deg_s": np.array([30.0]), "load_Nm": np.array([50.0])}
+    with pytest.raises(ParameterError, match=r"within 5 % of speed and 10 % of load"):
+        match_baseline({"output_speed_deg_s": np.array([45.0]), "load_Nm": np.array([50.0])}, base)
+    with pytest.raises(ParameterError, match=r"within 5 % of speed and 10 % of load"):
+        match_baseline({"output_speed_deg_s": np.array([30.0]), "load_Nm": np.array([60.0])}, base)
+    with pytest.raises(ParameterError, match="same sampling rate"):
+        match_baseline({"output_speed_deg_s": np.array([30.0]), "load_Nm": np.array([50.0])}, base,
+                       fs=48000.0, baseline_fs=25600.0)
+    got = match_baseline({"output_speed_deg_s": np.array([31.0]), "load_Nm": np.array([54.0])}, base)
+    assert [list(x) for x in got] == [[0]]  # 3 % and 8 %: inside
+
+
+def test_is_paired_needs_both_roles():
+    assert is_paired({"reducer": [0, 0], "role": ["baseline", "monitored"]})
+    assert not is_paired({"reducer": [0], "role": ["monitored"]})
+    assert not is_paired({"role": ["baseline", "monitored"]})
+
+
+def _gear(speed, rng, gain=1.0, fault=0.0, n=24000, fs=48000.0):
+    """A mesh at order 11 of the sun shaft, broadband noise, and with ``fault`` a pulse on one tooth at each of the
+    two planets (twice per sun revolution)."""
+    f = shaft_frequency("sun", output_speed_deg_s=speed)
+    th = f * np.arange(n) / fs  # sun revolutions
+    x = np.cos(2 * np.pi * 11 * th) + 0.3 * np.cos(2 * np.pi * 22 * th + 0.4)
+    ph = (th * 2) % 1.0
+    x = x + fault * np.exp(-0.5 * ((ph - 0.3) / 0.01) ** 2)
+    return gain * x + 0.2 * rng.standard_normal(n)
+
+
+def test_tsa_change_sees_a_tooth_pulse_but_not_a_gain_change():
+    rng = np.random.default_rng(3)
+    base = [_gear(45.0, rng) for _ in range(3)]
+    healthy = tsa_change_features(_gear(45.0, rng, gain=1.03), 45.0, base, [45.0] * 3, 48000.0)
+    faulty = tsa_change_features(_gear(45.0, rng, fault=0.5), 45.0, base, [45.0] * 3, 48000.0)
+    # log10 tooth_peak (index 3): the pulse's slots stand out of the change's median; a 3 % gain changes every
+    # tooth alike
+    assert faulty[3] - healthy[3] > math.log10(3)
+    assert faulty[6] - healthy[6] > math.log10(3)  # and against the baseline's own leave-one-out spread
+
+
+def test_saved_monitor_round_trip(tmp_path):
+    from rvdiag.models.persistence import load_model
+
+    X, B, groups, y, red = _paired(n_reducers=12)
+    fx = BaselineReferencedFeatures(TimeDomainFeatures(), tsa_change=False).fit(X)
+    D = fx.transform(X, B, groups)
+    m = BaselineMonitor(features=fx).fit(D, y, groups=red)
+    save_monitor(m, tmp_path / "mon", fs=FS)
+    got = load_model(tmp_path / "mon")
+    assert got.card["needs_baseline"] is True
+    assert got.card["input_length"] == X.shape[1] and got.card["alarm"]["alpha"] == 0.01
+    est = got.estimator
+    np.testing.assert_allclose(est.health_index(est.paired_features(X, B, groups)), m.health_index(D))
+    assert list(est.predict(D)) == list(m.predict(D))
+    words = est.diagnose(D[-1:])[0]
+    assert set(words) == {"health_index", "alarm", "p_value", "state", "probability", "changed"}
+    assert words["changed"][0].startswith("d_")
