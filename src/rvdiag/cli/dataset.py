@@ -94,6 +94,7 @@ def register(app: typer.Typer) -> None:
                                             "default: built-in RV-20E)."),
         out: Path = opt.out("Store to write (PATH.zarr)."),
         overwrite: bool = opt.overwrite("Replace an existing store."),
+        force: bool = opt.deprecated("--force", flag=True),
         as_json: bool = opt.json_flag("Print the summary as one JSON object."),
         quiet: bool = opt.quiet(),
     ) -> None:
@@ -107,6 +108,7 @@ def register(app: typer.Typer) -> None:
         from rvdiag.cli._progress import bar_columns, stderr_console
         from rvdiag.datasets.from_files import build_from_files
 
+        overwrite = opt.resolve(overwrite, force, "--force", default=False)
         scalars = _parse_scalars(scalar)
         angle = _angle_spec(angle_channel, tacho_channel, ppr, meta_regex, estimate_speed, speed_range, params)
         with Progress(TextColumn("[bold]reading[/bold]"), *bar_columns(), transient=True, console=stderr_console(),

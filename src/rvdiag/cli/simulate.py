@@ -117,6 +117,7 @@ def register(app: typer.Typer) -> None:
         current_snr_db: Optional[float] = typer.Option(None, "--current-snr-db", help="More white noise on the "
                                                        "current at this SNR (dB), beyond the sensors' own."),
         out: Path = opt.out("Output .npz (signal, fs, settings; with --signal both also current, current_fs)."),
+        overwrite: bool = opt.overwrite("Replace an existing --out file."),
         quiet: bool = opt.quiet(),
     ) -> None:
         """Simulate the housing acceleration (x, y) of the reducer and, with --signal current or both, the servo
@@ -133,6 +134,7 @@ def register(app: typer.Typer) -> None:
             raise ParameterError(f"--out must name a .npz file, got {out}")
         if not out.parent.exists():
             raise ParameterError(f"--out directory does not exist: {out.parent}")
+        opt.refuse_existing(out, overwrite)
         severities = fault_severities(
             wear_depth_mm, crack_depth_mm, crack_angle, broken_fraction, pit_area_fraction=pit_area_fraction,
             pit_radius_mm=pit_radius_mm, pit_depth_mm=pit_depth_mm, spall_width_fraction=spall_width_fraction,
