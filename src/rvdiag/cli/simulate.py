@@ -83,8 +83,9 @@ def register(app: typer.Typer) -> None:
         snr_db: Optional[float] = opt.snr_db("Add white Gaussian noise at this SNR (dB)."),
         noise_snr: Optional[float] = opt.deprecated("--noise-snr"),
         seed: int = opt.seed("Seed of the noise."),
-        substeps: int = typer.Option(9, "--substeps", help="RK4 steps per output sample (default as ModelSettings: "
-                                     "9, within 1e-3 of scipy's DOP853 up to 4500 rpm at 48 kHz)."),
+        substeps: int = typer.Option(9, "--substeps", help="Integrator steps per output sample (Kutta's 3/8 rule; "
+                                     "default as ModelSettings: 9, within 1e-3 of scipy's DOP853 up to 4500 rpm at "
+                                     "48 kHz)."),
         transient: Optional[float] = typer.Option(None, "--transient", help="Discarded start-up time, s (default: "
                                                   "the model's, 0.1 s; library configs default to the same)."),
         workers: int = typer.Option(1, "--workers", help="Time segments integrated at once (threads); the "

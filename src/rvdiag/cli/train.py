@@ -263,7 +263,7 @@ def register(app: typer.Typer) -> None:
         from rvdiag.datasets import SampleStore
         from rvdiag.evaluation.metrics import classification_metrics, repeat_summary
         from rvdiag.models.persistence import save_model
-        from rvdiag.models.torch_estimator import window_starts
+        from rvdiag.io.windows import covering_starts
 
         if repeat < 1:
             raise ParameterError(f"--repeat must be >= 1, got {repeat}")
@@ -338,7 +338,7 @@ def register(app: typer.Typer) -> None:
                      "(docs/models.md)")
             elif r == 0 and model in CNN_MODELS:
                 W = est.network_input_length(store.length)
-                starts = window_starts(store.length, W, est.long_input)
+                starts = covering_starts(store.length, W, est.long_input)
                 if W != store.length:
                     echo(f"note: samples have {store.length} points and the {model} input is {W}: each sample is cut "
                          f"into {len(starts)} window(s) starting at {starts.tolist()}; training uses every window, "
