@@ -253,9 +253,6 @@ def build_from_files(
         if progress is not None:
             progress(i, len(entries), entry.path.name)
         sig = read_signal(entry.path, channel, fs=fs)
-        if sig.fs is None and not unknown_fs:  # a store without a rate is read in cycles per sample, never in Hz
-            raise DataFileError(f"{entry.path} states no sampling rate (no time column or fs variable): give --fs, "
-                                "or --unknown-fs when no rate is known (features then in cycles per sample)")
         if fs_seen == "unset":
             fs_seen, first_fs_file = sig.fs, entry.path.name
         elif not _same_fs(fs_seen, sig.fs):
@@ -338,6 +335,9 @@ def build_from_files(
     if angle is not None:
         config["angle"] = {**angle.to_dict(), "params": params.to_dict()}
     file_fs = None if fs_seen == "unset" else fs_seen
+    if file_fs is None and not unknown_fs:  # a store without a rate is read in cycles per sample, never in Hz
+        raise DataFileError(f"{first_fs_file} states no sampling rate (no time column or fs variable): give --fs, "
+                            "or --unknown-fs when no rate is known (features then in cycles per sample)")
     write_store(out, X, y.tolist(), meta, kind="measured", fs=file_fs, config=config,
                 overwrite=overwrite, extra_attrs={"params": None})
     classes = sorted(set(labels))
