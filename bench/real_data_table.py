@@ -338,7 +338,7 @@ def cli_folds(data: Path, workdir: Path) -> dict:
     sq, m = workdir / "sq.zarr", workdir / "m-sq"
     out["spectraquest"] = [("train load 0, test loads 10-60", [
         ["dataset", "from-files", str(data / "spectraquest-gearbox"), "--label-regex", "^(?P<label>[hb])30hz",
-         "--channel", "a1", "--window", str(WINDOW), "--test-include", "hz[1-9]", "--out", str(sq)],
+         "--channel", "a1", "--window", str(WINDOW), "--unknown-fs", "--test-include", "hz[1-9]", "--out", str(sq)],
         ["train", str(sq), "--model", "svm", "--features", "spectrum", "--out", str(m), "--quiet"],
         ["evaluate", str(m), str(sq), "--json"],
     ])]
@@ -410,7 +410,7 @@ def cli_section(cli: dict, date: str) -> str:
     L.append("**SpectraQuest, cross-condition** (the best row above, SVM spectrum, 64 log relative bands): train "
              "on load 0 %, test on loads 10-60 % (`--test-include 'hz[1-9]'`).\n")
     L.append("```bash\nrvdiag dataset from-files DATA/spectraquest-gearbox --label-regex '^(?P<label>[hb])30hz' \\\n"
-             "    --channel a1 --window 2048 --test-include 'hz[1-9]' --out sq.zarr\n"
+             "    --channel a1 --window 2048 --unknown-fs --test-include 'hz[1-9]' --out sq.zarr\n"
              "rvdiag train sq.zarr --model svm --features spectrum --out m-sq\n"
              "rvdiag evaluate m-sq sq.zarr\n```\n")
     L.append("| data set | fold | test windows | accuracy % | macro F1 % | Cohen's kappa |\n|---|---|---|---|---|---|")

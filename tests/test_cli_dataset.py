@@ -31,7 +31,8 @@ def test_spectraquest_example_on_a_subset(tmp_path, capsys):
     out = tmp_path / "sq.zarr"
     cap = run_ok(["dataset", "from-files", str(DATA / "spectraquest-gearbox"),
                   "--label-regex", r"^(?P<label>[hb])30hz", "--meta-regex", r"hz(?P<load>\d+)",
-                  "--channel", "a1", "--window", "2048", "--include", r"30hz(0|60)\.", "--out", str(out)], capsys)
+                  "--channel", "a1", "--window", "2048", "--include", r"30hz(0|60)\.", "--unknown-fs", "--out", str(out)],
+                 capsys)
     assert "wrote" in cap.out
     s = SampleStore.open(out)
     smp = s.load()
@@ -103,7 +104,7 @@ def test_bad_input_one_line_exit_2_nothing_left(tmp_path, capsys, case, needle):
     elif case == "exists":
         out.mkdir(parents=True)
     code, stdout, err = run(["dataset", "from-files", str(d), "--label-regex", args["label"], "--channel",
-                             args["channel"], "--window", args["window"], "--out", str(out)], capsys)
+                             args["channel"], "--window", args["window"], "--unknown-fs", "--out", str(out)], capsys)
     assert code == 2, err
     lines = [ln for ln in err.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith("error: ") and needle in lines[0], err
@@ -138,7 +139,8 @@ def test_from_files_test_fraction_holds_out_whole_files(tmp_path, capsys):
     windows put overlapping neighbours on both sides)."""
     out = tmp_path / "s.zarr"
     cap = run_ok(["dataset", "from-files", str(_two_loads(tmp_path)), "--label-regex", r"^(?P<label>[hb])_",
-                  "--window", "100", "--hop", "50", "--test-fraction", "0.3", "-o", str(out), "-q"], capsys)
+                  "--window", "100", "--hop", "50", "--test-fraction", "0.3", "--unknown-fs", "-o", str(out), "-q"],
+                 capsys)
     assert "warning" not in cap.err
     smp = SampleStore.open(out).load()
     per_file = {src: set(smp.meta["split"][smp.meta["source"] == src]) for src in set(smp.meta["source"])}
@@ -150,7 +152,7 @@ def test_from_files_test_fraction_holds_out_whole_files(tmp_path, capsys):
 def test_from_files_window_split_is_explicit_and_warns_once(tmp_path, capsys):
     out = tmp_path / "s.zarr"
     cap = run_ok(["dataset", "from-files", str(_two_loads(tmp_path)), "--label-regex", r"^(?P<label>[hb])_",
-                  "--window", "100", "--hop", "50", "--test-fraction", "0.3", "--split-by", "window",
+                  "--window", "100", "--hop", "50", "--test-fraction", "0.3", "--split-by", "window", "--unknown-fs",
                   "-o", str(out), "-q"], capsys)
     warnings = [ln for ln in cap.err.splitlines() if ln.startswith("warning:")]
     assert warnings == ["warning: --split-by window puts neighbouring windows of one recording in both train and "

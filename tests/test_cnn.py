@@ -19,7 +19,8 @@ from rvdiag.models.cnn import (
     count_parameters,
     paper_flatten_size,
 )
-from rvdiag.models.torch_estimator import CNNClassifier, window_starts
+from rvdiag.io.windows import covering_starts as window_starts
+from rvdiag.models.torch_estimator import CNNClassifier
 
 
 def two_class_data(n_per=24, length=256, seed=0):

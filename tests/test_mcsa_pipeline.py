@@ -11,7 +11,7 @@ import pytest
 from conftest import run_cli as run
 from rvdiag.datasets import SampleStore, write_store
 from rvdiag.errors import SplitLeakWarning, StoreError
-from rvdiag.evaluation.mcsa import METRICS, McsaSettings, pick_channel, run_mcsa, sample_channels, split_seeds
+from rvdiag.evaluation.motor_current_study import METRICS, McsaSettings, pick_channel, run_mcsa, sample_channels, split_seeds
 
 FS = 1000.0
 L = 128

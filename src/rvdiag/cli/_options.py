@@ -74,6 +74,15 @@ def overwrite(help: str = "Replace an existing output.") -> Any:
     return typer.Option(False, *VOCABULARY["overwrite"], help=help)
 
 
+def refuse_existing(path: Any, overwrite: bool) -> None:
+    """The one rule for outputs: an existing ``--out`` is replaced only with ``--overwrite``
+    (:class:`ParameterError`, one line naming the file and the option)."""
+    from pathlib import Path
+
+    if not overwrite and Path(path).exists():
+        raise ParameterError(f"{path} exists; use --overwrite to replace it")
+
+
 def snr_db(help: str, default: Any = None) -> Any:
     """``--snr-db``: SNR of added white Gaussian noise, dB."""
     return typer.Option(default, *VOCABULARY["snr_db"], help=help)

@@ -62,7 +62,11 @@ def register(app: typer.Typer) -> None:
         channel: Optional[str] = opt.channel("Regex matching exactly one channel (column, variable) per file."),
         window: int = typer.Option(..., "--window", help="Window length in samples (one sample per window)."),
         hop: Optional[int] = typer.Option(None, "--hop", help="Step between windows in samples (default: --window)."),
-        fs: Optional[float] = opt.fs("Sampling rate in Hz (default: from the files, if stated)."),
+        fs: Optional[float] = opt.fs("Sampling rate in Hz (default: from the files; a file that states none needs "
+                                     "it, or --unknown-fs)."),
+        unknown_fs: bool = typer.Option(False, "--unknown-fs", help="The files state no sampling rate and none is "
+                                        "known (e.g. the SpectraQuest gearbox set): store the windows without one "
+                                        "(frequencies in cycles per sample)."),
         meta_regex: Optional[str] = typer.Option(None, "--meta-regex",
                                                  help="Regex whose named groups become metadata columns, e.g. 'hz(?P<load>\\d+)'."),
         include: Optional[str] = typer.Option(None, "--include", help="Keep only files whose names match this regex."),
@@ -94,6 +98,7 @@ def register(app: typer.Typer) -> None:
                                             "default: built-in RV-20E)."),
         out: Path = opt.out("Store to write (PATH.zarr)."),
         overwrite: bool = opt.overwrite("Replace an existing store."),
+        force: bool = opt.deprecated("--force", flag=True),
         as_json: bool = opt.json_flag("Print the summary as one JSON object."),
         quiet: bool = opt.quiet(),
     ) -> None:
@@ -107,6 +112,7 @@ def register(app: typer.Typer) -> None:
         from rvdiag.cli._progress import bar_columns, stderr_console
         from rvdiag.datasets.from_files import build_from_files
 
+        overwrite = opt.resolve(overwrite, force, "--force", default=False)
         scalars = _parse_scalars(scalar)
         angle = _angle_spec(angle_channel, tacho_channel, ppr, meta_regex, estimate_speed, speed_range, params)
         with Progress(TextColumn("[bold]reading[/bold]"), *bar_columns(), transient=True, console=stderr_console(),
@@ -119,7 +125,8 @@ def register(app: typer.Typer) -> None:
             summary = build_from_files(
                 folder, out, label_regex=label_regex, channel=channel, window_length=window, hop=hop, fs=fs,
                 meta_regex=meta_regex, include=include, test_fraction=test_fraction, seed=seed, split_by=split_by,
-                scalars=scalars, overwrite=overwrite, progress=progress, test_include=test_include,
+                scalars=scalars, overwrite=overwrite, unknown_fs=unknown_fs, progress=progress,
+                test_include=test_include,
                 test_block=test_block, angle=angle, params=params,
             )
         if as_json:

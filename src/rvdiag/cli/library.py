@@ -27,6 +27,27 @@ def _unfinished_message(path: Path) -> str | None:
             f"re-run the same 'rvdiag library build' command to finish it")
 
 
+def _remove_store(path: Path) -> None:
+    """Remove the sample store at ``path`` for ``--overwrite``; anything there that is not a sample store is refused
+    (a mistyped --out must not delete a folder of other files)."""
+    import shutil
+
+    from rvdiag.datasets.store import STORE_FORMAT
+
+    if not path.exists():
+        return
+    try:
+        import zarr
+
+        fmt = dict(zarr.open_group(str(path), mode="r").attrs).get("format")
+    except Exception:
+        fmt = None
+    if fmt != STORE_FORMAT:
+        raise StoreError(f"{path} exists and is not a sample store; --overwrite replaces only a store: choose "
+                         "another --out")
+    shutil.rmtree(path)
+
+
 def register(app: typer.Typer) -> None:
     lib = typer.Typer(
         help="Simulated fault-sample libraries: build one from a config, describe a store.",
@@ -36,7 +57,9 @@ def register(app: typer.Typer) -> None:
     @lib.command("build")
     def build(
         config: Path = typer.Argument(..., help="Library config (TOML), e.g. configs/demo.toml."),
-        out: Path = opt.out("Store to write (PATH.zarr); an unfinished one resumes."),
+        out: Path = opt.out("Store to write (PATH.zarr); an unfinished one of the same config resumes."),
+        overwrite: bool = opt.overwrite("Start afresh: remove an existing store at --out (finished, unfinished or of "
+                                        "another config) before building."),
         workers: Optional[int] = typer.Option(
             None, "--workers", "-w",
             help="Worker processes of the local Dask cluster (default: one per core; 0 = no Dask, in this process).",
@@ -68,7 +91,7 @@ def register(app: typer.Typer) -> None:
 
         Resumable: re-running the same command after a crash or Ctrl-C skips committed simulations.
 
-        A store built from another config is refused.  Fields of CONFIG: docs/library.md.
+        A store built from another config is refused; --overwrite replaces it (or any store at --out) afresh.  Fields of CONFIG: docs/library.md.
         """
         from rvdiag.library.build import build_library, check_run_options
         from rvdiag.library.config import LibraryConfig
@@ -82,6 +105,8 @@ def register(app: typer.Typer) -> None:
             cfg = cfg.replace(params=str(Path(params).resolve()))
         if seed is not None:
             cfg = cfg.replace(seed=seed)  # validated there: a negative seed is one ConfigError line
+        if overwrite:
+            _remove_store(out)
         if not quiet:
             typer.echo(cfg.describe(), err=True)
         try:

@@ -9,7 +9,7 @@
 At each speed of the store and for each feature set: ``--repeats`` stratified random splits, StandardScaler +
 RBF SVM, accuracy / macro precision / recall / F1 / Cohen's kappa as mean and std over the splits; with
 ``--test`` also fitted on all of STORE and scored on OTHER.  Writes OUTDIR/mcsa.json, OUTDIR/mcsa.md and
-OUTDIR/tsne_<set>.png.  The protocol lives in :mod:`rvdiag.evaluation.mcsa`; docs/models.md describes it.
+OUTDIR/tsne_<set>.png.  The protocol lives in :mod:`rvdiag.evaluation.motor_current_study`; docs/models.md describes it.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import typer
 from rvdiag.cli import _options as opt
 from rvdiag.errors import ParameterError
 
-#: Fields of :class:`rvdiag.evaluation.mcsa.McsaSettings` -> the options that set them (for error messages).
+#: Fields of :class:`rvdiag.evaluation.motor_current_study.McsaSettings` -> the options that set them (for error messages).
 OPTION_NAMES = {"feature_sets": "--feature-sets", "seed": "--seed", "repeats": "--repeats",
                 "test_size": "--test-size", "svm_c": "--svm-c", "wpt_level": "--wpt-level",
                 "cnn_epochs": "--cnn-epochs", "cnn_batch_size": "--cnn-batch-size", "cnn_lr": "--cnn-lr",
@@ -71,7 +71,7 @@ def register(app: typer.Typer) -> None:
         repeated stratified splits and an SVM; optionally a held-out store.  Progress on stderr (-q: none)."""
         from rvdiag.cli._progress import progress_bars
         from rvdiag.datasets import SampleStore
-        from rvdiag.evaluation.mcsa import McsaSettings, markdown, parse_feature_sets, run_mcsa, write_outputs
+        from rvdiag.evaluation.motor_current_study import McsaSettings, markdown, parse_feature_sets, run_mcsa, write_outputs
 
         if out.exists() and not out.is_dir():
             raise ParameterError(f"--out {out} exists and is not a folder")

@@ -54,6 +54,33 @@ def _check_severities(state: str, severities: dict) -> None:
         Spalling(**spall)
 
 
+#: the most output torque ``--load`` takes, as a multiple of the parameter set's rated torque: the momentary
+#: maximum (emergency-stop) torque of the RV-E series is about 5x rated (RV-20E: 833 N m against 167 N m rated,
+#: Nabtesco RV-E catalog); beyond it the reducer would break, not vibrate.
+MAX_LOAD_X_RATED = 5.0
+
+
+def _check_load(load: float | None, params) -> None:
+    """Refuse a ``--load`` beyond :data:`MAX_LOAD_X_RATED` times the rated torque (a typo such as 99999)."""
+    rated = params.operation.rated_torque
+    if load is not None and abs(load) > MAX_LOAD_X_RATED * rated:
+        raise ParameterError(f"--load {load:g} N m is {abs(load) / rated:.0f}x the rated torque {rated:g} N m of the "
+                             f"parameter set; the reducer's momentary maximum is about {MAX_LOAD_X_RATED:g}x rated: "
+                             f"give at most {MAX_LOAD_X_RATED * rated:g} N m")
+
+
+def _rates(signal: str, fs: float | None, current_fs: float | None) -> tuple[float, float]:
+    """(integration rate, current rate).  With ``--signal current`` the record is the current, so ``--fs`` is its
+    rate, as a servo engineer reads it (a drive logs its currents at 1-10 kHz); the model is then integrated at
+    the default 48 kHz.  Giving both --fs and --current-fs there is ambiguous and refused."""
+    if signal == "current" and fs is not None:
+        if current_fs is not None and current_fs != fs:
+            raise ParameterError("with --signal current, --fs is the current's sampling rate: give --fs or "
+                                 "--current-fs, not both")
+        return 48000.0, fs
+    return (48000.0 if fs is None else fs), (1000.0 if current_fs is None else current_fs)
+
+
 def register(app: typer.Typer) -> None:
     """Add the ``simulate`` command to ``app``."""
 
@@ -79,12 +106,14 @@ def register(app: typer.Typer) -> None:
         output_speed: Optional[float] = typer.Option(None, "--output-speed", help="Output (carrier) speed, deg/s."),
         load: Optional[float] = typer.Option(None, "--load", help="Output load torque, N m (default: rated torque)."),
         duration: float = typer.Option(1.0, "--duration", help="Recorded signal length, s (after the transient)."),
-        fs: float = opt.fs("Sampling rate, Hz.", 48000.0),
+        fs: Optional[float] = opt.fs("Sampling rate, Hz (default 48000); with --signal current, the current's "
+                                     "rate (as --current-fs; the model is then integrated at 48000 Hz)."),
         snr_db: Optional[float] = opt.snr_db("Add white Gaussian noise at this SNR (dB)."),
         noise_snr: Optional[float] = opt.deprecated("--noise-snr"),
         seed: int = opt.seed("Seed of the noise."),
-        substeps: int = typer.Option(9, "--substeps", help="RK4 steps per output sample (default as ModelSettings: "
-                                     "9, within 1e-3 of scipy's DOP853 up to 4500 rpm at 48 kHz)."),
+        substeps: int = typer.Option(9, "--substeps", help="Integrator steps per output sample (Kutta's 3/8 rule; "
+                                     "default as ModelSettings: 9, within 1e-3 of scipy's DOP853 up to 4500 rpm at "
+                                     "48 kHz)."),
         transient: Optional[float] = typer.Option(None, "--transient", help="Discarded start-up time, s (default: "
                                                   "the model's, 0.1 s; library configs default to the same)."),
         workers: int = typer.Option(1, "--workers", help="Time segments integrated at once (threads); the "
@@ -112,11 +141,13 @@ def register(app: typer.Typer) -> None:
         signal: str = typer.Option("vibration", "--signal", help="What to record: vibration (housing "
                                    "acceleration), current (the servo motor's phase currents i_a, i_b, i_c, i_q and "
                                    "its speed, from the PMSM model under i_d = 0 vector control) or both."),
-        current_fs: float = typer.Option(1000.0, "--current-fs", help="Sampling rate of the motor current, Hz "
-                                         "(a simple fraction of --fs)."),
+        current_fs: Optional[float] = typer.Option(None, "--current-fs", help="Sampling rate of the motor "
+                                                   "current, Hz (default 1000; a simple fraction of the integration "
+                                                   "rate --fs, 48000 Hz with --signal current)."),
         current_snr_db: Optional[float] = typer.Option(None, "--current-snr-db", help="More white noise on the "
                                                        "current at this SNR (dB), beyond the sensors' own."),
         out: Path = opt.out("Output .npz (signal, fs, settings; with --signal both also current, current_fs)."),
+        overwrite: bool = opt.overwrite("Replace an existing --out file."),
         quiet: bool = opt.quiet(),
     ) -> None:
         """Simulate the housing acceleration (x, y) of the reducer and, with --signal current or both, the servo
@@ -133,6 +164,7 @@ def register(app: typer.Typer) -> None:
             raise ParameterError(f"--out must name a .npz file, got {out}")
         if not out.parent.exists():
             raise ParameterError(f"--out directory does not exist: {out.parent}")
+        opt.refuse_existing(out, overwrite)
         severities = fault_severities(
             wear_depth_mm, crack_depth_mm, crack_angle, broken_fraction, pit_area_fraction=pit_area_fraction,
             pit_radius_mm=pit_radius_mm, pit_depth_mm=pit_depth_mm, spall_width_fraction=spall_width_fraction,
@@ -143,6 +175,8 @@ def register(app: typer.Typer) -> None:
             raise ParameterError(f"--workers must be >= 1, got {workers}")
         snr_db = opt.resolve(snr_db, noise_snr, "--noise-snr")
         p = ReducerParams.load(params)
+        fs, current_fs = _rates(signal, fs, current_fs)
+        _check_load(load, p)
         if segment is None:
             segment = 1.0 if workers > 1 else 0.0
         with opt.option_names(SIMULATE_OPTION_NAMES):

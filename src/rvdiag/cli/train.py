@@ -202,7 +202,9 @@ def register(app: typer.Typer) -> None:
                                      help="Classical models: time | spectrum | spectrum-abs | logspec | envelope | "
                                           "bearing-envelope | wpd | eemd | tsa-ci | tsa-mod | tsa-ci-z | tsa-mod-z | "
                                           "orders | none | cnn, or several joined by '+' (default wpd)."),
-        out: Path = opt.out("Model directory to write."),
+        out: Path = opt.out("Model directory to write (replaced whole with --overwrite)."),
+        overwrite: bool = opt.overwrite("Replace an existing --out model directory (whole: no file of the old "
+                                        "model is left)."),
         epochs: int = typer.Option(RECOMMENDED_TRAINING["epochs"], "--epochs",
                                    help="CNN: maximum epochs (early stopping may end sooner)."),
         device: str = typer.Option("auto", "--device", help="auto | cpu | cuda"),
@@ -261,7 +263,7 @@ def register(app: typer.Typer) -> None:
         from rvdiag.datasets import SampleStore
         from rvdiag.evaluation.metrics import classification_metrics, headline, repeat_summary
         from rvdiag.models.persistence import save_model
-        from rvdiag.models.torch_estimator import window_starts
+        from rvdiag.io.windows import covering_starts
 
         if repeat < 1:
             raise ParameterError(f"--repeat must be >= 1, got {repeat}")
@@ -269,6 +271,7 @@ def register(app: typer.Typer) -> None:
             raise ParameterError(f"--epochs must be >= 1, got {epochs}")
         if out.exists() and not out.is_dir():
             raise ParameterError(f"--out {out} exists and is not a directory")
+        opt.refuse_existing(out, overwrite)
         new_estimator = functools.partial(build_estimator, model, features, epochs=epochs, device=device,
                                           batch_size=batch_size, lr=lr, input_length=input_length,
                                           patience=patience, validation_fraction=validation_fraction,
@@ -335,7 +338,7 @@ def register(app: typer.Typer) -> None:
                      "(docs/models.md)")
             elif r == 0 and model in CNN_MODELS:
                 W = est.network_input_length(store.length)
-                starts = window_starts(store.length, W, est.long_input)
+                starts = covering_starts(store.length, W, est.long_input)
                 if W != store.length:
                     echo(f"note: samples have {store.length} points and the {model} input is {W}: each sample is cut "
                          f"into {len(starts)} window(s) starting at {starts.tolist()}; training uses every window, "
@@ -370,11 +373,10 @@ def register(app: typer.Typer) -> None:
         if repeat > 1 and runs:
             summary = repeat_summary(runs)
             extra["repeat"] = {"seeds": list(range(seed, seed + repeat)), **summary}
+        repeat_file = {} if summary is None else {"repeat.json": json.dumps(summary, indent=2).encode()}
         save_model(est, out, model=model, features=(features or "wpd") if model in CLASSICAL_MODELS else None,
                    fs=store.fs, training_store=store_info, metrics=metrics or {}, seed=seed, extra=extra,
-                   novelty=novelty)
-        if summary is not None:
-            (Path(out) / "repeat.json").write_text(json.dumps(summary, indent=2))
+                   novelty=novelty, files=repeat_file)
         if json_out:
             typer.echo(json.dumps({"model_dir": str(out), "metrics": metrics, "repeat": summary}, indent=2))
             return

@@ -163,6 +163,7 @@ def build_from_files(
     split_by: str = "unit",
     scalars: Mapping[str, str] | None = None,
     overwrite: bool = False,
+    unknown_fs: bool = False,
     progress: Callable[[int, int, str], None] | None = None,
     test_include: str | None = None,
     test_block: str | None = None,
@@ -181,7 +182,10 @@ def build_from_files(
         Window length and step in samples (hop defaults to the window length: no overlap).
     fs : float, optional
         Sampling rate in Hz, for files that do not state it (and overriding those that do).  Every file
-        must end up with the same fs (or none at all).
+        must end up with the same fs; a file that states none needs ``fs`` (DataFileError otherwise) unless
+        ``unknown_fs``.
+    unknown_fs : bool
+        The files' rate is not known (e.g. the SpectraQuest gearbox set): store the windows without one.
     test_fraction : float in (0, 1), optional
         Fraction of each class put in split ``test`` (seeded by ``seed``): of its files, or of its windows.
     split_by : ``"unit"`` (default) or ``"window"``
@@ -331,6 +335,9 @@ def build_from_files(
     if angle is not None:
         config["angle"] = {**angle.to_dict(), "params": params.to_dict()}
     file_fs = None if fs_seen == "unset" else fs_seen
+    if file_fs is None and not unknown_fs:  # a store without a rate is read in cycles per sample, never in Hz
+        raise DataFileError(f"{first_fs_file} states no sampling rate (no time column or fs variable): give --fs, "
+                            "or --unknown-fs when no rate is known (features then in cycles per sample)")
     write_store(out, X, y.tolist(), meta, kind="measured", fs=file_fs, config=config,
                 overwrite=overwrite, extra_attrs={"params": None})
     classes = sorted(set(labels))

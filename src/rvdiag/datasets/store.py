@@ -46,6 +46,7 @@ import numpy as np
 import zarr
 
 from rvdiag import __version__
+from rvdiag.atomic import replace_directory
 from rvdiag.errors import ParameterError, StoreError
 
 STORE_FORMAT = "rvdiag-store/1"
@@ -337,13 +338,7 @@ def write_store(
         lab[:] = np.asarray([lookup[v] for v in names.tolist()], dtype=np.int16)
         _write_meta_columns(group, meta, X.shape[0])
         group.attrs["complete"] = True
-        if path.exists():
-            old = path.with_name(f".{path.name}.old-{os.getpid()}")
-            os.replace(path, old)
-            os.replace(tmp, path)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, path)
+        replace_directory(tmp, path)
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
@@ -415,16 +410,18 @@ class StoreBuilder:
         if attrs.get("config_hash") != self.config_hash and stored_rev != this_rev:
             raise StoreError(
                 f"{self.path} was simulated by the physics of {stored_rev or 'before 2026-11-25'} and this rvdiag "
-                f"simulates that of {this_rev}: its samples would not match new ones; remove it or choose another "
-                "--out"
+                f"simulates that of {this_rev}: its samples would not match new ones; choose another --out, or "
+                "--overwrite to replace it"
             )
         if attrs.get("config_hash") != self.config_hash:
             raise StoreError(
                 f"{self.path} was built from a different config (hash {attrs.get('config_hash')}, "
-                f"this one {self.config_hash}); refusing to mix them: choose another --out"
+                f"this one {self.config_hash}); refusing to mix them: choose another --out, or --overwrite to replace "
+                "it"
             )
         if attrs.get("unit_rows") != self.unit_rows or int(attrs.get("length", -1)) != self.length:
-            raise StoreError(f"{self.path}: layout differs from this build; choose another --out")
+            raise StoreError(f"{self.path}: layout differs from this build; choose another --out, or --overwrite "
+                             "to replace it")
         self._units_dir.mkdir(exist_ok=True)
         return group
 

@@ -17,6 +17,8 @@ from matplotlib import colormaps
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
+from rvdiag.spectral import amplitude_spectrum
+
 #: Characteristic frequencies marked on spectra (keys of ``rvdiag freqs --json``) and their labels.
 MARKED_FREQUENCIES = {
     "f1": "f1 sun", "f2": "f2 crank", "fsp": "fsp mesh 1", "fcs": "fcs mesh 2",
@@ -105,19 +107,6 @@ def plot_tsne_panels(panels: Sequence[tuple[str, np.ndarray | None, Sequence[str
     fig.suptitle(title or "t-SNE")
     fig.tight_layout(rect=(0, 0.08, 1, 1))
     return fig
-
-
-def amplitude_spectrum(x: np.ndarray, fs: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """One-sided amplitude spectrum with a Hann window: (frequency, amplitude).
-
-    Frequency in Hz when ``fs`` is given, else in cycles per sample.
-    """
-    x = np.asarray(x, dtype=np.float64)
-    x = x - x.mean()
-    w = np.hanning(len(x))
-    a = 2.0 * np.abs(np.fft.rfft(x * w)) / w.sum()
-    f = np.fft.rfftfreq(len(x), d=1.0 / fs if fs else 1.0)
-    return f, a
 
 
 def plot_examples(examples: Mapping[str, np.ndarray], fs: float | None = None,

@@ -38,6 +38,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from rvdiag.errors import DataFileError, ParameterError
+from rvdiag.spectral import amplitude_spectrum, peak_frequency
 
 #: a tachometer interval longer than this many times the median of its neighbours is a missing pulse
 LONG_INTERVAL = 1.5
@@ -208,19 +209,11 @@ def estimate_shaft_speed(x, fs: float, order: float, speed_range: tuple[float, f
     lo, hi = (float(v) for v in speed_range)
     if not (0 < lo < hi and order > 0):
         raise ParameterError(f"speed range must be 0 < low < high rev/s and order > 0, got {speed_range}, {order}")
-    n = x.size
-    A = np.abs(np.fft.rfft((x - x.mean()) * np.hanning(n)))
-    df = fs / n
-    k0, k1 = int(math.ceil(order * lo / df)), int(math.floor(order * hi / df))
-    k0, k1 = max(k0, 1), min(k1, A.size - 2)
-    if k1 < k0:
+    f_peak = peak_frequency(*amplitude_spectrum(x, fs), order * lo, order * hi)
+    if f_peak is None:
         raise ParameterError(f"the mesh band {order * lo:g}-{order * hi:g} Hz lies outside the spectrum "
-                             f"(fs {fs:g} Hz, {n} points)")
-    k = k0 + int(np.argmax(A[k0:k1 + 1]))
-    a, b, c = np.log(A[k - 1:k + 2] + 1e-300)
-    den = a - 2 * b + c
-    delta = 0.5 * (a - c) / den if den < 0 else 0.0
-    return (k + float(np.clip(delta, -0.5, 0.5))) * df / order
+                             f"(fs {fs:g} Hz, {x.size} points)")
+    return f_peak / order
 
 
 def estimate_period_cepstrum(x, period_range: tuple[int, int | None] = (64, None)) -> tuple[float, int]:

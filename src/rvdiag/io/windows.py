@@ -1,4 +1,5 @@
-"""Cut a long signal into fixed-length windows (the samples of a dataset)."""
+"""Where windows start: fixed-length windows cut from a long signal (the samples of a dataset, :func:`window`,
+:func:`window_starts`) and the windows of a network input that cover one sample (:func:`covering_starts`)."""
 
 from __future__ import annotations
 
@@ -58,6 +59,35 @@ def window_starts(n_points: int, length: int, hop: int | None = None) -> np.ndar
     if length > n_points:
         return np.zeros(0, dtype=np.int64)
     return np.arange((n_points - length) // hop + 1, dtype=np.int64) * hop
+
+
+#: how a sample longer than a network input is covered (:func:`covering_starts`; ``CNNClassifier(long_input=...)``)
+COVER_POLICIES = ("window", "crop")
+
+
+def covering_starts(n_points: int, length: int, policy: str = "window") -> np.ndarray:
+    """Start indices of the windows of ``length`` points that a network takes from a sample of ``n_points``.
+
+    ``"window"``: ``k = ceil(n_points / length)`` windows spread evenly from ``0`` to ``n_points - length``, so
+    together they cover every point; ``"crop"``: the one centred window.
+
+    >>> covering_starts(8000, 6400).tolist()
+    [0, 1600]
+    >>> covering_starts(8000, 6400, "crop").tolist()
+    [800]
+    >>> covering_starts(4096, 4096).tolist()
+    [0]
+    """
+    if length > n_points:
+        raise ParameterError(f"samples of {n_points} points are shorter than the network input of {length} points")
+    if policy == "crop":
+        return np.array([(n_points - length) // 2], dtype=np.int64)
+    if policy not in COVER_POLICIES:
+        raise ParameterError(f"long_input must be one of {COVER_POLICIES}, got {policy!r}")
+    k = -(-n_points // length)
+    if k == 1:
+        return np.array([0], dtype=np.int64)
+    return np.round(np.linspace(0, n_points - length, k)).astype(np.int64)
 
 
 def _positive_int(value, what: str, minimum: int) -> int:

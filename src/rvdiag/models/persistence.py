@@ -153,37 +153,49 @@ def base_card(estimator, *, model: str, features: str | None = None, fs: float |
     return jsonable(card)
 
 
-def save_model(estimator, directory: str | Path, novelty=None, **card_fields) -> Path:
+def save_model(estimator, directory: str | Path, novelty=None, *, files: dict[str, bytes] | None = None,
+               **card_fields) -> Path:
     """Save a fitted classifier as a model directory; returns the directory.
+
+    The directory is written whole to a temporary sibling and then swapped in (:func:`rvdiag.atomic.staged_directory`):
+    an existing directory is replaced entirely (no ``model.safetensors`` of an earlier CNN is left beside a new
+    ``model.skops``), and an interrupted save leaves the old directory as it was.
 
     Parameters
     ----------
     estimator : CNNClassifier or a classical pipeline from :func:`rvdiag.models.pipelines.make_classical_model`
-    directory : path, created if needed (existing model files in it are replaced)
+    directory : path, created if needed; an existing directory is replaced whole
     novelty : :class:`rvdiag.models.novelty.NoveltyDetector` or None: written to ``novelty.safetensors``, its
-        threshold to the card's ``novelty`` (without one, a file of an earlier model there is removed)
+        threshold to the card's ``novelty``
+    files : more files to write into the directory (name -> bytes), e.g. ``repeat.json``
     **card_fields : keyword arguments of :func:`base_card` (``model`` is required)
     """
-    from rvdiag.models.novelty import NOVELTY_FILE
+    from rvdiag.atomic import staged_directory
 
     d = Path(directory)
     if d.exists() and not d.is_dir():
         raise ModelFileError(f"{d} exists and is not a directory")
     card = base_card(estimator, **card_fields)
-    d.mkdir(parents=True, exist_ok=True)
     if novelty is not None:
-        novelty.save(d)
         card["novelty"] = novelty.card()
-    else:
-        (d / NOVELTY_FILE).unlink(missing_ok=True)
+    with staged_directory(d) as tmp:
+        if novelty is not None:
+            novelty.save(tmp)
+        _write_model(estimator, tmp, card)
+        for name, data in (files or {}).items():
+            atomic_write(tmp / name, data)
+    return d
+
+
+def _write_model(estimator, d: Path, card: dict) -> None:
+    """The model files and card of ``estimator`` into the (new, empty) folder ``d``."""
     if card["kind"] == "classical":
         from rvdiag.models.pipelines import save_classical
 
         save_classical(estimator, d, metadata=card)
-        return d
+        return
     from safetensors.torch import save as st_save
 
-    d.mkdir(parents=True, exist_ok=True)
     state = {k: v.detach().cpu().contiguous() for k, v in estimator.net_.state_dict().items()}
     card.update({
         "params": jsonable({k: estimator.get_params()[k] for k in _CNN_PARAM_KEYS}),
@@ -194,7 +206,6 @@ def save_model(estimator, directory: str | Path, novelty=None, **card_fields) ->
     })
     atomic_write(d / WEIGHTS, st_save(state, metadata={"format": CARD_FORMAT}))
     write_card(d, card)
-    return d
 
 
 def load_model(directory: str | Path) -> LoadedModel:

@@ -9,7 +9,7 @@ Samples longer than the network input (explicit, never silent)
 --------------------------------------------------------------
 A sample of ``L`` points and a network input of ``W <= L`` points (e.g. 8000-point library samples and
 the paper's 6400-point CNN): each sample is cut into ``k = ceil(L / W)`` windows of ``W`` points whose
-starts are spread evenly from ``0`` to ``L - W`` (:func:`window_starts`), so together they cover every
+starts are spread evenly from ``0`` to ``L - W`` (:func:`rvdiag.io.windows.covering_starts`), so together they cover every
 point (for 8000/6400: windows at 0 and 1600).  In ``fit`` each window is a training example with the
 sample's label; in ``predict_proba`` the class probabilities of a sample are the mean over its windows.
 ``long_input="crop"`` instead keeps only the centred window.  ``L < W`` is an error.
@@ -72,10 +72,11 @@ from sklearn.utils.multiclass import check_classification_targets
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from rvdiag.errors import ParameterError
+from rvdiag.io.windows import COVER_POLICIES, covering_starts
 from rvdiag.models.cnn import ARCHITECTURES, DEFAULT_INPUT_LENGTH, build_network
 
 NORMALIZATIONS = ("window", "global", "none")
-LONG_INPUT = ("window", "crop")
+LONG_INPUT = COVER_POLICIES
 ANGLE_REPRESENTATIONS = ("orders", "orders-residual")
 REPRESENTATIONS = ("waveform", "logspec") + ANGLE_REPRESENTATIONS
 LOGSPEC_EPS = 1e-12
@@ -139,28 +140,6 @@ def resolve_device(device: str) -> torch.device:
             raise ParameterError("device 'cuda' requested but no CUDA GPU is available (use --device cpu or auto)")
         return torch.device(device)
     raise ParameterError(f"unknown device {device!r}; choose auto, cpu or cuda")
-
-
-def window_starts(length: int, window: int, policy: str = "window") -> np.ndarray:
-    """Start indices of the windows cut from a sample of ``length`` points (see module docstring).
-
-    >>> window_starts(8000, 6400).tolist()
-    [0, 1600]
-    >>> window_starts(8000, 6400, "crop").tolist()
-    [800]
-    >>> window_starts(4096, 4096).tolist()
-    [0]
-    """
-    if window > length:
-        raise ParameterError(f"samples of {length} points are shorter than the network input of {window} points")
-    if policy == "crop":
-        return np.array([(length - window) // 2], dtype=np.int64)
-    if policy != "window":
-        raise ParameterError(f"long_input must be one of {LONG_INPUT}, got {policy!r}")
-    k = -(-length // window)
-    if k == 1:
-        return np.array([0], dtype=np.int64)
-    return np.round(np.linspace(0, length - window, k)).astype(np.int64)
 
 
 class CNNClassifier(ClassifierMixin, BaseEstimator):
@@ -466,7 +445,7 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
             self.window_starts_ = np.array([0], dtype=np.int64)
             self.samples_per_rev_ = self._default_samples_per_rev(speeds)
         else:
-            self.window_starts_ = window_starts(n_features, W, self.long_input)
+            self.window_starts_ = covering_starts(n_features, W, self.long_input)
         device = resolve_device(self.device)
         self.device_ = str(device)
         return y_idx, np.random.default_rng(self.random_state), device

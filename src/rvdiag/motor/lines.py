@@ -21,19 +21,12 @@ import math
 import numpy as np
 
 from rvdiag.errors import ParameterError
+from rvdiag.spectral import amplitude_spectrum, peak_frequency
 
 #: bins on each side of a line that belong to it (Hann main lobe and leakage), and the floor's outer edge
 FLOOR_GAP, FLOOR_EDGE = 6, 40
 #: the sideband orders ``f_e +- k f1`` reported
 SIDEBAND_ORDERS = (1, 2, 3)
-
-
-def amplitude_spectrum(x: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
-    """(frequencies in Hz, one-sided Hann amplitude spectrum) of ``x`` with its mean removed."""
-    x = np.asarray(x, dtype=np.float64)
-    w = np.hanning(x.size)
-    amp = 2.0 * np.abs(np.fft.rfft((x - x.mean()) * w)) / w.sum()
-    return np.fft.rfftfreq(x.size, 1.0 / fs), amp
 
 
 def line_height(amp: np.ndarray, df: float, f0: float) -> tuple[float, float]:
@@ -58,10 +51,10 @@ def estimate_output_speed(x: np.ndarray, fs: float, params, min_hz: float = 2.0)
 def _speed_from_spectrum(f: np.ndarray, amp: np.ndarray, params, min_hz: float = 2.0) -> float:
     """:func:`estimate_output_speed` on an amplitude spectrum already taken."""
     keep = f >= min_hz
-    if not keep.any() or not np.isfinite(amp[keep]).all() or amp[keep].max() <= 0:
+    fe = peak_frequency(f, amp, min_hz, refine=False)
+    if fe is None or not np.isfinite(amp[keep]).all() or amp[keep].max() <= 0:
         raise ParameterError("cannot estimate the speed from the current: no line above "
                              f"{min_hz:g} Hz; give the speed (--meta output_speed_deg_s=...)")
-    fe = float(f[keep][np.argmax(amp[keep])])
     return fe / params.operation.motor_pole_pairs / params.ratio * 360.0
 
 
