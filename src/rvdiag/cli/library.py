@@ -144,7 +144,7 @@ def _print_summary(summary: dict) -> None:
     console.print(head)
     if lib:
         specimens = summary.get("specimens")
-        drawn = " (drawn: [randomise] specimen)" if specimens and specimens > 1 else " (the parameter file's)"
+        drawn = " (drawn: \\[randomise] specimen)" if specimens and specimens > 1 else " (the parameter file's)"
         console.print(f"mode {lib.get('mode')}, seed {lib.get('seed')}, {lib.get('n_simulations')} simulations, "
                       f"simulator {lib.get('simulator')}"
                       + (f", {specimens} specimen{'s' if specimens != 1 else ''}{drawn}" if specimens else ""))

@@ -505,7 +505,7 @@ def finish_unit(unit: Unit, job: Job, result: Any, t0: float, twin: Any = None) 
         from rvdiag.dynamics.noise import add_coloured_noise, snr_power
 
         if job.noise_mode is not None:
-            sigma = math.sqrt(float(snr_power(x, unit.noise_snr_db)))
+            sigma = math.sqrt(float(snr_power(x, unit.noise_snr_db).item()))
         x = add_coloured_noise(x, unit.noise_snr_db, unit.noise_exponent or 0.0, np.random.default_rng(noise_ss))
     starts = segment_starts(x.shape[0], job.segment_length, job.hop)
     if job.mode == "paper":
