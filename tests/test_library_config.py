@@ -88,7 +88,7 @@ def test_sweeps_parse_and_draw():
 @pytest.mark.parametrize(
     "change, message",
     [
-        ({"mode": "fast"}, "mode: must be one of paper, independent"),
+        ({"mode": "fast"}, "mode: must be one of paper, split-by-simulation"),
         ({"seed": None}, "seed: missing"),
         ({"seed": -1}, "seed: must be >= 0"),
         ({"signal__fs": -5.0}, r"\[signal\] fs: must be > 0"),
