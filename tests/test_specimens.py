@@ -310,3 +310,42 @@ def test_library_info_counts_specimens(spec_store, tmp_path, capsys):
     capsys.readouterr()
     assert run(["library", "info", str(plain), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["specimens"] == 1
+
+
+def test_floor_and_specimens_on_the_simulated_gpu_equal_the_cpu_build(tmp_path):
+    """--device cuda integrates each unit's healthy twin in the ensemble: the CPU build's store, bit for bit
+    (numba's CUDA simulator in a child process, as tests/test_gpu_ensemble.py runs the GPU path)."""
+    import os
+    import subprocess
+    import sys
+    import textwrap
+
+    from conftest import REPO
+
+    tiny = {"mode": "split-by-simulation", "seed": 3, "model": {"substeps": 4, "chunk_samples": 80},
+            "signal": {"fs": 48000.0, "duration_s": 0.004, "transient_s": 0.002, "segment_length": 64, "hop": 32},
+            "operation": {"input_speed_rpm": {"min": 1000.0, "max": 2000.0}, "load_Nm": [50.0, 100.0],
+                          "noise_snr_db": 20.0, "noise_mode": "floor"},
+            "randomise": {"specimen": True, "noise_colour_exponent": 1.0},
+            "split": {"simulations_per_state": 1, "test_simulations_per_state": 0},
+            "states": {"T1": {}, "T2": {"broken_fraction": 1.0}}}
+    code = f"""
+        import json, numpy as np
+        import rvdiag.library.build as build
+        from rvdiag.datasets import SampleStore
+        from rvdiag.library import LibraryConfig, build_library
+        c = LibraryConfig.from_dict({tiny!r})
+        build_library(c, {str(tmp_path / 'cpu.zarr')!r}, workers=0, progress=False)
+        build._TWIN_POWERS.clear()
+        rep = build_library(c, {str(tmp_path / 'gpu.zarr')!r}, workers=0, progress=False, device="cuda", ensemble=4)
+        a, b = SampleStore.open({str(tmp_path / 'cpu.zarr')!r}).load(), SampleStore.open({str(tmp_path / 'gpu.zarr')!r}).load()
+        same = bool(np.array_equal(a.X, b.X) and all(np.array_equal(a.meta[k], b.meta[k],
+                                                                 equal_nan=a.meta[k].dtype.kind == "f") for k in a.meta))
+        print(json.dumps([rep.device, same, len(set(a.meta["noise_sigma"].tolist()))]))
+    """
+    env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1",
+           "PYTHONPATH": os.pathsep.join([str(REPO / "src"), str(REPO / "tests")])}
+    proc = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], env=env, cwd=REPO, capture_output=True,
+                          text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    assert json.loads(proc.stdout.strip().splitlines()[-1]) == ["cuda", True, 2], proc.stdout
