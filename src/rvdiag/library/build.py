@@ -47,7 +47,8 @@ import numpy as np
 from rvdiag import __version__
 from rvdiag.datasets import StoreBuilder, config_hash
 from rvdiag.errors import ConfigError, RvdiagError, SimulationError, StoreError
-from rvdiag.library.config import (ARM_KEYS, NOISE_REFERENCE_S, STANDARD_GRAVITY, LibraryConfig, scaled_keys)
+from rvdiag.library.config import (ARM_KEYS, LEGACY_MODES, NOISE_REFERENCE_S, STANDARD_GRAVITY, LibraryConfig,
+                                   scaled_keys)
 from rvdiag.library.specimens import apply_specimen, draw_specimen, override_message, specimen_seed
 from rvdiag.library.states import STATES, FaultSpec
 
@@ -593,13 +594,17 @@ def default_workers() -> int:
 
 
 def stored_config(cfg: LibraryConfig, params: Any) -> dict[str, Any]:
-    """The config the store keeps (and hashes): the canonical library config plus the parameters' hash and the
-    simulator's physics revision.  The ``[motor]`` parameters enter the hash only when the simulations use the
+    """The config the store keeps (and hashes): the canonical library config (its mode in the spelling stores have
+    always had, :data:`rvdiag.library.config.LEGACY_MODES`) plus the parameters' hash and the simulator's physics
+    revision.  The ``[motor]`` parameters enter the hash only when the simulations use the
     motor's electrical model (``[model] signal = "current"`` or ``electrical = true``): the vibration-only model
     does not read them, so a store built before they existed still resumes."""
     from rvdiag.dynamics import PHYSICS_REVISION
 
     out = cfg.to_dict()
+    # the mode's old spelling, so that the hash of every store built before the rename stays (they resume); the
+    # store's `library` attribute and config_from_store give the new one
+    out["mode"] = {new: old for old, new in LEGACY_MODES.items()}.get(out["mode"], out["mode"])
     pd = params.to_dict()
     model = dict(cfg.model or {})
     if model.get("signal", "vibration") != "current" and not model.get("electrical", False):
