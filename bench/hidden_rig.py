@@ -6,8 +6,11 @@ build a library around the updated parameters, train, and classify the rig's fau
 The rig (``make_rig``): the built-in RV-20E with its stiffnesses scattered by up to +-30 %, its damping ratios by
 up to +-40 %, 4-12 kg on the housing, a structural resonance of the sensor path at 2.5-7 kHz and a 6-9 kHz
 accelerometer band, all drawn from ``--seed`` and written only to ``RIG_SECRET.json`` beside the files (never read
-by the workflow).  Each record gets pink noise at 20 dB and 50 Hz mains hum with two harmonics at 2 % of the
-signal's RMS.  Files, CSV with the columns ``time_s,acc`` at 48 kHz:
+by the workflow).  As a real rig's separately damaged reducers, each faulty state is its own specimen (its own
+``[modification] error_seed``, drawn from ``--seed``); the healthy records (calibration and T1) are the healthy
+reducer's.  The sensor and its cabling are the rig's: every record gets the same pink noise floor, 18 dB below the
+healthy calibration record's power, and the same 50 Hz mains hum with two harmonics at 2 % of that record's RMS
+(a louder fault does not get louder noise).  Files, CSV with the columns ``time_s,acc`` at 48 kHz:
 
 - ``calib_T1_45dps_75Nm.csv``: the 8 s healthy calibration record (45 deg/s, 75 N m);
 - ``rig_<state>_<speed>dps_<load>Nm.csv``: the six states T1-T6 at 30, 45 and 60 deg/s and 60 and 120 N m, 2 s
@@ -63,15 +66,28 @@ def rig_parameters(seed: int):
     return base.replace(bearings=bearings, damping=damping, mounting=mounting, material=material)
 
 
-def _disturb(x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Pink noise at 20 dB and 50 Hz mains hum (fundamental and two harmonics) at 2 % of the RMS."""
-    from rvdiag.dynamics.noise import add_coloured_noise
+#: the rig's sensor floor: dB below the healthy calibration record's power
+FLOOR_DB = 18.0
 
-    y = add_coloured_noise(x, 20.0, 1.0, rng)
+
+def specimen_seeds(seed: int) -> dict[str, int]:
+    """Each state's ``[modification] error_seed``: the healthy reducer's for T1 (and the calibration record), a
+    specimen of its own for each faulty state."""
+    from rvdiag.library.specimens import draw_specimen
+
+    return {state: draw_specimen(int(np.random.SeedSequence([seed, 3, i]).generate_state(1)[0]))["error_seed"]
+            for i, state in enumerate(STATES)}
+
+
+def _disturb(x: np.ndarray, rng: np.random.Generator, healthy_power: float) -> np.ndarray:
+    """The rig's sensor: pink noise at a fixed floor :data:`FLOOR_DB` below ``healthy_power`` and 50 Hz mains hum
+    (fundamental and two harmonics) at 2 % of the healthy RMS, the same whatever the record."""
+    from rvdiag.dynamics.noise import add_noise_power
+
+    y = add_noise_power(x, healthy_power * 10.0 ** (-FLOOR_DB / 10.0), 1.0, rng)
     t = np.arange(x.size) / FS
-    rms = float(np.sqrt(np.mean(x * x)))
     hum = sum(np.sin(2 * np.pi * 50.0 * h * t + rng.uniform(0, 2 * np.pi)) / h for h in (1, 2, 3))
-    return y + 0.02 * rms * hum / np.sqrt(np.mean(hum * hum))
+    return y + 0.02 * np.sqrt(healthy_power) * hum / np.sqrt(np.mean(hum * hum))
 
 
 def _write_csv(path: Path, x: np.ndarray) -> None:
@@ -79,24 +95,31 @@ def _write_csv(path: Path, x: np.ndarray) -> None:
     np.savetxt(path, np.column_stack([t, x]), delimiter=",", header="time_s,acc", comments="", fmt="%.9g")
 
 
-def make_rig(out: Path, seed: int = 1, record_s: float = 2.0, calib_s: float = 8.0) -> Path:
-    """Write the rig's files into ``out`` (and its hidden values into ``out/RIG_SECRET.json``)."""
+def make_rig(out: Path, seed: int = 1, record_s: float = 2.0, calib_s: float = 8.0, states=STATES, speeds=SPEEDS,
+             loads=LOADS) -> Path:
+    """Write the rig's files into ``out`` (and its hidden values into ``out/RIG_SECRET.json``); ``states``,
+    ``speeds``, ``loads``: a smaller rig (a quick check)."""
     from rvdiag.dynamics import simulate
     from rvdiag.gears import ToothFaults
 
     out.mkdir(parents=True, exist_ok=True)
     params = rig_parameters(seed)
+    specimens = specimen_seeds(seed)
     rng = np.random.default_rng([seed, 2])
-    x = simulate(params, None, output_speed_deg_s=45.0, load_Nm=75.0, duration_s=calib_s, fs=FS).signal[0]
-    _write_csv(out / "calib_T1_45dps_75Nm.csv", _disturb(x, rng))
-    for state in STATES:
+    healthy = params.replace(modification={"error_seed": specimens["T1"]})
+    x = simulate(healthy, None, output_speed_deg_s=45.0, load_Nm=75.0, duration_s=calib_s, fs=FS).signal[0]
+    power = float(np.mean(x * x))
+    _write_csv(out / "calib_T1_45dps_75Nm.csv", _disturb(x, rng, power))
+    for state in states:
         fault = None if state == "T1" else ToothFaults.for_state(state)
-        for speed in SPEEDS:
-            for load in LOADS:
-                x = simulate(params, fault, output_speed_deg_s=speed, load_Nm=load, duration_s=record_s,
+        reducer = params.replace(modification={"error_seed": specimens[state]})
+        for speed in speeds:
+            for load in loads:
+                x = simulate(reducer, fault, output_speed_deg_s=speed, load_Nm=load, duration_s=record_s,
                              fs=FS).signal[0]
-                _write_csv(out / f"rig_{state}_{speed:.0f}dps_{load:.0f}Nm.csv", _disturb(x, rng))
-    secret = {"seed": seed, "params": params.to_dict()}
+                _write_csv(out / f"rig_{state}_{speed:.0f}dps_{load:.0f}Nm.csv", _disturb(x, rng, power))
+    secret = {"seed": seed, "params": params.to_dict(), "error_seed": specimens, "floor_db": FLOOR_DB,
+              "noise_sigma": float(np.sqrt(power * 10.0 ** (-FLOOR_DB / 10.0)))}
     (out / "RIG_SECRET.json").write_text(json.dumps(secret, indent=1), encoding="utf-8")
     return out
 
@@ -131,8 +154,11 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--run", action="store_true", help="also run the transfer workflow on the rig")
     ap.add_argument("--config", default="configs/transfer.toml")
+    ap.add_argument("--small", action="store_true",
+                    help="a quick check: 0.3 s records, 1 s calibration, 45 deg/s and 60 N m only")
     a = ap.parse_args()
-    rig = make_rig(a.out / "rig", a.seed)
+    small = dict(record_s=0.3, calib_s=1.0, speeds=(45.0,), loads=(60.0,)) if a.small else {}
+    rig = make_rig(a.out / "rig", a.seed, **small)
     print(f"rig files in {rig}", flush=True)
     if a.run:
         res = run_workflow(rig, a.out / "work", a.config)

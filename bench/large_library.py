@@ -57,7 +57,7 @@ def library_config(size: int, simulator: str = SIMULATORS["synthetic"]) -> dict:
     sims = -(-size // (len(STATES) * PER_SIMULATION))
     return {
         "name": f"large-{size}",
-        "mode": "independent",
+        "mode": "split-by-simulation",
         "seed": 11,
         "simulator": simulator,
         "signal": {"fs": 48000.0, "duration_s": 1.0, "transient_s": 0.05, "segment_length": 4096, "hop": 2048},

@@ -5,12 +5,19 @@ Usage::
     .venv/bin/python bench/library_build.py                      # demo config, 4 simulations per state
     .venv/bin/python bench/library_build.py --sims 2 --synthetic # the analytic stand-in (machinery only)
     .venv/bin/python bench/library_build.py --log                # also append the result to bench/HISTORY.md
+    .venv/bin/python bench/library_build.py --specimen-cost --sims 2 --workers 0 --log
+                                  # cost per simulated second: specimens + noise floor against one specimen + record
 
 Each run builds the same library into a fresh store, end to end as a user sees it: starting the local
 cluster, importing (and loading the compiled model) on the workers, simulating, writing.  ``workers = 0``
 (in-process, no Dask) is the baseline.  The 1-worker run shows the Dask overhead, the 2-worker run the
 parallel speed-up (ideal 2 on 2 free cores; less when other work shares the machine -- the load average
 is printed).
+
+``--specimen-cost`` builds the config twice in the same run, in-process: as given with ``[randomise] specimen`` and
+``[operation] noise_mode = "floor"`` (each simulation its own specimen, and a healthy twin per reducer for the
+floor), and without them (one specimen, noise scaled to each record: the library before issue 26), and prints the
+cost per simulated second of each and their ratio (the issue's goal: within 1.2).
 """
 
 from __future__ import annotations
@@ -33,7 +40,13 @@ def main() -> None:
     ap.add_argument("--synthetic", action="store_true", help="use rvdiag.library.synthetic:simulate")
     ap.add_argument("--workers", default="0,1,2", help="comma-separated worker counts (0 = in-process)")
     ap.add_argument("--log", action="store_true", help="append the result to bench/HISTORY.md")
+    ap.add_argument("--rounds", type=int, default=2, help="--specimen-cost: alternated builds of each (default 2)")
+    ap.add_argument("--specimen-cost", action="store_true",
+                    help="cost per simulated second with specimens + noise floor against without them")
     args = ap.parse_args()
+    if args.specimen_cost:
+        specimen_cost(args)
+        return
 
     from rvdiag.library import LibraryConfig, build_library
 
@@ -82,6 +95,65 @@ def main() -> None:
             f"{' --synthetic' if args.synthetic else ''} --log`",
             "",
             *lines,
+            "",
+        ])
+        with open(ROOT / "bench" / "HISTORY.md", "a", encoding="utf-8") as fh:
+            fh.write(block)
+
+
+def specimen_cost(args: argparse.Namespace) -> None:
+    """Build the config with and without specimens + floor, in-process, and compare the cost per simulated s."""
+    from rvdiag.library import LibraryConfig, build_library
+    from rvdiag.library.build import _TWIN_POWERS
+
+    cfg = LibraryConfig.load(args.config)
+    cfg = cfg.replace(split={"simulations_per_state": args.sims, "test_simulations_per_state": max(1, args.sims // 4)})
+    rnd, op = cfg.to_dict()["randomise"], cfg.to_dict()["operation"]
+    if args.synthetic:
+        cfg = cfg.replace(simulator="rvdiag.library.synthetic:simulate", model={})
+    rnd.pop("iso1328_grade", None)
+    rnd.pop("specimen", None)
+    op.pop("noise_mode", None)
+    data = cfg.to_dict()
+    data["randomise"], data["operation"] = rnd, op
+    before = LibraryConfig.from_dict(data, source="before")
+    after = cfg.replace(randomise={"specimen": True}, operation={"noise_mode": "floor"})
+    simulated_s = cfg.n_simulations * cfg.duration_s
+    tmp = Path(tempfile.mkdtemp(prefix="rvdiag-bench-"))
+    cost = {}
+    try:
+        build_library(before.replace(split={"simulations_per_state": 2, "test_simulations_per_state": 1},
+                                     states={"T1": {}, "T2": {}}), tmp / "warm.zarr", workers=0, progress=False)
+        for rnd in range(args.rounds):  # alternated, the fastest of each kept: a shared machine's load varies
+            for name, c in (("one specimen, record noise", before), ("specimens + floor", after)):
+                _TWIN_POWERS.clear()  # each build simulates its twins: no reuse of an earlier round's
+                t0 = time.perf_counter()
+                build_library(c, tmp / f"{rnd}-{len(cost)}-{name[:3]}.zarr", workers=0, progress=False)
+                took = (time.perf_counter() - t0) / simulated_s
+                cost[name] = min(took, cost.get(name, took))
+                print(f"{name}: {took:.3f} s per simulated second (kept record; {cfg.n_simulations} simulations)",
+                      flush=True)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    ratio = cost["specimens + floor"] / cost["one specimen, record noise"]
+    load = os.getloadavg()[0]
+    print(f"ratio specimens + floor / before: {ratio:.2f}; load average at the end: {load:.1f}")
+    if args.log:
+        block = "\n".join([
+            "",
+            f"## {dt.date.today().isoformat()} library cost per simulated second: specimens + noise floor (issue 26)",
+            "",
+            f"Library: {Path(args.config).name} with {args.sims} simulations per state ({cfg.n_simulations} "
+            f"simulations of {cfg.transient_s + cfg.duration_s:g} s), in-process (no Dask), the same run, {args.rounds} "
+            f"alternated builds of each, the fastest kept.  Prediction: "
+            f"the healthy twin of each reducer adds ({cfg.transient_s:g} + 0.1) / ({cfg.transient_s:g} + "
+            f"{cfg.duration_s:g}) of the simulation; a specimen of its own per simulation may miss the mesh-table "
+            f"cache.  Load average (1 min) at the end: {load:.1f} on {os.cpu_count()} cores.",
+            f"Command: `.venv/bin/python bench/library_build.py --specimen-cost --sims {args.sims} --rounds {args.rounds}"
+            f"{' --synthetic' if args.synthetic else ''} --log`",
+            "",
+            *[f"- {k}: {v:.3f} s per simulated second" for k, v in cost.items()],
+            f"- ratio: {ratio:.2f} (goal <= 1.2)",
             "",
         ])
         with open(ROOT / "bench" / "HISTORY.md", "a", encoding="utf-8") as fh:

@@ -35,7 +35,7 @@ DELAY_S = 1.0  # per simulation, on the workers
 #: 4 states x 4 simulations, 0.3 s at 4 kHz each: 16 units of 5 samples
 CONFIG = {
     "name": "cluster-test",
-    "mode": "independent",
+    "mode": "split-by-simulation",
     "seed": 2024,
     "simulator": "slow_simulator:simulate",
     "signal": {"fs": 4000.0, "duration_s": 0.3, "transient_s": 0.02, "segment_length": 400, "hop": 200},

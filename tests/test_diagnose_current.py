@@ -68,7 +68,7 @@ def current_model(tmp_path_factory):
 
     d = tmp_path_factory.mktemp("cur")
     cfg = LibraryConfig.from_dict({
-        "mode": "independent", "seed": 5, "channel": "i_a",
+        "mode": "split-by-simulation", "seed": 5, "channel": "i_a",
         "model": {"signal": "current", "substeps": 4},
         "signal": {"fs": 1000.0, "duration_s": 0.512, "transient_s": 0.05, "segment_length": 256, "hop": 128},
         "operation": {"output_speed_deg_s": [45.0], "load_Nm": 60.0, "noise_snr_db": 60.0},

@@ -30,7 +30,7 @@ from rvdiag.library.build import Job
 
 #: a tiny library on the dynamic model: three states (their mesh tables have different event counts), 4 ms each
 TINY = {
-    "mode": "independent", "seed": 3, "model": {"substeps": 4, "chunk_samples": 80},
+    "mode": "split-by-simulation", "seed": 3, "model": {"substeps": 4, "chunk_samples": 80},
     "signal": {"fs": 48000.0, "duration_s": 0.004, "transient_s": 0.002, "segment_length": 64, "hop": 32},
     "operation": {"input_speed_rpm": {"min": 1000.0, "max": 2000.0}, "load_Nm": [50.0, 100.0],
                   "noise_snr_db": 20.0},

@@ -45,3 +45,15 @@ def test_rig_files_are_measured_like_csv_and_the_secret_is_kept_apart(tmp_path):
     # the shipped transfer library knows nothing of the rig
     text = (ROOT / "configs" / "transfer.toml").read_text(encoding="utf-8")
     assert "RIG" not in text and str(round(secret["params"]["mounting"]["path_resonance_hz"], 1)) not in text
+
+
+def test_each_faulty_state_is_its_own_specimen_behind_one_sensor_floor():
+    rig = _rig_module()
+    seeds = rig.specimen_seeds(1)
+    assert seeds == rig.specimen_seeds(1) and len(set(seeds.values())) == len(rig.STATES)
+    quiet, loud = np.zeros(48000), 10.0 * np.sin(np.arange(48000) * 0.2)
+    a = rig._disturb(quiet, np.random.default_rng(0), healthy_power=4.0)
+    b = rig._disturb(loud, np.random.default_rng(0), healthy_power=4.0) - loud
+    np.testing.assert_allclose(a, b, atol=1e-12)  # a louder record gets the same noise and hum
+    floor = 4.0 * 10 ** (-rig.FLOOR_DB / 10)
+    assert 0.9 * floor < np.var(a) < 1.1 * floor + 0.02**2 * 4.0 * 1.1

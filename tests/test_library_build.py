@@ -26,7 +26,7 @@ from rvdiag.library.build import Job
 SYN = "rvdiag.library.synthetic:simulate"
 
 TINY = {
-    "mode": "independent",
+    "mode": "split-by-simulation",
     "seed": 42,
     "simulator": SYN,
     "signal": {"fs": 4000.0, "duration_s": 0.5, "transient_s": 0.05, "segment_length": 500, "hop": 250},

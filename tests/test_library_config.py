@@ -14,7 +14,7 @@ from rvdiag.library.config import split_counts
 ROOT = Path(__file__).resolve().parents[1]
 
 BASE = {
-    "mode": "independent",
+    "mode": "split-by-simulation",
     "seed": 5,
     "simulator": "rvdiag.library.synthetic:simulate",
     "signal": {"fs": 1000.0, "duration_s": 1.0, "transient_s": 0.1, "segment_length": 200, "hop": 100},
@@ -88,7 +88,7 @@ def test_sweeps_parse_and_draw():
 @pytest.mark.parametrize(
     "change, message",
     [
-        ({"mode": "fast"}, "mode: must be one of paper, independent"),
+        ({"mode": "fast"}, "mode: must be one of paper, split-by-simulation"),
         ({"seed": None}, "seed: missing"),
         ({"seed": -1}, "seed: must be >= 0"),
         ({"signal__fs": -5.0}, r"\[signal\] fs: must be > 0"),
@@ -125,7 +125,7 @@ def test_paper_mode_split_checks():
         cfg_with(mode="paper", split={"train_per_state": 7, "test_per_state": 3})
     with pytest.raises(ConfigError, match="assign: must be one of random, ordered"):
         cfg_with(mode="paper", split={**paper, "assign": "middle"})
-    with pytest.raises(ConfigError, match="simulations_per_state: only for mode = 'independent'"):
+    with pytest.raises(ConfigError, match="simulations_per_state: only for mode = 'split-by-simulation'"):
         cfg_with(mode="paper", split={**paper, "simulations_per_state": 2})
 
 
@@ -185,7 +185,7 @@ def test_paper_config_is_the_paper():
 def test_demo_config_has_enough_samples_for_a_cnn():
     cfg = LibraryConfig.load(ROOT / "configs" / "demo.toml")
     counts = split_counts(cfg)
-    assert cfg.mode == "independent" and counts["train"] >= 100 and counts["test"] >= 30
+    assert cfg.mode == "split-by-simulation" and counts["train"] >= 100 and counts["test"] >= 30
     # simulated seconds: at the ~2 simulated s per CPU-s of 4 sub-steps, about a minute on 2 cores
     assert cfg.n_simulations * (cfg.duration_s + cfg.transient_s) <= 250.0
 

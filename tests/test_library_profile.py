@@ -181,7 +181,7 @@ def test_a_trapezoid_library_on_the_dynamic_model(tmp_path):
     """One trapezoid simulation on the 27-DOF model: the window speeds rise to the cruise speed and fall, and
     agree with the angles the simulator itself records."""
     data = {
-        "mode": "independent", "seed": 2, "model": {"substeps": 4},
+        "mode": "split-by-simulation", "seed": 2, "model": {"substeps": 4},
         "signal": {"fs": 48000.0, "duration_s": 0.15, "transient_s": 0.02, "segment_length": 960, "hop": 960},
         "operation": {"output_speed_deg_s": 45.0, "load_Nm": 80.0},
         "profile": {"trapezoid_fraction": 1.0, "accel_deg_s2": 900.0, "arm_mass_kg": 15.0, "arm_length_m": 0.5},

@@ -12,7 +12,7 @@ from rvdiag.library.build import Job
 from rvdiag.params import ReducerParams
 
 BASE = {
-    "mode": "independent", "seed": 3, "model": {"substeps": 4},
+    "mode": "split-by-simulation", "seed": 3, "model": {"substeps": 4},
     "signal": {"fs": 48000.0, "duration_s": 0.06, "transient_s": 0.02, "segment_length": 1024, "hop": 1024},
     "operation": {"output_speed_deg_s": 45.0, "load_Nm": 100.0, "noise_snr_db": 30.0},
     "split": {"simulations_per_state": 2, "test_simulations_per_state": 1},

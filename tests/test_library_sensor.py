@@ -113,7 +113,7 @@ def test_a_moved_sensor_on_the_dynamic_model(tmp_path):
     differ from the y channel at the default point."""
     from rvdiag.dynamics import ModelSettings, simulate
 
-    data = {"mode": "independent", "seed": 3, "model": {"substeps": 4},
+    data = {"mode": "split-by-simulation", "seed": 3, "model": {"substeps": 4},
             "signal": {"fs": 24000.0, "duration_s": 0.03, "transient_s": 0.02, "segment_length": 240},
             "operation": {"output_speed_deg_s": 45.0, "load_Nm": 80.0},
             "randomise": {"sensor_position_deg": 90.0, "sensor_direction_deg": 0.0},
@@ -138,7 +138,7 @@ def test_sensor_and_scurve_library_on_the_simulated_gpu_equals_the_cpu_build():
     a config with S-curves and a drawn sensor position and direction writes the CPU build's store, bit for bit."""
     from test_gpu_ensemble import _in_simulator
 
-    data = {"mode": "independent", "seed": 5, "model": {"substeps": 4, "chunk_samples": 80},
+    data = {"mode": "split-by-simulation", "seed": 5, "model": {"substeps": 4, "chunk_samples": 80},
             "signal": {"fs": 48000.0, "duration_s": 0.004, "transient_s": 0.002, "segment_length": 64, "hop": 32},
             "operation": {"output_speed_deg_s": {"min": 30.0, "max": 60.0}, "load_Nm": 50.0},
             "randomise": {"sensor_position_deg": {"min": 0.0, "max": 360.0}, "sensor_direction_deg": [0.0, 90.0]},

@@ -200,7 +200,7 @@ def test_a_current_library_stores_the_phase_current(tmp_path):
     from rvdiag.library.simulators import check_options
 
     cfg = LibraryConfig.from_dict({
-        "mode": "independent", "seed": 3, "channel": "i_a",
+        "mode": "split-by-simulation", "seed": 3, "channel": "i_a",
         "model": {"signal": "current", "substeps": 4},
         "signal": {"fs": 1000.0, "duration_s": 0.256, "transient_s": 0.05, "segment_length": 128, "hop": 128},
         "operation": {"output_speed_deg_s": [30.0, 60.0], "load_Nm": 100.0, "noise_snr_db": 60.0},

@@ -233,7 +233,7 @@ def test_library_config_names_t7_t8():
     from rvdiag.library import LibraryConfig, make_plan
 
     data = {
-        "mode": "independent", "seed": 1, "simulator": "rvdiag.library.synthetic:simulate",
+        "mode": "split-by-simulation", "seed": 1, "simulator": "rvdiag.library.synthetic:simulate",
         "signal": {"fs": 1000.0, "duration_s": 0.5, "transient_s": 0.1, "segment_length": 200, "hop": 100},
         "operation": {"input_speed_rpm": 1500.0, "load_Nm": 100.0},
         "split": {"simulations_per_state": 2, "test_simulations_per_state": 1},

@@ -144,6 +144,10 @@ def register(app: typer.Typer) -> None:
         summary = store.summary()
         library = store.attrs.get("library") or {}
         summary["library"] = library
+        if store.attrs.get("kind") == "simulated":
+            from rvdiag.library.specimens import count_specimens
+
+            summary["specimens"] = count_specimens(store.meta)
         if as_json:
             typer.echo(json.dumps(summary, indent=2, sort_keys=True, default=str))
             return
@@ -164,8 +168,11 @@ def _print_summary(summary: dict) -> None:
             f"{summary['length']} points" + (f" at {fs:g} Hz ({summary['length'] / fs * 1e3:.1f} ms)" if fs else ""))
     console.print(head)
     if lib:
+        specimens = summary.get("specimens")
+        drawn = " (drawn: \\[randomise] specimen)" if specimens and specimens > 1 else " (the parameter file's)"
         console.print(f"mode {lib.get('mode')}, seed {lib.get('seed')}, {lib.get('n_simulations')} simulations, "
-                      f"simulator {lib.get('simulator')}")
+                      f"simulator {lib.get('simulator')}"
+                      + (f", {specimens} specimen{'s' if specimens != 1 else ''}{drawn}" if specimens else ""))
     splits = summary["splits"]
     table = Table("state", "description", *splits, "total")
     descriptions = lib.get("states", {})
@@ -179,6 +186,7 @@ def _print_summary(summary: dict) -> None:
         console.print("operation: " + ", ".join(f"{k} = {v}" for k, v in op.items()))
         if "randomise" in cfg:
             r = cfg["randomise"]
-            console.print(f"randomise: stiffness +-{r.get('stiffness_pct')} %, damping +-{r.get('damping_pct')} %")
+            console.print(f"randomise: stiffness +-{r.get('stiffness_pct')} %, damping +-{r.get('damping_pct')} %"
+                          + (f", iso1328_grade {r['iso1328_grade']}" if "iso1328_grade" in r else ""))
     console.print(f"config hash {summary['config_hash']}, rvdiag {summary['rvdiag_version']}; "
                   f"metadata: {', '.join(summary['meta_columns'])}")

@@ -2,12 +2,15 @@
 
 SNR in dB is ``10 log10(P_signal / P_noise)`` with ``P`` the mean square (power) of each channel; the
 noise of each channel is drawn from ``N(0, P_signal 10^(-SNR/10))`` by a seeded
-:class:`numpy.random.Generator`, so a seed repeats the noise exactly.
+:class:`numpy.random.Generator`, so a seed repeats the noise exactly.  :func:`add_noise_power` adds noise of a
+stated absolute mean square instead (a sensor's fixed noise floor, the same whatever the signal):
+:func:`add_awgn` and :func:`add_coloured_noise` are it with the power taken from the signal itself.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -27,10 +30,60 @@ def add_awgn(signal: np.ndarray, snr_db: float, rng: np.random.Generator | int |
     x = np.asarray(signal, dtype=float)
     if x.size == 0:
         raise ParameterError("cannot add noise to an empty signal")
+    return _add_white(x, snr_power(x, snr_db), rng)
+
+
+def snr_power(signal: np.ndarray, snr_db: float) -> np.ndarray:
+    """The noise mean square that puts each channel of ``signal`` at ``snr_db``: ``mean(x^2) 10^(-SNR/10)``
+    (kept dims, last axis = time)."""
+    x = np.asarray(signal, dtype=float)
+    return np.mean(x**2, axis=-1, keepdims=True) * 10.0 ** (-snr_db / 10.0)
+
+
+def _add_white(x: np.ndarray, noise_power: np.ndarray | float,
+               rng: np.random.Generator | int | None) -> np.ndarray:
     gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
-    power = np.mean(x**2, axis=-1, keepdims=True)
-    sigma = np.sqrt(power * 10.0 ** (-snr_db / 10.0))
-    return x + sigma * gen.standard_normal(x.shape)
+    return x + np.sqrt(noise_power) * gen.standard_normal(x.shape)
+
+
+def add_noise_power(signal: np.ndarray, noise_power: float, exponent: float = 0.0,
+                    rng: np.random.Generator | int | None = 0) -> np.ndarray:
+    """Return ``signal`` plus Gaussian noise of mean square ``noise_power`` (in the signal's units squared), white
+    (``exponent`` 0) or with its PSD falling as ``1 / f^exponent`` (shaped as :func:`add_coloured_noise` shapes it,
+    Kasdin 1995): the noise of a sensor whose floor does not depend on what it measures.  The same ``rng`` draws as
+    :func:`add_coloured_noise`, so a signal at the same noise power gets the same noise.
+
+    >>> y = add_noise_power(np.zeros(100000), 4.0, 1.0, np.random.default_rng(1))
+    >>> round(float(np.mean(y**2)), 6)
+    4.0
+    """
+    if not isinstance(noise_power, (int, float, np.floating)) or isinstance(noise_power, bool) \
+            or not math.isfinite(noise_power) or noise_power < 0:
+        raise ParameterError(f"noise power must be a finite number >= 0, got {noise_power!r}")
+    return _add_shaped(np.asarray(signal, dtype=float), float(noise_power), exponent, rng)
+
+
+def _add_shaped(x: np.ndarray, noise_power: Any, exponent: float,
+                rng: np.random.Generator | int | None) -> np.ndarray:
+    """``x`` plus noise of mean square ``noise_power`` (a number, or one per channel with kept dims)."""
+    if not isinstance(exponent, (int, float)) or isinstance(exponent, bool) or not 0.0 <= exponent <= 3.0:
+        raise ParameterError(f"noise colour exponent must lie in [0, 3], got {exponent!r}")
+    if x.size == 0:
+        raise ParameterError("cannot add noise to an empty signal")
+    if exponent == 0.0:
+        return _add_white(x, noise_power, rng)
+    if x.shape[-1] < 2:
+        raise ParameterError("coloured noise needs at least 2 samples")
+    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+    white = gen.standard_normal(x.shape)
+    spec = np.fft.rfft(white, axis=-1)
+    f = np.arange(spec.shape[-1], dtype=float)
+    f[0] = 1.0
+    shape = (f / f[-1]) ** (-0.5 * exponent)
+    shape[0] = 0.0
+    noise = np.fft.irfft(spec * shape, n=x.shape[-1], axis=-1)
+    noise *= np.sqrt(noise_power / np.mean(noise**2, axis=-1, keepdims=True))
+    return x + noise
 
 
 def add_coloured_noise(signal: np.ndarray, snr_db: float, exponent: float,
@@ -55,14 +108,4 @@ def add_coloured_noise(signal: np.ndarray, snr_db: float, exponent: float,
     x = np.asarray(signal, dtype=float)
     if x.shape[-1] < 2:
         raise ParameterError("coloured noise needs at least 2 samples")
-    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
-    white = gen.standard_normal(x.shape)
-    spec = np.fft.rfft(white, axis=-1)
-    f = np.arange(spec.shape[-1], dtype=float)
-    f[0] = 1.0
-    shape = (f / f[-1]) ** (-0.5 * exponent)
-    shape[0] = 0.0
-    noise = np.fft.irfft(spec * shape, n=x.shape[-1], axis=-1)
-    power = np.mean(x**2, axis=-1, keepdims=True)
-    noise *= np.sqrt(power * 10.0 ** (-snr_db / 10.0) / np.mean(noise**2, axis=-1, keepdims=True))
-    return x + noise
+    return _add_shaped(x, snr_power(x, snr_db), exponent, rng)

@@ -47,7 +47,9 @@ import numpy as np
 from rvdiag import __version__
 from rvdiag.datasets import StoreBuilder, config_hash
 from rvdiag.errors import ConfigError, RvdiagError, SimulationError, StoreError
-from rvdiag.library.config import ARM_KEYS, LibraryConfig, scaled_keys
+from rvdiag.library.config import (ARM_KEYS, LEGACY_MODES, NOISE_REFERENCE_S, STANDARD_GRAVITY, LibraryConfig,
+                                   scaled_keys)
+from rvdiag.library.specimens import apply_specimen, draw_specimen, override_message, specimen_seed
 from rvdiag.library.states import STATES, FaultSpec
 
 #: Key added to the stored config so that its hash also covers the reducer parameter values.
@@ -99,6 +101,11 @@ class Unit:
     #: ``[randomise]`` draws of the accelerometer (:data:`rvdiag.library.config.SENSOR_KEYS`): ``sensor_position_deg``
     #: and/or ``sensor_direction_deg`` (empty without them)
     sensor: Mapping[str, float] = field(default_factory=dict)
+    #: ``[randomise] specimen`` draw (:func:`rvdiag.library.specimens.draw_specimen`): ``error_seed`` and, with an
+    #: ``iso1328_grade`` sweep, the grade (empty without ``specimen``: the parameter file's specimen)
+    specimen: Mapping[str, int] = field(default_factory=dict)
+    #: ``noise_density_ug_per_rthz`` drawn for this unit ("floor" noise given as a density), else ``None``
+    noise_density: float | None = None
 
     def sensor_geometry(self, radius_m: float) -> tuple[tuple[float, float] | None, tuple[float, float]]:
         """``(sensor point (x, y) in m or None for the model's default, unit sensing direction (dx, dy))`` of the
@@ -137,7 +144,8 @@ class Unit:
 
 
 def _streams(unit_seed: int) -> list[np.random.SeedSequence]:
-    """The four independent streams of a unit: draws, simulator seed, noise, split."""
+    """The four independent streams of a unit: draws, simulator seed, noise, split (the fifth, the specimen's, is
+    :func:`rvdiag.library.specimens.specimen_seed`)."""
     return np.random.SeedSequence(unit_seed).spawn(4)
 
 
@@ -165,15 +173,19 @@ def make_plan(cfg: LibraryConfig) -> list[Unit]:
             snr = None if cfg.noise_snr_db is None else cfg.noise_snr_db.draw(rng)
             scales = {f"{s}.{key}": float(1.0 + pct / 100.0 * rng.uniform(-1.0, 1.0)) for s, key, pct in keys}
             split = None
-            if cfg.mode == "independent":
+            if cfg.mode == "split-by-simulation":
                 split = "test" if k >= cfg.simulations_per_state - cfg.test_simulations_per_state else "train"
             # drawn after every earlier draw, so a config without them keeps its units bit for bit
             mounting = {key: float(sw.draw(rng)) for key, sw in cfg.path.items()}
             colour = None if cfg.noise_colour_exponent is None else float(cfg.noise_colour_exponent.draw(rng))
             profile = {} if cfg.profile is None else _draw_profile(cfg.profile, rng)
             sensor = {key: float(sw.draw(rng)) for key, sw in cfg.sensor.items()}  # last: older configs unchanged
+            density = None  # after the sensor: drawn only by configs with a density
+            if cfg.noise_density_ug_per_rthz is not None:
+                density = float(cfg.noise_density_ug_per_rthz.draw(rng))
+            specimen = draw_specimen(specimen_seed(seeds[u]), cfg.iso1328_grade) if cfg.specimen else {}
             units.append(Unit(u, state, k, seeds[u], severity, speed, load, snr, scales, split,
-                              cfg.rows_per_simulation(state), mounting, colour, profile, sensor))
+                              cfg.rows_per_simulation(state), mounting, colour, profile, sensor, specimen, density))
             u += 1
     return units
 
@@ -217,6 +229,12 @@ class Job:
     model: Mapping[str, Any] = field(default_factory=dict)
     #: the config has a ``[profile]`` table: pass the profiles, record their columns
     profile_columns: bool = False
+    #: ``[operation] noise_mode`` (``None``: not given, "record" without its columns)
+    noise_mode: str | None = None
+    #: ``(speed, load_Nm)`` of a "floor" noise level's healthy twin (:meth:`LibraryConfig.noise_reference`)
+    noise_reference: tuple[float, float] | None = None
+    #: the config draws specimens: record ``error_seed`` and ``iso1328_grade``
+    specimen_columns: bool = False
     #: the client's rvdiag release and physics revision: a worker running other code refuses the unit
     #: (``None``: not checked)
     rvdiag_version: str | None = None
@@ -232,7 +250,8 @@ class Job:
             severity_columns=tuple(cfg.severity_parameters()),
             scale_columns=tuple(f"{s}.{k}" for s, k, _ in scaled_keys(cfg)), model=dict(cfg.model),
             profile_columns=cfg.profile is not None, rvdiag_version=__version__,
-            physics_revision=_physics_revision(),
+            physics_revision=_physics_revision(), noise_mode=cfg.noise_mode,
+            noise_reference=cfg.noise_reference() if cfg.noise_floor else None, specimen_columns=cfg.specimen,
         )
 
 
@@ -341,9 +360,9 @@ def run_unit(unit: Unit, job: Job) -> UnitResult:
     return finish_unit(unit, job, simulate_unit(unit, job), t0)
 
 
-def simulator_call(unit: Unit, job: Job) -> tuple[Callable[..., Any], tuple[Any, ...], dict[str, Any]]:
-    """``(simulator, args, kwargs)``: the call of the simulator that simulates ``unit`` (its reducer parameters
-    scaled and mounted as drawn, its fault, speed, load, profiles and the simulator's seed)."""
+def unit_params(unit: Unit, job: Job) -> Any:
+    """The :class:`rvdiag.params.ReducerParams` of the reducer ``unit`` simulates: the job's, scaled and mounted as
+    drawn, with the unit's specimen."""
     from rvdiag.params import ReducerParams
 
     params = ReducerParams.from_dict(dict(job.params), source="<library>")
@@ -355,7 +374,20 @@ def simulator_call(unit: Unit, job: Job) -> tuple[Callable[..., Any], tuple[Any,
         params = params.replace(**changes)
     if unit.mounting:
         params = params.replace(mounting=dict(unit.mounting))
-    spec = FaultSpec(unit.state, unit.severity)
+    return apply_specimen(params, unit.specimen)
+
+
+def simulator_call(unit: Unit, job: Job, twin: bool = False) -> tuple[Callable[..., Any], tuple[Any, ...],
+                                                                       dict[str, Any]]:
+    """``(simulator, args, kwargs)``: the call of the simulator that simulates ``unit`` (its reducer parameters
+    scaled and mounted as drawn, its specimen, fault, speed, load, profiles and the simulator's seed).
+
+    ``twin``: the call of the unit's healthy twin instead, whose power sets a "floor" noise level (docs/library.md,
+    "Noise"): the same reducer and sensor, healthy, at the job's reference point (:attr:`Job.noise_reference`) at
+    constant speed without a gravity arm, :data:`rvdiag.library.config.NOISE_REFERENCE_S` recorded after the
+    job's transient, simulator seed 0 (so the twin depends on the reducer alone, not on the unit's seed)."""
+    params = unit_params(unit, job)
+    spec = FaultSpec("T1", {}) if twin else FaultSpec(unit.state, unit.severity)
     sim = resolve_simulator(job.simulator)
     fault = spec if getattr(sim, "accepts_fault_spec", False) else spec.to_tooth_faults()
     sim_ss = _streams(unit.seed)[1]
@@ -365,6 +397,11 @@ def simulator_call(unit: Unit, job: Job) -> tuple[Callable[..., Any], tuple[Any,
         point = unit.sensor_geometry(params.bodies.pin_wheel_outer_radius)[0]
         if point is not None:
             model["sensor_point_m"] = list(point)
+    if twin:
+        speed, load = job.noise_reference or (unit.speed, unit.load_Nm)
+        return sim, (params, fault), {job.speed_key: speed, "load_Nm": load, "transient_s": job.transient_s,
+                                      "duration_s": min(NOISE_REFERENCE_S, job.duration_s), "fs": job.fs, "seed": 0,
+                                      "model": model}
     profiles: dict[str, Any] = {}
     if unit.profile:  # passed only when drawn: a simulator without profiles keeps working on other configs
         speed_profile, load_profile = unit.speed_profile(job.transient_s), unit.load_profile()
@@ -383,24 +420,93 @@ def simulate_unit(unit: Unit, job: Job) -> Any:
     return sim(*args, **kwargs)
 
 
-def finish_unit(unit: Unit, job: Job, result: Any, t0: float) -> UnitResult:
-    """The post-processing step of :func:`run_unit`: the simulator's ``result`` checked, its channel kept, the
-    unit's noise added and the record cut into samples with their metadata (``t0``: when the unit started, for
-    ``wall_s``)."""
-    _, _, noise_ss, split_ss = _streams(unit.seed)
+def kept_signal(unit: Unit, job: Job, result: Any, n_points: int) -> np.ndarray:
+    """The first ``n_points`` of the signal the unit keeps from the simulator's ``result`` (its channel, or the
+    projection on its drawn sensor direction), checked: the rate, the length, finite values."""
     direction = unit.sensor_geometry(1.0)[1] if unit.sensor else None  # the point went to the simulator
     if abs(float(getattr(result, "fs", job.fs)) - job.fs) > 1e-9 * job.fs:
         raise SimulationError(f"simulator returned fs = {result.fs} Hz, asked for {job.fs} Hz")
     x = _channel(result, job.channel) if direction is None else project_sensor(result, direction)
-    del result  # keep only the one channel
-    if x.shape[0] < job.samples_per_signal:
-        raise SimulationError(f"simulator returned {x.shape[0]} points, expected {job.samples_per_signal}")
-    x = x[: job.samples_per_signal]
+    if x.shape[0] < n_points:
+        raise SimulationError(f"simulator returned {x.shape[0]} points, expected {n_points}")
+    x = x[:n_points]
     if not np.all(np.isfinite(x)):
         raise SimulationError(f"unit {unit.index} ({unit.state}): the simulated signal contains NaN or Inf")
-    if unit.noise_snr_db is not None:
-        from rvdiag.dynamics.noise import add_coloured_noise  # here: keep numba out of `import rvdiag.library`
+    return x
 
+
+#: healthy-twin powers computed in this process, by reducer (:func:`twin_power`); bounded, oldest dropped first
+_TWIN_POWERS: dict[str, float] = {}
+_TWIN_CACHE_SIZE = 256
+
+
+def twin_key(unit: Unit, job: Job) -> str:
+    """What a unit's healthy twin depends on: the reducer's parameters and specimen, the sensor, the simulator, the
+    reference point and the record's rate and transient (not the unit's state, operating point or seed).  Units of a
+    config that randomises nothing share one key: one reducer, one noise floor, simulated once per process."""
+    import json
+
+    return json.dumps([job.simulator, job.params, sorted(unit.scales.items()), sorted(unit.mounting.items()),
+                       sorted(unit.specimen.items()), sorted(unit.sensor.items()), job.channel, dict(job.model),
+                       job.noise_reference, job.speed_key, job.fs, job.transient_s, job.duration_s],
+                      sort_keys=True, default=str)
+
+
+def twin_power(unit: Unit, job: Job, result: Any = None) -> float:
+    """Mean square of the unit's healthy twin (:func:`simulator_call` with ``twin=True``), the reference of a
+    "floor" noise level; simulated here unless ``result`` (the twin's simulator result, e.g. from a GPU ensemble)
+    is given, and kept per reducer (:func:`twin_key`) for the other units of the same reducer in this process."""
+    key = twin_key(unit, job)
+    if key in _TWIN_POWERS:
+        return _TWIN_POWERS[key]
+    if result is None:
+        sim, args, kwargs = simulator_call(unit, job, twin=True)
+        result = sim(*args, **kwargs)
+    x = kept_signal(unit, job, result, int(round(min(NOISE_REFERENCE_S, job.duration_s) * job.fs)))
+    power = float(np.mean(x * x))
+    if len(_TWIN_POWERS) >= _TWIN_CACHE_SIZE:
+        del _TWIN_POWERS[next(iter(_TWIN_POWERS))]
+    _TWIN_POWERS[key] = power
+    return power
+
+
+def needs_twin(unit: Unit, job: Job) -> bool:
+    """The unit's noise is a floor below its healthy twin's power, and this process has no twin of its reducer."""
+    return (job.noise_mode == "floor" and unit.noise_density is None and unit.noise_snr_db is not None
+            and twin_key(unit, job) not in _TWIN_POWERS)
+
+
+def floor_noise_power(unit: Unit, job: Job, twin: Any = None) -> float | None:
+    """The mean square of a "floor" unit's noise (``None`` for a unit without noise): the drawn SNR below its
+    healthy twin's power (:func:`twin_power`, ``twin`` its simulator result if already simulated), or the drawn
+    density ``D`` (ug/sqrt(Hz), one-sided) over the record's band, ``(D 1e-6 g)^2 fs / 2`` (m/s^2 squared)."""
+    if unit.noise_density is not None:
+        return (unit.noise_density * 1e-6 * STANDARD_GRAVITY) ** 2 * job.fs / 2.0
+    if unit.noise_snr_db is None:
+        return None
+    return twin_power(unit, job, twin) * 10.0 ** (-unit.noise_snr_db / 10.0)
+
+
+def finish_unit(unit: Unit, job: Job, result: Any, t0: float, twin: Any = None) -> UnitResult:
+    """The post-processing step of :func:`run_unit`: the simulator's ``result`` checked, its channel kept, the
+    unit's noise added and the record cut into samples with their metadata (``t0``: when the unit started, for
+    ``wall_s``; ``twin``: the healthy twin's simulator result of a "floor" unit, when already simulated)."""
+    _, _, noise_ss, split_ss = _streams(unit.seed)
+    x = kept_signal(unit, job, result, job.samples_per_signal)
+    del result  # keep only the one channel
+    sigma = None
+    if job.noise_mode == "floor":
+        from rvdiag.dynamics.noise import add_noise_power  # here: keep numba out of `import rvdiag.library`
+
+        power = floor_noise_power(unit, job, twin)
+        if power is not None:
+            sigma = math.sqrt(power)
+            x = add_noise_power(x, power, unit.noise_exponent or 0.0, np.random.default_rng(noise_ss))
+    elif unit.noise_snr_db is not None:
+        from rvdiag.dynamics.noise import add_coloured_noise, snr_power
+
+        if job.noise_mode is not None:
+            sigma = math.sqrt(float(snr_power(x, unit.noise_snr_db).item()))
         x = add_coloured_noise(x, unit.noise_snr_db, unit.noise_exponent or 0.0, np.random.default_rng(noise_ss))
     starts = segment_starts(x.shape[0], job.segment_length, job.hop)
     if job.mode == "paper":
@@ -440,6 +546,15 @@ def finish_unit(unit: Unit, job: Job, result: Any, t0: float) -> UnitResult:
         meta["noise_colour_exponent"] = [unit.noise_exponent] * rows
     for name, value in unit.sensor.items():
         meta[name] = [value] * rows
+    if job.noise_mode is not None:  # only when the config names its mode: older stores keep their columns
+        meta["noise_mode"] = [job.noise_mode] * rows
+        meta["noise_sigma"] = [sigma] * rows
+        if unit.noise_density is not None:
+            meta["noise_density_ug_per_rthz"] = [unit.noise_density] * rows
+    if job.specimen_columns:
+        grade = unit.specimen.get("iso1328_grade", dict(job.params.get("modification") or {}).get("iso1328_grade"))
+        meta["error_seed"] = [unit.specimen["error_seed"]] * rows
+        meta["iso1328_grade"] = [grade] * rows
     if job.profile_columns:
         for key, value in unit.profile.items():
             meta[key] = [value] * rows
@@ -479,13 +594,17 @@ def default_workers() -> int:
 
 
 def stored_config(cfg: LibraryConfig, params: Any) -> dict[str, Any]:
-    """The config the store keeps (and hashes): the canonical library config plus the parameters' hash and the
-    simulator's physics revision.  The ``[motor]`` parameters enter the hash only when the simulations use the
+    """The config the store keeps (and hashes): the canonical library config (its mode in the spelling stores have
+    always had, :data:`rvdiag.library.config.LEGACY_MODES`) plus the parameters' hash and the simulator's physics
+    revision.  The ``[motor]`` parameters enter the hash only when the simulations use the
     motor's electrical model (``[model] signal = "current"`` or ``electrical = true``): the vibration-only model
     does not read them, so a store built before they existed still resumes."""
     from rvdiag.dynamics import PHYSICS_REVISION
 
     out = cfg.to_dict()
+    # the mode's old spelling, so that the hash of every store built before the rename stays (they resume); the
+    # store's `library` attribute and config_from_store give the new one
+    out["mode"] = {new: old for old, new in LEGACY_MODES.items()}.get(out["mode"], out["mode"])
     pd = params.to_dict()
     model = dict(cfg.model or {})
     if model.get("signal", "vibration") != "current" and not model.get("electrical", False):
@@ -589,6 +708,14 @@ def build_library(
         cfg = cfg.replace(simulator=simulator)
     check_run_options(workers, scheduler, device, ensemble)
     params = cfg.reducer_params()
+    if cfg.specimen:
+        message = override_message(params, cfg.iso1328_grade)
+        if message:
+            import warnings
+
+            from rvdiag.errors import RvdiagWarning
+
+            warnings.warn(message, RvdiagWarning, stacklevel=2)
     resolve_simulator(cfg.simulator, cfg.model)  # fail early, here, with a clear message
     from rvdiag.library.gpu import DEFAULT_ENSEMBLE, resolve_device
 

@@ -8,7 +8,7 @@ samples are split into training and test sets.  Two modes:
     One long simulation per state (the dynamics-model-driven study, docs/references.md: 60 s at 48 kHz per
     state, cut into non-overlapping 8000-point samples, 260 training and 100 test samples per state).
     The split is by segment: training and test samples come from the same simulation.
-``independent``
+``split-by-simulation`` (spelled ``independent`` before; still accepted, with a warning)
     ``simulations_per_state`` independent simulations per state, each drawing its own severity, operating
     point, noise level and model parameters.  The split is by simulation: the last
     ``test_simulations_per_state`` simulations of each state form the test set, so no test sample shares
@@ -72,7 +72,17 @@ def builtin_config_path(name: str) -> Path:
         raise ConfigError(f"no built-in library config {name!r} (built-in: {', '.join(builtin_configs())})")
     return _configs_dir() / f"{name}.toml"
 
-MODES = ("paper", "independent")
+MODES = ("paper", "split-by-simulation")
+#: old spellings of a mode, still accepted with one warning: ``independent`` (the mode's name until issue 28, beside
+#: a shipped config of the same name)
+LEGACY_MODES = {"independent": "split-by-simulation"}
+#: ``[operation] noise_mode``: "record" scales each record's noise to that record's own power (the behaviour of a
+#: config without the key); "floor" gives every simulated reducer and sensor one noise level (docs/library.md)
+NOISE_MODES = ("record", "floor")
+#: seconds recorded (after ``[signal] transient_s``) of the healthy twin whose power sets a "floor" noise level
+NOISE_REFERENCE_S = 0.1
+#: standard gravity (m/s^2): the ``g`` of ``noise_density_ug_per_rthz`` (ISO 80000-3)
+STANDARD_GRAVITY = 9.80665
 SPLIT_ASSIGN = ("random", "ordered")
 DEFAULT_SIMULATOR = "rvdiag.library.simulators:dynamics"
 
@@ -114,9 +124,11 @@ _TOP_KEYS = {"name", "mode", "seed", "simulator", "params", "channel", "model",
              "signal", "operation", "randomise", "profile", "split", "states"}
 _SECTION_KEYS = {
     "signal": {"fs", "duration_s", "transient_s", "segment_length", "hop"},
-    "operation": {"input_speed_rpm", "output_speed_deg_s", "load_Nm", "noise_snr_db"},
+    "operation": {"input_speed_rpm", "output_speed_deg_s", "load_Nm", "noise_snr_db", "noise_mode",
+                  "noise_density_ug_per_rthz"},
     "randomise": {"stiffness_pct", "damping_pct", "path_resonance_hz", "path_damping_ratio", "housing_added_mass",
-                  "noise_colour_exponent", "sensor_position_deg", "sensor_direction_deg"},
+                  "noise_colour_exponent", "sensor_position_deg", "sensor_direction_deg", "specimen",
+                  "iso1328_grade"},
     "profile": {"trapezoid_fraction", "scurve_fraction", "accel_deg_s2", "jerk_deg_s3", "arm_mass_kg",
                 "arm_length_m", "arm_angle_deg"},
     "split": {"train_per_state", "test_per_state", "assign",
@@ -345,6 +357,15 @@ class LibraryConfig:
     profile: ProfileConfig | None = None
     #: ``[randomise]`` draws of the accelerometer's position and direction (:data:`SENSOR_KEYS`), key -> sweep
     sensor: Mapping[str, Sweep] = field(default_factory=dict)
+    #: ``[randomise] specimen``: every simulation draws its own manufacturing errors (:mod:`rvdiag.library.specimens`)
+    specimen: bool = False
+    #: ``[randomise] iso1328_grade``: the tolerance class drawn per specimen (whole numbers), ``None`` = the
+    #: parameter file's
+    iso1328_grade: Sweep | None = None
+    #: ``[operation] noise_mode`` (:data:`NOISE_MODES`); ``None``: not given, which is "record"
+    noise_mode: str | None = None
+    #: ``[operation] noise_density_ug_per_rthz``: a "floor" given as the sensor's noise density instead of an SNR
+    noise_density_ug_per_rthz: Sweep | None = None
     train_per_state: int = 0
     test_per_state: int = 0
     assign: str = "random"
@@ -378,6 +399,16 @@ class LibraryConfig:
         if self.mode == "paper":
             return self.train_per_state + self.test_per_state
         return self.segments_per_simulation
+
+    @property
+    def noise_floor(self) -> bool:
+        """The noise is a floor per simulated reducer and sensor (``noise_mode = "floor"``)."""
+        return self.noise_mode == "floor"
+
+    def noise_reference(self) -> tuple[float, float]:
+        """``(speed, load_Nm)`` of the reference operating point of a "floor" noise level: the middle of the
+        configured speed range (in ``speed_key``'s unit) and of the load range, at constant speed."""
+        return 0.5 * (self.speed.lo + self.speed.hi), 0.5 * (self.load_Nm.lo + self.load_Nm.hi)
 
     @property
     def n_simulations(self) -> int:
@@ -423,6 +454,16 @@ class LibraryConfig:
         sig, op, rnd, spl = sections["signal"], sections["operation"], sections["randomise"], sections["split"]
 
         mode = data.get("mode", "paper")
+        if mode in LEGACY_MODES:
+            if source != "<store>":  # a store built before the rename says nothing the user can change
+                import warnings
+
+                from rvdiag.errors import RvdiagWarning
+
+                warnings.warn(f"{source}: mode = {mode!r} is now spelled {LEGACY_MODES[mode]!r} (split by simulation: "
+                              "no test sample shares a simulation with a training sample)", RvdiagWarning,
+                              stacklevel=2)
+            mode = LEGACY_MODES[mode]
         if mode not in MODES:
             raise ConfigError(f"{source}: mode: must be one of {', '.join(MODES)}, got {mode!r}")
         if "seed" not in data:
@@ -484,6 +525,25 @@ class LibraryConfig:
             noise = Sweep.parse(op["noise_snr_db"], f"{w} noise_snr_db")
             if not (-40.0 <= noise.lo and noise.hi <= 120.0):
                 raise ConfigError(f"{w} noise_snr_db: must lie in [-40, 120] dB, got {noise.lo:g}..{noise.hi:g}")
+        noise_mode = op.get("noise_mode")
+        if noise_mode is not None and noise_mode not in NOISE_MODES:
+            raise ConfigError(f"{w} noise_mode: must be one of {', '.join(NOISE_MODES)}, got {noise_mode!r}")
+        density = None
+        if "noise_density_ug_per_rthz" in op:
+            density = Sweep.parse(op["noise_density_ug_per_rthz"], f"{w} noise_density_ug_per_rthz")
+            if density.lo <= 0:
+                raise ConfigError(f"{w} noise_density_ug_per_rthz: must be > 0, got {density.lo:g}")
+            if noise_mode != "floor":
+                raise ConfigError(f"{w} noise_density_ug_per_rthz: a noise density is a floor; set noise_mode = "
+                                  "\"floor\"")
+            if noise is not None:
+                raise ConfigError(f"{w} noise_density_ug_per_rthz: give noise_snr_db or a noise density, not both")
+            if model.get("signal", "vibration") != "vibration":
+                raise ConfigError(f"{w} noise_density_ug_per_rthz: an accelerometer's density (ug/sqrt(Hz)); a "
+                                  "motor-current library gives noise_snr_db")
+        if noise_mode == "floor" and noise is None and density is None:
+            raise ConfigError(f"{w} noise_mode: \"floor\" needs noise_snr_db (below the healthy power) or "
+                              "noise_density_ug_per_rthz")
 
         # --- randomise
         w = f"{source}: [randomise]"
@@ -512,8 +572,18 @@ class LibraryConfig:
             colour = Sweep.parse(rnd["noise_colour_exponent"], f"{w} noise_colour_exponent")
             if not (0.0 <= colour.lo and colour.hi <= 3.0):
                 raise ConfigError(f"{w} noise_colour_exponent: must lie in [0, 3], got {colour.lo:g}..{colour.hi:g}")
-            if noise is None:
+            if noise is None and density is None:
                 raise ConfigError(f"{w} noise_colour_exponent: needs [operation] noise_snr_db")
+        specimen = rnd.get("specimen", False)
+        if not isinstance(specimen, bool):
+            raise ConfigError(f"{w} specimen: expected true or false, got {specimen!r}")
+        grade = None
+        if "iso1328_grade" in rnd:
+            grade = Sweep.parse(rnd["iso1328_grade"], f"{w} iso1328_grade")
+            if any(v != int(v) for v in grade.values) or not (0 <= grade.lo and grade.hi <= 11):
+                raise ConfigError(f"{w} iso1328_grade: whole ISO 1328 classes in [0, 11], got {grade.to_toml()!r}")
+            if not specimen:
+                raise ConfigError(f"{w} iso1328_grade: drawn per specimen; add specimen = true")
 
         # --- profile
         profile = None
@@ -563,7 +633,8 @@ class LibraryConfig:
         if mode == "paper":
             for key in ("simulations_per_state", "test_simulations_per_state"):
                 if key in spl:
-                    raise ConfigError(f"{w} {key}: only for mode = 'independent' (paper mode has one simulation per state)")
+                    raise ConfigError(f"{w} {key}: only for mode = 'split-by-simulation' (paper mode has one simulation "
+                                      "per state)")
             for key in ("train_per_state", "test_per_state"):
                 if key not in spl:
                     raise ConfigError(f"{w} {key}: missing (paper mode splits each state's segments)")
@@ -583,7 +654,7 @@ class LibraryConfig:
             for key in ("train_per_state", "test_per_state", "assign"):
                 if key in spl:
                     raise ConfigError(
-                        f"{w} {key}: only for mode = 'paper'; independent mode splits by simulation "
+                        f"{w} {key}: only for mode = 'paper'; mode split-by-simulation splits by simulation "
                         f"(simulations_per_state, test_simulations_per_state)"
                     )
             if "simulations_per_state" not in spl:
@@ -601,7 +672,9 @@ class LibraryConfig:
             name=name, mode=mode, seed=seed, fs=fs, duration_s=duration_s, transient_s=transient_s,
             segment_length=segment_length, hop=hop, states=states, speed_key=speed_key, speed=speed,
             load_Nm=load, noise_snr_db=noise, stiffness_pct=pct["stiffness_pct"], damping_pct=pct["damping_pct"],
-            path=path, noise_colour_exponent=colour, profile=profile, sensor=sensor, simulator=simulator, params=params, channel=channel, model=model, source=source, **kw,
+            path=path, noise_colour_exponent=colour, profile=profile, sensor=sensor, specimen=specimen,
+            iso1328_grade=grade, noise_mode=noise_mode, noise_density_ug_per_rthz=density, simulator=simulator,
+            params=params, channel=channel, model=model, source=source, **kw,
         )
 
     # ------------------------------------------------------------------ output
@@ -620,6 +693,10 @@ class LibraryConfig:
         operation: dict[str, Any] = {self.speed_key: self.speed.to_toml(), "load_Nm": self.load_Nm.to_toml()}
         if self.noise_snr_db is not None:
             operation["noise_snr_db"] = self.noise_snr_db.to_toml()
+        if self.noise_mode is not None:  # only when given: older configs keep their hash
+            operation["noise_mode"] = self.noise_mode
+        if self.noise_density_ug_per_rthz is not None:
+            operation["noise_density_ug_per_rthz"] = self.noise_density_ug_per_rthz.to_toml()
         out: dict[str, Any] = {
             "name": self.name,
             "mode": self.mode,
@@ -647,6 +724,10 @@ class LibraryConfig:
             out["noise_colour_exponent"] = self.noise_colour_exponent.to_toml()
         for key, sweep in self.sensor.items():  # only when drawn: older configs keep their hash
             out[key] = sweep.to_toml()
+        if self.specimen:  # only when on: older configs keep their hash
+            out["specimen"] = True
+        if self.iso1328_grade is not None:
+            out["iso1328_grade"] = self.iso1328_grade.to_toml()
         return out
 
     def replace(self, **changes: Any) -> "LibraryConfig":

@@ -5,6 +5,7 @@ prepares it (:func:`rvdiag.library.build.simulator_call`, the simulator's ``prep
 and record), all their integrator calls run as one GPU ensemble, one thread per simulation
 (:func:`rvdiag.dynamics.ensemble.integrate_ensemble`), and each unit is finished exactly as on the CPU
 (``PreparedSimulation.finish``, then :func:`rvdiag.library.build.finish_unit`: transfer path, noise, segments).
+A unit whose noise is a floor below its healthy twin's power has its twin integrated in the same ensemble.
 One ensemble is one task: in this process, or one Dask task per ensemble on a cluster of GPU workers.
 """
 
@@ -17,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from rvdiag.errors import ConfigError, DeviceWarning, RvdiagError
-from rvdiag.library.build import (Job, Unit, UnitResult, check_worker, finish_unit, resolve_simulator, run_unit,
-                                  simulator_call)
+from rvdiag.library.build import (Job, Unit, UnitResult, check_worker, finish_unit, needs_twin, resolve_simulator,
+                                  run_unit, simulator_call)
 
 #: values of ``--device``
 DEVICES = ("cpu", "cuda", "auto")
@@ -70,32 +71,38 @@ def run_ensemble(units: list[Unit], job: Job, layout: str = "last") -> list[Unit
 
     t0 = time.perf_counter()
     outcomes: list[Any] = [None] * len(units)
-    runs: dict[int, tuple[Any, int]] = {}
+    runs: dict[tuple[int, bool], tuple[Any, int]] = {}  # (unit, twin?) -> (prepared run, its integrator calls)
     requests, owners = [], []
     for j, unit in enumerate(units):
         try:
-            sim, args, kwargs = simulator_call(unit, job)
-            run = sim.prepare(*args, **kwargs)
-            calls = run.segment_calls()
-            for call in calls:
-                requests.append(IntegrationRequest(run.model, run.start_state(call.t_start), run.fs, call.n_samples,
-                                                   call.n_transient, call.first_sample))
-                owners.append((j, call))
-            runs[j] = (run, len(calls))
+            for twin in (False, True) if needs_twin(unit, job) else (False,):
+                sim, args, kwargs = simulator_call(unit, job, twin=twin)
+                run = sim.prepare(*args, **kwargs)
+                calls = run.segment_calls()
+                for call in calls:
+                    requests.append(IntegrationRequest(run.model, run.start_state(call.t_start), run.fs,
+                                                       call.n_samples, call.n_transient, call.first_sample))
+                    owners.append(((j, twin), call))
+                runs[(j, twin)] = (run, len(calls))
         except RvdiagError as exc:
             outcomes[j] = _named(unit, exc)
     results = integrate_ensemble(requests, layout=layout)
-    rows = {j: np.zeros((run.rows, run.columns)) for j, (run, _) in runs.items()}
-    for k, ((j, call), res) in enumerate(zip(owners, results)):
+    rows = {key: np.zeros((run.rows, run.columns)) for key, (run, _) in runs.items()}
+    for k, ((key, call), res) in enumerate(zip(owners, results)):
         if isinstance(res, RvdiagError):
-            outcomes[j] = outcomes[j] or _named(units[j], res)
+            outcomes[key[0]] = outcomes[key[0]] or _named(units[key[0]], res)
         else:
-            rows[j][:, call.column:call.column + call.n_samples] = res[0]
+            rows[key][:, call.column:call.column + call.n_samples] = res[0]
         results[k] = None  # keep one copy of the records
-    for j, (run, n_segments) in runs.items():
-        if outcomes[j] is None:
+    for (j, twin), (run, n_segments) in runs.items():
+        if outcomes[j] is None and not twin:
             try:
-                outcomes[j] = finish_unit(units[j], job, run.finish(rows.pop(j), n_segments), t0)
+                twin_result = None
+                if (j, True) in runs:
+                    twin_run, twin_segments = runs[(j, True)]
+                    twin_result = twin_run.finish(rows.pop((j, True)), twin_segments)
+                outcomes[j] = finish_unit(units[j], job, run.finish(rows.pop((j, False)), n_segments), t0,
+                                          twin=twin_result)
             except RvdiagError as exc:
                 outcomes[j] = _named(units[j], exc)
     return outcomes
