@@ -12,7 +12,11 @@ parameter set (``errors on``, the default) and with every tolerance 0 (``errors 
 RMS, kurtosis and crest factor of T1 and T2, errors on and off.
 
     .venv/bin/python bench/current_lines.py [--speeds 30,45,60] [--states T1,T2,T7,T8] [--errors on,off]
-        [--seed 0] [--set manufacturing.crank_phase_arcmin=2] [--vibration] [--load-inertia J] [--json FILE]
+        [--seed 0] [--set manufacturing.crank_phase_arcmin=2] [--vibration] [--vibration-states T1,T2]
+        [--severity spall_width_fraction=1] [--load-inertia J] [--json FILE]
+
+``--severity key=value`` sets a fault severity of ``ToothFaults.for_state`` (e.g. ``spall_width_fraction=1``: a
+spall through the face, whose profile deviation lifts the contact, docs/model.md section 10).
 
 ``--load-inertia J`` puts a load of J kg m^2 on the output coupling, the model's load DOF
 (``simulate(load_inertia_kg_m2=J)``; docs/model.md sections 1, 3 and 10: 3.75 is the motor-current rig's 15 kg arm
@@ -66,9 +70,17 @@ def family(x: np.ndarray, fs: float, params: ReducerParams, speed: float) -> dic
             for k in FAMILY for s in "-+"}
 
 
+SEVERITY: dict = {}
+
+
+def fault_of(state: str):
+    """The state's faults at the default severities, changed by ``--severity``."""
+    return None if state == "T1" else ToothFaults.for_state(state, **SEVERITY)
+
+
 def current_case(params: ReducerParams, state: str, speed: float, duration: float,
                  load_inertia: float | None = None) -> dict:
-    fault = None if state == "T1" else ToothFaults.for_state(state)
+    fault = fault_of(state)
     r = simulate(params, fault, output_speed_deg_s=speed, duration_s=duration, signal="current",
                  load_inertia_kg_m2=load_inertia)
     x = r.signal[0][-N_WINDOW:]
@@ -77,7 +89,7 @@ def current_case(params: ReducerParams, state: str, speed: float, duration: floa
 
 
 def vibration_case(params: ReducerParams, state: str, speed: float = 60.0, load_inertia: float | None = None) -> dict:
-    fault = None if state == "T1" else ToothFaults.for_state(state)
+    fault = fault_of(state)
     x = simulate(params, fault, output_speed_deg_s=speed, duration_s=1.0, load_inertia_kg_m2=load_inertia).signal[0]
     x = x - x.mean()
     rms = float(np.sqrt(np.mean(x * x)))
@@ -108,11 +120,15 @@ def main() -> None:
     ap.add_argument("--set", action="append", default=[], help="section.key=value of the parameter set")
     ap.add_argument("--duration", type=float, default=DURATION_S)
     ap.add_argument("--vibration", action="store_true")
+    ap.add_argument("--vibration-states", default="T1,T2", help="states of the --vibration figures")
+    ap.add_argument("--severity", action="append", default=[], metavar="KEY=VALUE",
+                    help="a fault severity of ToothFaults.for_state, e.g. spall_width_fraction=1")
     ap.add_argument("--json", default=None, help="write every figure to this file")
     ap.add_argument("--load-inertia", type=float, default=None, metavar="J",
                     help="the load's inertia on the output coupling, kg m^2 (the model's load DOF; default: the "
                          "parameter set's, a pure load torque)")
     a = ap.parse_args()
+    SEVERITY.update({k: float(v) for k, v in (item.split("=") for item in a.severity)})
     speeds = [float(s) for s in a.speeds.split(",")]
     states = a.states.split(",")
     out: dict = {"current": {}, "vibration": {}}
@@ -134,7 +150,7 @@ def main() -> None:
                 print(f"    {st} over T1: f_e-2f1 {r['fe-2f1']:5.2f}x  f_e+2f1 {r['fe+2f1']:5.2f}x  "
                       f"f_e+-k f1 (k=1..5) rms {r['family_rms']:5.2f}x", flush=True)
         if a.vibration:
-            for st in ("T1", "T2"):
+            for st in a.vibration_states.split(","):
                 v = vibration_case(params, st, load_inertia=a.load_inertia)
                 out["vibration"][f"{errors} {st}"] = v
                 print(f"errors {errors:3s} 60 deg/s rated {st} vibration x: RMS {v['rms']:.3f} m/s^2  "

@@ -144,7 +144,7 @@ def test_stiffness_falls_monotonically_with_severity(pair, make, values):
     (lambda: Pitting(band_fraction=0.0), r"^pitting band fraction must lie in \(0, 1\], got 0\.0$"),
     (lambda: Pitting(centre_fraction=1.5), r"^pitting band centre fraction must lie in \[0, 1\], got 1\.5$"),
     (lambda: Pitting("0.1"), r"^pitting area fraction must be a number, got '0\.1'$"),
-    (lambda: Spalling(1.0), r"^spall width fraction must lie in \[0, 1\), got 1\.0$"),
+    (lambda: Spalling(1.5), r"^spall width fraction must lie in \[0, 1\], got 1\.5$"),   # 1: through the face
     (lambda: Spalling(length_fraction=0.0), r"^spall length fraction must lie in \(0, 1\], got 0\.0$"),
     (lambda: Spalling(depth=-1e-4), r"^spall depth must be > 0, got -0\.0001 m$"),
     (lambda: ToothFaults.for_state("T7", pit_area_fraction=-1.0), r"^pitting area fraction must lie in"),

@@ -21,8 +21,8 @@ Each pair's contact is carried off the ends of its path of contact as a corner c
 :func:`extend_off_path`), so that a pair lagging by more than its separation touches before, or leaves after, the
 nominal path instead of meeting the whole interference at a fixed angle.
 
-A table may also carry the mesh profile deviation ``error_m`` (wear), which the model subtracts from the
-mesh deflection as a transmission-error excitation (docs/model.md, "Fault sensitivity").
+A table may also carry the mesh profile deviation ``error_m`` (wear, a spall through the face), which the model
+subtracts from the mesh deflection as a transmission-error excitation (docs/model.md, "Fault sensitivity").
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ class MeshTable:
     error_m : array or None
         Mesh profile deviation along the line of action at each angle (m), same grid as the
         stiffness; ``None`` means zeros (a perfect involute).  Positive where material is missing
-        (wear): it reduces the mesh approach, ``delta - e``, and enters the dynamic model as a
+        (wear, a spall through the face: :func:`rvdiag.gears.faults.flank_deviation`): it reduces the mesh approach, ``delta - e``, and enters the dynamic model as a
         displacement (transmission-error) excitation (Kahraman & Singh 1990, J. Sound Vib. 142;
         for wear, Ding & Kahraman 2007, J. Sound Vib. 307; see docs/model.md, "Fault sensitivity").  :func:`mesh_table_from_gears` fills it from
         ``rvdiag.gears.mesh_stiffness(...).profile_error_m``.
@@ -272,7 +272,9 @@ def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_c
     their own, so that the assignment is periodic over the revolution (3 slots for the RV-20E's 11 teeth).  Each slot carries its pair's stiffness
     and *separation* (m, :mod:`rvdiag.gears.modification`): the tip and root relief of ``params.modification``
     at the pair's roll position, the profile slope deviation and the sun tooth's position error of its
-    ISO 1328 grade, and the wear depth at the contact point (Archard profile, docs/tvms.md section 3).  The
+    ISO 1328 grade, and the faulty flank's profile deviation at the contact point
+    (:func:`rvdiag.gears.faults.flank_deviation`: the Archard wear depth, docs/tvms.md section 3, and the lift of
+    a spall through the face, where the mate touches the cavity's edges or floor).  The
     planet's pitch errors repeat only every Z2 mesh cycles and are left out of this one-revolution table (its
     runout, the once-per-revolution part, is a manufacturing error of :mod:`rvdiag.dynamics.manufacturing`).
     The table's ``error_m`` is the load-shared separation ``sum k_j e_j / sum k_j`` (the profile deviation a
@@ -286,9 +288,9 @@ def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_c
     angle = np.asarray(res.angle_rad, dtype=float)
     pair_index, roll, in_contact = pair.contact_state(angle)
     kp = np.asarray(res.pair_stiffness_N_per_m, dtype=float)
-    wear = res.pair_profile_error_m
-    if wear is not None:
-        wear = np.asarray(wear, dtype=float)
+    deviation = res.pair_profile_error_m
+    if deviation is not None:
+        deviation = np.asarray(deviation, dtype=float)
     L = pair.path_of_contact
     n_slots = int(math.ceil(pair.contact_ratio - 1e-9))
     md = params.modification
@@ -302,8 +304,8 @@ def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_c
         tol = iso1328_tolerances(params.stage1.module, params.stage1.module * z1, md.iso1328_grade)
         sep = sep + profile_slope_separation(roll, L, tol)
         sep = sep + tooth_position_errors(z1, tol, md.error_seed)[np.mod(pair_index, z1)]
-    if wear is not None:
-        sep = sep + wear
+    if deviation is not None:
+        sep = sep + deviation
     # slot of each pair, periodic over one revolution (the table wraps from sun tooth Z1 - 1 to tooth 0): pairs
     # alternate over ceil(eps) slots, and the Z1 mod ceil(eps) last teeth of the revolution get a slot each of
     # their own (an odd Z1 = 11 with eps < 2: teeth 0..9 alternate over slots 0 and 1, tooth 10 has slot 2)

@@ -232,6 +232,59 @@ class FlankLoss:
         return np.array([p for lo, hi, _, _ in self.spalls for p in (lo, hi)]
                         + [row[0] for row in self.pit_rows], dtype=float)
 
+    def through_face(self, contact_width: float) -> list[tuple[float, float, float]]:
+        """Runs ``(s_lo, s_hi, depth)`` of the flank (m) over which spalls side by side take the whole
+        ``contact_width`` (m) of the face, so that no intact face is left on the contact line; ``depth`` is the
+        shallowest floor across the face there (where the mating tooth would first touch it).
+
+        Pits never do: a row of pits that spans the face is refused (:meth:`Pitting.flank_loss`), and the intact
+        face between and beside the pits carries the contact.
+        """
+        edges = np.unique([p for lo, hi, _, _ in self.spalls for p in (lo, hi)])
+        runs: list[list[float]] = []
+        for a, b in zip(edges[:-1], edges[1:]):
+            mid = 0.5 * (a + b)
+            over = [(w, d) for lo, hi, w, d in self.spalls if lo <= mid <= hi]
+            if sum(w for w, _ in over) < contact_width * (1.0 - 1e-12):
+                continue
+            depth = min(d for _, d in over)
+            if runs and runs[-1][1] == a:
+                runs[-1][1], runs[-1][2] = b, min(runs[-1][2], depth)
+            else:
+                runs.append([float(a), float(b), depth])
+        return [tuple(r) for r in runs]
+
+    def contact_deviation(self, s: np.ndarray, curvature_radius: np.ndarray, contact_width: float) -> np.ndarray:
+        """Profile deviation (m, along the flank normal, i.e. the line of action) that cavities through the face
+        put between the flank at flank positions ``s`` and its mate, whose relative radius of curvature there is
+        ``curvature_radius`` (m), 1 / R = 1 / rho_1 + 1 / rho_2.
+
+        Where the contact line crosses a spall through the whole face (:meth:`through_face`, a run [a, b] of floor
+        depth d) the mating flank cannot touch the cavity's floor at s until it has approached by d, nor the
+        cavity's edges until it has approached by the gap that the two curved flanks leave there, (s - a)^2 / (2 R)
+        and (b - s)^2 / (2 R) (Hertz's geometry of two cylinders in contact: the gap at a distance x along the
+        surface is x^2 / (2 R)).  It touches first where the gap is least:
+
+            e(s) = min(d, (s - a)^2 / (2 R), (b - s)^2 / (2 R))  on [a, b], 0 elsewhere,
+
+        rising from the entry edge, at most min(d, (b - a)^2 / (8 R)) at the middle (the sag of the mate's arc
+        under the chord of the spall), falling to the exit edge, where the flank re-enters.  This is the
+        through-face tooth-face fault of the public BGU spur-gear model (PHM-BGU/public_dynamic_model_for_gear_
+        vibrations, genToothFaceFaultProfile.m and calcFaultDispMeshForceT.m: the deviation is the sum of both
+        flanks' arc sags under the chords of the fault edges, c^2 / (8 rho_1) + c^2 / (8 rho_2), and the mate
+        pivots on the entry edge, then on the exit edge); a spall over part of the face leaves the intact part
+        carrying the contact and gives no deviation (their PartialFaceFault: only the width and the section
+        change).  Zero where no spall runs through the face.
+        """
+        s = np.asarray(s, dtype=float)
+        out = np.zeros(np.shape(s))
+        radius = np.asarray(curvature_radius, dtype=float)
+        for a, b, depth in self.through_face(contact_width):
+            inside = (s >= a) & (s <= b)
+            gap = np.minimum(s - a, b - s) ** 2 / (2.0 * radius)
+            out = np.where(inside, np.maximum(out, np.minimum(depth, gap)), out)
+        return out
+
 
 @dataclass(frozen=True)
 class Pitting:
@@ -318,6 +371,10 @@ class Spalling:
     Model: the spall is a rectangular cavity ``length_fraction`` of the working flank long (along the profile),
     ``width_fraction`` of the face wide and ``depth`` deep.  Contact points within its profile range touch only
     L - w of the face (w = width_fraction L), which enters the Hertz term, k_h = pi E (L - w) / (4 (1 - nu^2)),
+    (a spall through the face, w = L, leaves no intact face on the contact line: the mate then touches the
+    cavity's edges or floor across the whole face, k_h with L, after a profile deviation of up to
+    min(depth, l^2 / (8 R)), l the spall length and R the relative radius of curvature,
+    :meth:`FlankLoss.contact_deviation`, :func:`flank_deviation`),
     and the sections it crosses lose a w x depth strip at the loaded edge (:func:`cut_section`) (Ma, Li, Feng,
     Feng & Wen 2016, Eng. Fail. Anal. 66; the loss of contact width over the spall's profile length is the spall
     model of Chaari, Baccar, Abbes & Haddar 2008, Eur. J. Mech. A/Solids 27, and of Jia & Howard 2006, Mech.
@@ -326,8 +383,11 @@ class Spalling:
     Severity
     --------
     width_fraction : float
-        Spall width across the face as a fraction of the face width, in [0, 1) (0: no spall, healthy).  Default
-        0.5 (``DEFAULT_SPALL_WIDTH_FRACTION``): a spall over half the face, in the 40-60 % of a developed spall.
+        Spall width across the face as a fraction of the face width, in [0, 1] (0: no spall, healthy; 1: a spall
+        through the whole face).  Default 0.5 (``DEFAULT_SPALL_WIDTH_FRACTION``): a spall over half the face, in
+        the 40-60 % of a developed spall.  Only a spall through the face lifts the contact (a profile deviation,
+        :meth:`FlankLoss.contact_deviation`); over part of the face the intact part carries the load, and the
+        spall only softens the pair.
     length_fraction : float
         Spall length along the profile as a fraction of the working flank, in (0, 1]; default 0.33 (a third).
     depth : float
@@ -345,7 +405,7 @@ class Spalling:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "width_fraction",
-                           _fraction("spall width fraction", self.width_fraction, 0.0, 1.0, open_hi=True))
+                           _fraction("spall width fraction", self.width_fraction, 0.0, 1.0))
         object.__setattr__(self, "length_fraction",
                            _fraction("spall length fraction", self.length_fraction, 0.0, 1.0, open_lo=True))
         object.__setattr__(self, "depth", _positive("spall depth", self.depth))
@@ -638,6 +698,49 @@ def archard_wear_profile(pair: GearPair, gear: str, roll: np.ndarray, depth: flo
     return depth * np.interp(roll, s, h) / hmax if hmax > 0 else np.zeros_like(roll)
 
 
+def flank_deviation(pair: GearPair, gear: str, faults: Iterable[Fault], roll: np.ndarray) -> np.ndarray:
+    """Profile deviation (m) of a ``gear`` flank carrying ``faults`` at path-of-contact positions ``roll`` (m),
+    along the line of action: how much further the mate must approach before it touches there.  The one home of
+    a flank's deviation from the involute, which the TVMS reports per tooth pair
+    (:attr:`rvdiag.gears.tvms.MeshStiffnessResult.pair_profile_error_m`) and the dynamic model adds to each
+    pair's separation (:func:`rvdiag.dynamics.mesh.mesh_table_from_gears`).
+
+    It is the sum of the Archard wear depth (:func:`archard_wear_profile`) and the deviation of spalls through
+    the whole face (:meth:`FlankLoss.contact_deviation`, with the relative radius of curvature
+    1 / R = 1 / rho_1 + 1 / rho_2 of the two involutes at the contact, rho_i their roll lengths).  Cracks and a
+    broken tooth have none (a broken tooth's lost contact is a zero stiffness, :mod:`rvdiag.gears.tvms`);
+    pits and spalls over part of the face neither.  Zero without such faults.
+    """
+    roll = np.asarray(roll, dtype=float)
+    out = np.zeros_like(roll)
+    faults = tuple(faults)
+    for f in faults:
+        if isinstance(f, Wear) and f.depth > 0:
+            out = out + archard_wear_profile(pair, gear, roll, f.depth, f.run_in_deflection)
+    loss = FlankLoss()
+    for f in faults:
+        if isinstance(f, (Pitting, Spalling)):
+            loss = loss + f.flank_loss(pair, gear)
+    contact_width = min(pair.driver.face_width, pair.driven.face_width)
+    if loss.through_face(contact_width):
+        rho1, rho2 = pair.roll_lengths(roll)
+        rho, rb = (rho1, pair.driver.base_radius) if gear == "driver" else (rho2, pair.driven.base_radius)
+        out = out + loss.contact_deviation(rho * rho / (2.0 * rb), rho1 * rho2 / (rho1 + rho2), contact_width)
+    return out
+
+
+def has_flank_deviation(pair: GearPair, gear: str, faults: Iterable[Fault]) -> bool:
+    """Whether :func:`flank_deviation` can be non-zero for ``faults``: wear, or spalls through the face."""
+    faults = tuple(faults)
+    if any(isinstance(f, Wear) and f.depth > 0 for f in faults):
+        return True
+    loss = FlankLoss()
+    for f in faults:
+        if isinstance(f, (Pitting, Spalling)):
+            loss = loss + f.flank_loss(pair, gear)
+    return bool(loss.through_face(min(pair.driver.face_width, pair.driven.face_width)))
+
+
 def damaged_profile(pair: GearPair, gear: str, faults: Iterable[Fault]) -> DamagedProfile:
     """Section table of one tooth of ``gear`` ("driver"/"driven") carrying ``faults``."""
     g = pair.driver if gear == "driver" else pair.driven
@@ -698,9 +801,13 @@ def _with_flank_loss(prof: DamagedProfile, g: Gear, n_fillet: int, loss: FlankLo
     involute = np.arange(len(y)) >= n_fillet
     s = np.where(involute, rho * rho / (2.0 * g.base_radius), -np.inf)   # flank position of each section
     tau = rho / g.base_radius - g.base_half_angle      # flank normal vs. section, as for wear
-    if np.max(loss.width(np.concatenate([s, loss.peaks()]))) >= g.face_width:
-        raise GeometryError(f"pitting and spalling together take the whole {g.face_width * 1e3:.1f} mm face of a "
-                            f"{g.name} tooth")
+    at = np.concatenate([s, loss.peaks()])
+    total, spalls = loss.width(at), FlankLoss(spalls=loss.spalls).width(at)
+    full = g.face_width * (1.0 - 1e-12)
+    # spalls may take the whole face (a spall through the face); pits may not complete it, nor anything exceed it
+    if np.any(total > g.face_width * (1.0 + 1e-12)) or np.any((total >= full) & (spalls < full)):
+        raise GeometryError(f"pitting and spalling together take more than the whole {g.face_width * 1e3:.1f} mm "
+                            f"face of a {g.name} tooth")
     cavities = [(width, depth / np.cos(tau)) for width, depth in loss.cavities(s)]
     hit = np.zeros(len(y), dtype=bool)
     names = ["spalling"] * len(loss.spalls) + ["pitting"] * len(loss.pit_rows)   # the order of loss.cavities

@@ -29,7 +29,10 @@ width vary along the tooth: a section that a pit or spall cuts has the area A(y)
 :func:`rvdiag.gears.faults.cut_section` instead of the rectangle's, and a contact at flank position s touches
 L - delta_L(s) of the face, so 1/k_h = sum 2 (1 - nu_i^2) / (pi E_i (L - delta_L(s))) there (Liang, Zhang, Liu &
 Zuo 2016; Ma, Li, Feng, Feng & Wen 2016).  The foundation term keeps the full width: the gear body under the
-tooth is whole.
+tooth is whole.  A spall through the whole face leaves no intact face on the contact line: the mate touches the
+cavity's edge or floor across the whole face (k_h with L) after closing a profile deviation
+(:func:`rvdiag.gears.faults.flank_deviation`), which the result reports per pair in ``pair_profile_error_m``
+beside wear's.
 
 Vectorisation: the bending integrand expands into moments of 1/I,
 [c (u_k - u) - x_k s]^2 = c^2 (u_k^2 - 2 u_k u + u^2) - 2 c s x_k (u_k - u) + s^2 x_k^2, so with the
@@ -49,8 +52,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rvdiag.errors import ModelRangeWarning, ParameterError
-from rvdiag.gears.faults import (DamagedProfile, FlankLoss, ToothFaults, Wear, archard_wear_profile,
-                                 damaged_profile)
+from rvdiag.gears.faults import (DamagedProfile, FlankLoss, ToothFaults, damaged_profile, flank_deviation,
+                                 has_flank_deviation)
 from rvdiag.gears.geometry import Gear, GearPair
 
 # Sainsot, Velex & Duverger (2004), Table 1: rows L*, M*, P*, Q*;
@@ -230,9 +233,12 @@ def tooth_pair_components(pair: GearPair, roll: np.ndarray,
         for gear, rho, table in ((pair.driver, rho1, tables[0]), (pair.driven, rho2, tables[1])):
             if table.flank_loss:
                 width = width - table.flank_loss.width(rho * rho / (2.0 * gear.base_radius))
+        # a spall through the whole face leaves no intact face on the contact line: the mate, once it has closed
+        # the profile deviation (flank_deviation), touches the cavity's floor or edge across the whole face
+        full = min(pair.driver.face_width, pair.driven.face_width)
+        width = np.where(width <= full * 1e-12, full, width)
         out["contact_width"] = width
-        with np.errstate(divide="ignore"):  # no width left (a mate narrower than the spall): no stiffness
-            out["hertz"] = hertz_compliance(pair, np.maximum(width, 0.0))
+        out["hertz"] = hertz_compliance(pair, width)
     total = out["hertz"].copy()
     lost = np.zeros(roll.shape, dtype=bool)
     for name, gear, rho, table in (("driver", pair.driver, rho1, tables[0]),
@@ -288,12 +294,15 @@ class MeshStiffnessResult:
 
     @property
     def profile_error_m(self) -> np.ndarray:
-        """Mesh profile deviation (m) from wear along the line of action, one value per angle.
+        """Mesh profile deviation (m) along the line of action, one value per angle.
 
         Pairs in contact share the load as F = sum k_i (delta - e_i) = k (delta - e) with
-        e = sum k_i e_i / sum k_i [derived from the force balance], e_i the wear depth at pair i's
-        contact point; zero without wear.  A dynamic model can add it to the mesh deflection as a
-        displacement excitation (the transmission error caused by wear).
+        e = sum k_i e_i / sum k_i [derived from the force balance, while every pair touches], e_i the flank's
+        deviation at pair i's contact point (:func:`rvdiag.gears.faults.flank_deviation`: wear, a spall through
+        the face); zero without.  A dynamic model can add it to the mesh deflection as a displacement
+        excitation (the transmission error caused by the deviation); where e_i exceeds the deflection a pair
+        loses contact, which :meth:`loaded_transmission_error` and the dynamic model's per-pair separations
+        resolve and this load-shared mean does not.
         """
         if self.pair_profile_error_m is None:
             return np.zeros_like(self.stiffness_N_per_m)
@@ -301,6 +310,34 @@ class MeshStiffnessResult:
         tot = k.sum(axis=0)
         num = (k * self.pair_profile_error_m).sum(axis=0)
         return np.divide(num, tot, out=np.zeros_like(tot), where=tot > 0)
+
+    def loaded_transmission_error(self, force_N: float) -> tuple[np.ndarray, np.ndarray]:
+        """Static loaded transmission error (m, mesh approach along the line of action) under a mesh force
+        ``force_N`` (N), and the mask of the pairs that touch, shape (n_candidates, n_angles).
+
+        At each angle the approach delta solves sum_i k_i max(delta - e_i, 0) = F over the pairs in contact, e_i
+        their profile deviations (``pair_profile_error_m``): a pair whose deviation exceeds delta carries nothing
+        (unilateral contact, no tension).  delta = F / k without deviations.  Solved exactly: with the pairs
+        sorted by e_i, delta lies in the first interval [e_(j), e_(j+1)) where the force at its upper end reaches
+        F.  Infinite where no pair in contact has stiffness.
+        """
+        force = float(force_N)
+        if not force > 0:
+            raise ParameterError(f"force must be > 0, got {force_N!r} N")
+        k = self.pair_stiffness_N_per_m
+        e = np.zeros_like(k) if self.pair_profile_error_m is None else self.pair_profile_error_m
+        on = k > 0
+        e_on = np.where(on, e, np.inf)
+        order = np.argsort(e_on, axis=0)
+        ks, es = np.take_along_axis(np.where(on, k, 0.0), order, 0), np.take_along_axis(e_on, order, 0)
+        ksum, kesum = np.cumsum(ks, axis=0), np.cumsum(ks * np.where(np.isfinite(es), es, 0.0), axis=0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            cand = (force + kesum) / ksum                     # delta if the first j + 1 pairs touch
+        upper = np.vstack([es[1:], np.full((1, es.shape[1]), np.inf)])
+        ok = (ksum > 0) & (cand <= upper)
+        first = np.argmax(ok, axis=0)
+        delta = np.where(ok.any(axis=0), np.take_along_axis(cand, first[None, :], 0)[0], np.inf)
+        return delta, on & (e < delta[None, :])
 
     @property
     def mean_N_per_m(self) -> float:
@@ -399,7 +436,7 @@ def mesh_stiffness(pair: GearPair, fault: ToothFaults | None = None, cycles: int
     k_pairs, in_contact = pair_stiffness_at(pair, angle, fault)
     errors = None
     if fault is not None and not fault.is_healthy:
-        errors = _wear_errors(pair, angle, fault, in_contact)
+        errors = _profile_errors(pair, angle, fault, in_contact)
     notes = foundation_range_notes(pair)
     for note in notes:
         _warn_once(note)
@@ -420,26 +457,23 @@ def mesh_stiffness(pair: GearPair, fault: ToothFaults | None = None, cycles: int
     )
 
 
-def _wear_errors(pair: GearPair, angle: np.ndarray, fault: ToothFaults,
-                 in_contact: np.ndarray) -> np.ndarray | None:
-    """Wear depth at each pair's contact point (m), shape (n_candidates, n_angles), or None."""
+def _profile_errors(pair: GearPair, angle: np.ndarray, fault: ToothFaults,
+                    in_contact: np.ndarray) -> np.ndarray | None:
+    """Profile deviation of the faulty flank at each pair's contact point (m, :func:`flank_deviation`: wear, spalls
+    through the face), shape (n_candidates, n_angles), or None when no tooth has one."""
     gear = pair.driver if fault.gear == "driver" else pair.driven
-    wear_of = {t: next((f for f in fault.faults_of(t) if isinstance(f, Wear)), None)
-               for t in list(fault.teeth) + [-1]}
-    teeth_of: dict[Wear, list[int]] = {}  # the teeth of each wear state (-1: every tooth without faults of its own)
-    for t, w in wear_of.items():
-        if w is not None and w.depth > 0:
-            teeth_of.setdefault(w, []).append(t)
-    if not teeth_of:
+    # one deviation per tooth shape: each tooth with faults of its own, and -1, every other tooth (gear-wide wear)
+    shapes = {t: fault.faults_of(t) for t in list(fault.teeth) + [-1]}
+    shapes = {t: f for t, f in shapes.items() if has_flank_deviation(pair, fault.gear, f)}
+    if not shapes:
         return None
     pair_index, roll, _ = pair.contact_state(angle)
     tooth = np.mod(pair_index, gear.teeth)
-    own = np.isin(tooth, list(fault.teeth))
+    label = np.where(np.isin(tooth, list(fault.teeth)), tooth, -1)
     out = np.zeros_like(roll)
-    # one profile per wear state (the run-in shape depends on the depth against the run-in deflection)
-    for w, teeth in teeth_of.items():
-        on = in_contact & (np.isin(tooth, teeth) | (~own if -1 in teeth else False))
-        out[on] = archard_wear_profile(pair, fault.gear, roll[on], w.depth, w.run_in_deflection)
+    for t, faults in shapes.items():
+        on = in_contact & (label == t)
+        out[on] = flank_deviation(pair, fault.gear, faults, roll[on])
     return out
 
 
