@@ -85,7 +85,8 @@ class SeverityParameter:
 #: 30..75 deg cover the propagation paths of Chen & Shao 2011 (45 deg is their reference case).
 #: Pitting (rvdiag.gears.Pitting, Liang, Zhang, Liu & Zuo 2016) and spalling (rvdiag.gears.Spalling, Ma et al. 2016;
 #: Chaari et al. 2008): 2..35 % of the pitting band (the 40 % of the working flank around the pitch line)
-#: pitted by pits of 0.05..0.4 mm radius and 0.02..0.3 mm depth; a spall 10..90 % of the face wide, 10..80 % of
+#: pitted by pits of 0.05..0.4 mm radius and 0.02..0.3 mm depth; a spall 10..100 % of the face wide (only a spall
+#: through the face, 100 %, lifts the contact: gears.faults.Spalling; configs/mcsa.toml draws that one), 10..80 % of
 #: the working flank long and 0.05..0.5 mm deep.  Every combination of these fits the RV-20E sun tooth (pits in a
 #: row stay narrower than the face, cavities shallower than the tooth; tests/test_pitting_spalling.py); a gear
 #: where one does not gets a GeometryError from the gear model.
@@ -121,7 +122,7 @@ SEVERITY_PARAMETERS: dict[str, SeverityParameter] = {
             "depth of the pits normal to the flank (m)",
         ),
         SeverityParameter(
-            "spall_width_fraction", "1", 0.1, 0.9, 0.5,
+            "spall_width_fraction", "1", 0.1, 1.0, 0.5,
             "spall width across the face as a fraction of the face width",
         ),
         SeverityParameter(
