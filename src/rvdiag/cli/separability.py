@@ -1,6 +1,6 @@
-"""``rvdiag separability [--pair T1,T4] [--snr-db=LEVELS] [--json] [--out BOUND.json]``: the best accuracy any
-classifier can reach in telling two states of the simulator apart at each white-noise SNR
-(:mod:`rvdiag.evaluation.separability`)."""
+"""``rvdiag separability [--pair T1,T4] [--snr-db=LEVELS] [--run-to-run default|KEY=PCT,...] [--draws K] [--json]
+[--out BOUND.json]``: the best accuracy any classifier can reach in telling two states of the simulator apart at each
+white-noise SNR, without and with run-to-run variation (:mod:`rvdiag.evaluation.separability`)."""
 
 from __future__ import annotations
 
@@ -79,8 +79,16 @@ def register(app: typer.Typer) -> None:
         fs: Optional[float] = opt.fs("Sampling rate, Hz (default: the demo library's, 48000)."),
         substeps: Optional[int] = typer.Option(None, "--substeps", help="Integrator steps per output sample "
                                                "(default: the demo library's [model] substeps, 4)."),
+        run_to_run: Optional[str] = typer.Option(
+            None, "--run-to-run", help="Also the bound with run-to-run variation between records: 'default' "
+            "(load 3, speed 1, temperature 2, damping 10, gain 3 %, issue 27) or KEY=PERCENT pairs, e.g. "
+            "load=3,speed=1,temperature=2,damping=10,gain=3 (half-ranges, uniform; keys left out: 0)."),
+        draws: int = typer.Option(16, "--draws", help="Run-to-run draws simulated in both states (with "
+                                  "--run-to-run); the Gaussian figure errs high for few draws."),
+        seed: int = opt.seed("Seed of the run-to-run draws (recorded in the output)."),
         json_out: bool = opt.json_flag("Print pair, window, n_windows, snr_db, accuracy_bound, distance_over_rms "
-                                       "(and the operating point) as JSON."),
+                                       "(and the operating point; with --run-to-run also run_to_run: its ranges, "
+                                       "draws, accuracy_bound_known_draw and accuracy_bound_gaussian) as JSON."),
         out: Optional[Path] = opt.out("Also write the JSON here (for 'rvdiag evaluate --plot --bound').", None),
         quiet: bool = opt.quiet(),
     ) -> None:
@@ -88,14 +96,21 @@ def register(app: typer.Typer) -> None:
         each white-noise SNR, for the simulator (binary detection of known signals in white Gaussian noise,
         accuracy Phi(d / 2 sigma) per window; rvdiag.evaluation.separability).  Both states are simulated
         noise-free with identical parameters, operating point and seeds; channel 0 (housing x), as the library.
-        Progress on stderr (-q: none)."""
+        With --run-to-run, also the bound when every record varies from run to run: the detector that knows
+        each record's draw (an upper bound) and the best detector that does not (Gaussian approximation of the
+        draws' spread, Phi(d/2) with d^2 = delta^T (Sigma_rr + sigma^2 I)^-1 delta).  Progress on stderr
+        (-q: none)."""
         from rvdiag.cli._progress import progress_bars
-        from rvdiag.evaluation.separability import separability_bound, simulate_pair
+        from rvdiag.evaluation.separability import (parse_run_to_run, separability_bound, simulate_pair,
+                                                    simulate_varied_pairs, varied_bound)
         from rvdiag.library.config import LibraryConfig
         from rvdiag.params import ReducerParams
 
         states = _pair(pair)
         levels = opt.parse_levels(snr_db)
+        ranges = parse_run_to_run(run_to_run) if run_to_run is not None else None
+        if ranges is not None and draws < 2:
+            raise ParameterError(f"--draws must be a whole number >= 2 (a spread needs two draws), got {draws}")
         severities = opt.fault_severities(
             wear_depth_mm, crack_depth_mm, crack_angle, broken_fraction, pit_area_fraction=pit_area_fraction,
             pit_radius_mm=pit_radius_mm, pit_depth_mm=pit_depth_mm, spall_width_fraction=spall_width_fraction,
@@ -124,15 +139,25 @@ def register(app: typer.Typer) -> None:
         if out is not None and (out.is_dir() or not out.parent.is_dir()):
             raise ParameterError(f"--out {out}: not a writable file path")
         p = ReducerParams.load(params)
+        kw = dict(params=p, output_speed_deg_s=speed, load_Nm=load_nm, duration_s=duration_s, fs=fs_hz,
+                  transient_s=demo.transient_s, model=model,
+                  channel=int(demo.channel) if isinstance(demo.channel, int) else 0, severities=severities)
         with opt.option_names(SEPARABILITY_OPTION_NAMES), progress_bars(quiet):
-            a, b = simulate_pair(states, params=p, output_speed_deg_s=speed, load_Nm=load_nm,
-                                 duration_s=duration_s, fs=fs_hz, transient_s=demo.transient_s, model=model,
-                                 channel=int(demo.channel) if isinstance(demo.channel, int) else 0,
-                                 severities=severities)
+            if ranges is None:
+                a, b = simulate_pair(states, **kw)
+            else:
+                sim = simulate_varied_pairs(states, ranges=ranges, draws=draws, seed=seed, **kw)
+                a, b = sim["a"], sim["b"]
         res = separability_bound(a, b, win, levels)
         result = {"pair": states, **res, "output_speed_deg_s": speed, "load_Nm": load_nm, "duration_s": duration_s,
                   "fs": fs_hz, "substeps": model.get("substeps"), "severities_SI": severities,
                   "params_file": str(params) if params is not None else None}
+        if ranges is not None:
+            var = varied_bound(sim, win, levels)
+            result["run_to_run"] = {"ranges_pct": {k: 100 * v for k, v in ranges.items()}, "seed": seed,
+                                    **{k: var[k] for k in ("draws", "n_windows", "start", "accuracy_bound_known_draw",
+                                                           "accuracy_bound_gaussian", "spread_over_distance")},
+                                    "factors": sim["factors"], "lags": sim["lags"]}
         text = json.dumps(result, indent=2)
         if out is not None:
             try:
@@ -157,9 +182,23 @@ def _print(result: dict) -> None:
               f"{result['n_windows']} windows of {result['window']} points, median ||s_{a} - s_{b}|| / ||s_{a}|| "
               f"= {result['distance_over_rms']:.4g}; the bound is the best accuracy any classifier can reach in "
               f"telling the two apart (chance 50 %)")
+    var = result.get("run_to_run")
+    if var is not None:
+        ranges = ", ".join(f"{k} {v:g} %" for k, v in var["ranges_pct"].items())
+        con.print(f"run-to-run variation ({ranges}; {var['draws']} draws, seed {var['seed']}): the healthy "
+                  f"draws' spread is {var['spread_over_distance']:.3g} x ||s_{b} - s_{a}||.  'knowing the draw': "
+                  f"the detector told each record's variation (an upper bound); 'not knowing it': the best "
+                  f"detector against the draws' spread, Gaussian approximation (errs high for few draws)")
     t = Table(title=f"separability bound {a}/{b}")
     t.add_column("SNR (dB)", justify="right")
-    t.add_column("accuracy bound", justify="right")
-    for s, v in zip(result["snr_db"], result["accuracy_bound"]):
-        t.add_row(f"{s:g}", f"{100 * v:.2f} %")
+    t.add_column("accuracy bound" if var is None else "no variation", justify="right")
+    if var is not None:
+        t.add_column("knowing the draw", justify="right")
+        t.add_column("not knowing it", justify="right")
+    for i, (s, v) in enumerate(zip(result["snr_db"], result["accuracy_bound"])):
+        row = [f"{s:g}", f"{100 * v:.2f} %"]
+        if var is not None:
+            row += [f"{100 * var['accuracy_bound_known_draw'][i]:.2f} %",
+                    f"{100 * var['accuracy_bound_gaussian'][i]:.2f} %"]
+        t.add_row(*row)
     con.print(t)
