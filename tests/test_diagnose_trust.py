@@ -1,4 +1,4 @@
-"""Answers a user can trust (issue 28 items 2-4, 6; issue 26 item 5): "not recognised", the model's per-class
+"""Answers a user can trust: "not recognised", the model's per-class
 recall and confusions, the training operating range, refused speed estimates, and healthy recall / false-alarm
 rate beside every accuracy.  A tiny synthetic store (three tones) and a small CNN, as tests/test_cli_train.py."""
 

@@ -1,4 +1,4 @@
-"""The house (issue 28, item 8): one home per concern, modules named for what they do, history out of the code."""
+"""The house: one home per concern, modules named for what they do, history out of the code."""
 
 from __future__ import annotations
 
@@ -72,7 +72,7 @@ def test_one_home_for_window_starts_and_the_spectral_peak():
 
 @pytest.mark.xfail(strict=True, reason="library/build.py <-> library/gpu.py: breaking it moves the unit execution "
                    "out of build.py (a library/units.py below both), left until the specimens work on build.py "
-                   "has merged (issue 28, item 8)")
+                   "has merged")
 def test_no_two_modules_import_each_other():
     """Module level, not only between subpackages (library/build.py and library/gpu.py imported each other)."""
     mods = {}

@@ -1,4 +1,4 @@
-"""Monitoring a reducer against its own baseline (issue 27): baseline-referenced features, the calibrated alarm,
+"""Monitoring a reducer against its own baseline (docs/monitoring.md): baseline-referenced features, the calibrated alarm,
 matching with the baseline, the saved monitor."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The separability bound with run-to-run variation (issue 27; rvdiag.evaluation.separability, "With run-to-run
+"""The separability bound with run-to-run variation (docs/monitoring.md; rvdiag.evaluation.separability, "With run-to-run
 variation"): the Gaussian (generalised matched filter) and known-draw figures against their closed forms, the
 reduction onto the nominal angle axis, and ``rvdiag separability --run-to-run``."""
 

@@ -1,4 +1,4 @@
-"""Smaller defects of issue 28, item 6: each test fails on the code before the fix."""
+"""Smaller defects found by a review as a new user: each test fails on the code before the fix."""
 
 from __future__ import annotations
 

@@ -81,7 +81,7 @@ def register(app: typer.Typer) -> None:
                                                "(default: the demo library's [model] substeps, 4)."),
         run_to_run: Optional[str] = typer.Option(
             None, "--run-to-run", help="Also the bound with run-to-run variation between records: 'default' "
-            "(load 3, speed 1, temperature 2, damping 10, gain 3 %, issue 27) or KEY=PERCENT pairs, e.g. "
+            "(load 3, speed 1, temperature 2, damping 10, gain 3 %) or KEY=PERCENT pairs, e.g. "
             "load=3,speed=1,temperature=2,damping=10,gain=3 (half-ranges, uniform; keys left out: 0)."),
         draws: int = typer.Option(16, "--draws", help="Run-to-run draws simulated in both states (with "
                                   "--run-to-run); the Gaussian figure errs high for few draws."),

@@ -25,7 +25,7 @@ It is an upper bound: the ideal detector knows both signals, their phase in the 
 whereas a classifier trained on a library meets the state at any phase, any severity of its range and any
 draw of the other parameters.  A classifier near the bound has nothing left to learn; one far below it has.
 
-**With run-to-run variation** (:func:`simulate_varied_pairs`, :func:`varied_bound_from_windows`; issue 27).  Two
+**With run-to-run variation** (:func:`simulate_varied_pairs`, :func:`varied_bound_from_windows`; docs/monitoring.md).  Two
 records of one reducer differ even in one state: load, speed, temperature (every stiffness together), mesh damping
 and sensor gain change from run to run (:data:`RUN_TO_RUN_DEFAULT`).  The healthy hypothesis is then not one
 known signal but a distribution, ``H_a: y = s_a(theta) + n``, ``H_b: y = s_b(theta) + n``, ``theta`` the record's
@@ -147,7 +147,7 @@ def simulate_pair(pair: Sequence[str], *, params=None, output_speed_deg_s: float
     return out[0], out[1]
 
 
-#: run-to-run variation between two records of one reducer (issue 27), half-ranges as fractions of the nominal
+#: run-to-run variation between two records of one reducer (docs/monitoring.md), half-ranges as fractions of the nominal
 #: value, uniform: load, output speed, temperature (every stiffness by one factor), mesh damping, sensor gain
 RUN_TO_RUN_DEFAULT = {"load": 0.03, "speed": 0.01, "temperature": 0.02, "damping": 0.10, "gain": 0.03}
 

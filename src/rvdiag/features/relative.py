@@ -1,5 +1,5 @@
 """Baseline-referenced features: what changed in a monitored window since the same reducer's healthy baseline at
-the nearest operating point (issue 27; docs/monitoring.md).
+the nearest operating point (docs/monitoring.md).
 
 A reducer is compared with itself.  The classical gear indicators do this: NA4 divides the fourth moment of the
 residual signal by the variance of the machine's own earlier records (Zakrajsek, Townsend & Decker 1993, NASA

@@ -73,7 +73,7 @@ def builtin_config_path(name: str) -> Path:
     return _configs_dir() / f"{name}.toml"
 
 MODES = ("paper", "split-by-simulation")
-#: old spellings of a mode, still accepted with one warning: ``independent`` (the mode's name until issue 28, beside
+#: old spellings of a mode, still accepted with one warning: ``independent`` (the mode's name until 2026-11-26, beside
 #: a shipped config of the same name)
 LEGACY_MODES = {"independent": "split-by-simulation"}
 #: ``[operation] noise_mode``: "record" scales each record's noise to that record's own power (the behaviour of a

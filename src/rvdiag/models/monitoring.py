@@ -1,5 +1,5 @@
 """Monitoring a reducer against its own healthy baseline: a health index with an alarm at a stated false-alarm
-rate, the most probable state with its probability, and in words what changed (issue 27; docs/monitoring.md).
+rate, the most probable state with its probability, and in words what changed (docs/monitoring.md).
 
 The input of every method is a matrix ``D`` of baseline-referenced features, one row per monitored record: what
 changed since the same reducer's baseline at the nearest operating point
