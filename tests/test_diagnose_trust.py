@@ -134,7 +134,7 @@ def test_a_confused_answer_warns_with_the_rule(model, tmp_path, capsys):
 
 
 def test_an_estimated_speed_the_carrier_mesh_does_not_confirm_is_refused():
-    """Issue 28.4: a stage-1 'peak' that is not the mesh (here the cycloid-pin mesh's second harmonic) gives a
+    """A stage-1 'peak' that is not the mesh (here the cycloid-pin mesh's second harmonic) gives a
     speed whose cycloid-pin line is absent; at the true speed both lines are there."""
     from rvdiag.features.mesh_lines import confirm_speed, mesh_lines
     from rvdiag.kinematics import characteristic_frequencies

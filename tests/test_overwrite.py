@@ -1,4 +1,4 @@
-"""One rule for every output an existing output is replaced only with ``--overwrite`` (else one
+"""One rule for every output: an existing output is replaced only with ``--overwrite`` (else one
 ``error:`` line naming the file and the option, exit 2), and a model directory is replaced whole."""
 
 from __future__ import annotations
