@@ -76,6 +76,13 @@ def _roles(samples, role: str) -> np.ndarray:
     return np.ones(len(samples.y), bool) if r is None else np.asarray(r).astype(str) == role
 
 
+def _baseline_records(store):
+    """The ``role == "baseline"`` records of a store (all of a store without roles), loaded."""
+    role = store.meta.get("role")
+    idx = np.arange(store.n_samples) if role is None else np.flatnonzero(np.asarray(role).astype(str) == "baseline")
+    return store.load(index=idx)
+
+
 def _subset(s, keep):
     from rvdiag.datasets.store import Samples
 
@@ -169,8 +176,7 @@ def train_monitor(store, data, out: Path, *, features: str | None, alpha: float 
         raise ParameterError(f"{data} holds a reducer of another type ({kind}); the TSA change is taken on the "
                              f"built-in {default['name']}'s sun shaft")
     fx = monitor_features(name, store.fs)
-    all_s = store.load("all")
-    base = _subset(all_s, _roles(all_s, "baseline"))
+    base = _baseline_records(store)
     idx = store.indices("train", list(conditions))
     tr = store.load(index=idx)
     tr = _subset(tr, _roles(tr, "monitored"))
@@ -272,8 +278,7 @@ def open_baseline(path: Path, loaded, fs: float | None):
     if store.length != loaded.input_length:
         raise ParameterError(f"--baseline {path} holds records of {store.length} points; the model reads "
                              f"{loaded.input_length}: build it with --window {loaded.input_length}")
-    s = store.load("all")
-    s = _subset(s, _roles(s, "baseline"))
+    s = _baseline_records(store)
     if not len(s.y):
         raise ParameterError(f"--baseline {path} holds no baseline records")
     for c in OPERATING_COLUMNS:
@@ -296,7 +301,7 @@ def evaluate_monitor(loaded, store, data, split: str, where=(), baseline: Path |
         base, bstore = open_baseline(baseline, loaded, loaded.fs)
         bfs = bstore.fs
     elif is_paired(store.meta):
-        base, bfs = _subset(store.load("all"), _roles(store.load("all"), "baseline")), store.fs
+        base, bfs = _baseline_records(store), store.fs
         want, got = loaded.card.get("reducer"), reducer_type(store.attrs)
         if want and got and want != got:
             raise ParameterError(f"{data} holds a reducer of another type ({got}) than the model's ({want})")
