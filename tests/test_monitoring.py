@@ -171,3 +171,18 @@ def test_saved_monitor_round_trip(tmp_path):
     words = est.diagnose(D[-1:])[0]
     assert set(words) == {"health_index", "alarm", "p_value", "state", "probability", "changed"}
     assert words["changed"][0].startswith("d_")
+
+
+def test_tsa_change_alone_has_only_the_tsa_change_features():
+    from rvdiag.features.relative import TSA_CHANGE_NAMES
+
+    rng = np.random.default_rng(4)
+    base = np.array([np.r_[_gear(45.0, rng), 45.0] for _ in range(3)])
+    X = np.array([np.r_[_gear(45.0, rng, fault=0.5), 45.0]])
+    fx = BaselineReferencedFeatures(features="none", fs=48000.0).fit(X)
+    assert fx.input_metadata() == ("output_speed_deg_s",)
+    assert list(fx.get_feature_names_out()) == list(TSA_CHANGE_NAMES)
+    D = fx.transform(X, base, [np.arange(3)])
+    np.testing.assert_allclose(D[0], tsa_change_features(X[0, :-1], 45.0, list(base[:, :-1]), [45.0] * 3, 48000.0))
+    with pytest.raises(ParameterError, match="needs tsa_change=True"):
+        BaselineReferencedFeatures(features="none", tsa_change=False).fit(X)

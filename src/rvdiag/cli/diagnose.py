@@ -344,12 +344,17 @@ def register(app: typer.Typer) -> None:
         meta: List[str] = typer.Option([], "--meta",
                                        help="NAME=VALUE: a metadata value the model reads, e.g. rpm=1797 (default: "
                                             "the file's scalar the training store read, e.g. X105RPM)."),
+        baseline: Path = typer.Option(None, "--baseline", metavar="BASE.zarr",
+                                      help="A baseline-referenced model: a healthy store of the same machine "
+                                           "(docs/monitoring.md)."),
     ) -> None:
         """Diagnose the state of a reducer from one signal file."""
         from rvdiag.io import read_signal
         from rvdiag.models.persistence import load_model
 
         loaded = load_model(model_dir)
+        if _monitor(loaded, file, channel, fs, baseline, meta, output_speed, load, json_out):
+            return
         trained = loaded.card.get("training_store") or {}
         is_current = trained.get("signal") == "current"
         sig = _read_trained_channel(file, channel, fs, trained.get("channel")) if is_current \
@@ -364,6 +369,31 @@ def register(app: typer.Typer) -> None:
             typer.echo(json.dumps(res, indent=2))
             return
         _print(res)
+
+
+def _monitor(loaded, file, channel, fs, baseline, meta, output_speed, load, json_out) -> bool:
+    """Diagnose with a baseline-referenced model (:mod:`rvdiag.cli._baseline`) and say True; False otherwise."""
+    from rvdiag.cli import _baseline
+    from rvdiag.io import read_signal
+
+    if not _baseline.needs_baseline(loaded):
+        if baseline is not None:
+            raise ParameterError(f"--baseline applies to a baseline-referenced model; {loaded.path} is not one")
+        return False
+    sig = read_signal(file, channel_regex=channel, fs=fs)
+    from types import SimpleNamespace
+
+    given = _metadata_values(SimpleNamespace(card={}, metadata_columns=[]), sig, meta)  # --meta NAME=VALUE only
+    res = _baseline.diagnose_monitor(loaded, sig, baseline, given,
+                                     output_speed=output_speed, load=load)
+    res.update({"file": str(file), "channel": sig.channel, "model": str(loaded.path)})
+    for w in res["warnings"]:
+        typer.echo(w, err=True)
+    if json_out:
+        typer.echo(json.dumps(res, indent=2))
+    else:
+        _baseline.print_diagnosis(res)
+    return True
 
 
 def _metadata_values(loaded, sig, items: list[str]) -> dict[str, float]:

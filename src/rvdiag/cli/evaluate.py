@@ -1,5 +1,7 @@
 """``rvdiag evaluate MODEL_DIR DATA.zarr [--split test|train|all] [--where COND]... [--merge A=B,...] [--records] [--json]
-[--report FILE.html] [--snr-db=LEVELS [--plot FILE.png] [--bound BOUND.json]]``."""
+[--report FILE.html] [--snr-db=LEVELS [--plot FILE.png] [--bound BOUND.json]] [--baseline BASE.zarr]``.
+
+A baseline-referenced model (card ``needs_baseline``) is scored by :func:`rvdiag.cli._baseline.evaluate_monitor`."""
 
 from __future__ import annotations
 
@@ -47,6 +49,10 @@ def register(app: typer.Typer) -> None:
                                           "together by mean probability as 'rvdiag diagnose' decides a file; "
                                           "JSON key 'records'."),
         quiet: bool = opt.quiet(),
+        baseline: Path = typer.Option(None, "--baseline", metavar="BASE.zarr",
+                                      help="A baseline-referenced model: a healthy store of the same machine, each "
+                                           "sample matched with its windows at the nearest operating point (not "
+                                           "needed on a paired store; docs/monitoring.md)."),
     ) -> None:
         """Score a saved model on a split of a sample store (progress with an ETA on stderr; -q: none)."""
         from rvdiag.cli._progress import progress_bars
@@ -70,6 +76,9 @@ def register(app: typer.Typer) -> None:
         for w in where or ():
             parse_condition(w)  # a malformed condition fails before the model is loaded
         loaded = load_model(model_dir)
+        if _monitor(loaded, data, split, where, baseline, json_out,
+                    {"--report": report, "--by": by, "--snr-db": snr_db, "--merge": merge, "--records": records}):
+            return
         merge_map = parse_merge(merge, loaded.card["classes"]) if merge is not None else None
         store = SampleStore.open(data)
         with progress_bars(quiet):
@@ -112,6 +121,27 @@ def register(app: typer.Typer) -> None:
             typer.echo(f"report: {report.resolve()}", err=json_out)
         if plot is not None:
             typer.echo(f"plot: {plot.resolve()}", err=json_out)
+
+
+def _monitor(loaded, data, split, where, baseline, json_out, others: dict) -> bool:
+    """Score a baseline-referenced model (:mod:`rvdiag.cli._baseline`) and say True; False for any other model."""
+    from rvdiag.cli import _baseline
+
+    if not _baseline.needs_baseline(loaded):
+        if baseline is not None:
+            raise ParameterError(f"--baseline applies to a baseline-referenced model; {loaded.path} is not one")
+        return False
+    for flag, v in others.items():
+        if v:
+            raise ParameterError(f"{flag} does not apply to a baseline-referenced model")
+    from rvdiag.datasets import SampleStore
+
+    res = _baseline.evaluate_monitor(loaded, SampleStore.open(data), data, split, where or (), baseline)
+    if json_out:
+        typer.echo(json.dumps(res, indent=2))
+    else:
+        _baseline.print_evaluation(res, loaded, data)
+    return True
 
 
 def _print_records(r: dict) -> None:

@@ -195,9 +195,10 @@ def register(app: typer.Typer) -> None:
     @app.command("train")
     def train(
         data: Path = typer.Argument(..., help="Sample store (.zarr) from 'rvdiag library build' or 'rvdiag dataset'."),
-        model: str = typer.Option(RECOMMENDED_TRAINING["model"], "--model", "-m",
-                                  help=" | ".join(CNN_MODELS + CLASSICAL_MODELS) + " (default: the recommended "
-                                       "setup of docs/results.md)"),
+        model: str = typer.Option(None, "--model", "-m",
+                                  help=" | ".join(CNN_MODELS + CLASSICAL_MODELS) + " | baseline-monitor (default: "
+                                       "the recommended setup of docs/results.md; on a paired store, "
+                                       "baseline-monitor: docs/monitoring.md)"),
         features: str = typer.Option(None, "--features", "-f",
                                      help="Classical models: time | spectrum | spectrum-abs | logspec | envelope | "
                                           "bearing-envelope | wpd | eemd | tsa-ci | tsa-mod | tsa-ci-z | tsa-mod-z | "
@@ -256,6 +257,9 @@ def register(app: typer.Typer) -> None:
                                         help="Classical models: three binary labels (broken, worn, cracked) "
                                              "instead of six exclusive classes, decoded to the most probable of "
                                              "T1..T6 (stores whose states are T1..T6 only; docs/models.md)."),
+        alpha: float = typer.Option(None, "--alpha",
+                                    help="baseline-monitor: the alarm's false-alarm rate per healthy record "
+                                         "(default 0.01; docs/monitoring.md)."),
     ) -> None:
         """Train a classifier on the train split of a store and save it as a model directory.
 
@@ -272,6 +276,18 @@ def register(app: typer.Typer) -> None:
         if out.exists() and not out.is_dir():
             raise ParameterError(f"--out {out} exists and is not a directory")
         opt.refuse_existing(out, overwrite)
+        from rvdiag.cli import _baseline
+
+        if _baseline.wants_monitor(data, model, alpha, repeat=repeat, snr_db=snr_db, multilabel=multilabel,
+                                   streaming=streaming):
+            echo = (lambda *a, **k: None) if json_out else (lambda msg: typer.echo(msg, err=True))
+            res = _baseline.train_monitor(SampleStore.open(data), data, out, features=features, alpha=alpha,
+                                          seed=seed, conditions=conditions or (), echo=echo,
+                                          warn=lambda msg: typer.echo(msg, err=True))
+            if json_out:
+                typer.echo(json.dumps(res, indent=2))
+            return
+        model = model or RECOMMENDED_TRAINING["model"]
         new_estimator = functools.partial(build_estimator, model, features, epochs=epochs, device=device,
                                           batch_size=batch_size, lr=lr, input_length=input_length,
                                           patience=patience, validation_fraction=validation_fraction,

@@ -154,10 +154,11 @@ class BaselineReferencedFeatures(TransformerMixin, BaseEstimator):
 
     Parameters
     ----------
-    features : transformer or None
+    features : transformer, None or ``"none"``
         The window features compared (default :class:`rvdiag.features.tsa.OrderSpectrumFeatures` at ``fs`` with the
-        speed column: the order-spectrum bands and the envelope lines at the fault orders); ``None`` with
-        ``tsa_change=False`` is refused.
+        speed column: the order-spectrum bands and the envelope lines at the fault orders); ``"none"``: no window
+        features, the TSA change alone (the route of docs/monitoring.md with the best six-state accuracy; refused
+        with ``tsa_change=False``).
     tsa_change : bool
         Append :func:`tsa_change_features` (needs the output speed in ``speed_column``).
     fs : float
@@ -176,6 +177,11 @@ class BaselineReferencedFeatures(TransformerMixin, BaseEstimator):
         self.params = params
 
     def _inner(self):
+        if isinstance(self.features, str) and self.features == "none":
+            if not self.tsa_change:
+                raise ParameterError("BaselineReferencedFeatures(features='none') needs tsa_change=True: no "
+                                     "features would be left")
+            return None
         if self.features is not None:
             return self.features
         from rvdiag.features.tsa import OrderSpectrumFeatures
@@ -185,7 +191,7 @@ class BaselineReferencedFeatures(TransformerMixin, BaseEstimator):
     def input_metadata(self) -> tuple[str, ...]:
         """The inner transformer's metadata columns, then the speed column when :func:`tsa_change_features` needs
         it and the inner one does not read it."""
-        inner = tuple(input_metadata(self._inner()))
+        inner = tuple(input_metadata(self._inner())) if self._inner() is not None else ()
         extra = (str(self.speed_column),) if self.tsa_change and self.speed_column not in inner else ()
         return inner + extra
 
@@ -194,14 +200,15 @@ class BaselineReferencedFeatures(TransformerMixin, BaseEstimator):
         A = as_signal_matrix(X, 2)
         meta = self.input_metadata()
         n = points_before_metadata(A, meta, "BaselineReferencedFeatures reads")
-        self.features_ = clone(self._inner()).fit(A[:, : n + len(input_metadata(self._inner()))])
+        inner = self._inner()
+        self.features_ = None if inner is None else clone(inner).fit(A[:, : n + len(input_metadata(inner))])
         self.n_features_in_ = A.shape[1]
         return self
 
     def _parts(self, A):
         meta = self.input_metadata()
         n = points_before_metadata(A, meta, "BaselineReferencedFeatures reads")
-        inner = A[:, : n + len(input_metadata(self.features_))]
+        inner = None if self.features_ is None else A[:, : n + len(input_metadata(self.features_))]
         speed = A[:, n + meta.index(self.speed_column)] if self.tsa_change else None
         return inner, A[:, :n], speed
 
@@ -221,8 +228,8 @@ class BaselineReferencedFeatures(TransformerMixin, BaseEstimator):
             raise ParameterError(f"groups holds {len(groups)} baseline groups for {A.shape[0]} windows")
         ia, wa, va = self._parts(A)
         ib, wb, vb = self._parts(B)
-        Fa = np.asarray(self.features_.transform(ia), dtype=np.float64)
-        Fb = np.asarray(self.features_.transform(ib), dtype=np.float64)
+        Fa, Fb = (np.zeros((M.shape[0], 0)) if self.features_ is None
+                  else np.asarray(self.features_.transform(i), dtype=np.float64) for i, M in ((ia, A), (ib, B)))
         out = []
         for i, g in enumerate(groups):
             g = np.asarray(g, dtype=np.int64)
@@ -235,7 +242,7 @@ class BaselineReferencedFeatures(TransformerMixin, BaseEstimator):
         return np.array(out)
 
     def get_feature_names_out(self, input_features=None):
-        names = [f"d_{f}" for f in self.features_.get_feature_names_out()]
+        names = [] if self.features_ is None else [f"d_{f}" for f in self.features_.get_feature_names_out()]
         return np.asarray(names + (list(TSA_CHANGE_NAMES) if self.tsa_change else []), dtype=object)
 
 

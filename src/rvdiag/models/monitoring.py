@@ -291,7 +291,13 @@ def save_monitor(monitor: BaselineMonitor, directory, *, model: str = "baseline-
         "preprocessing": {"features": "baseline-referenced",
                           "feature_names": [str(f) for f in feats.get_feature_names_out()]},
     }))
-    return save_classical(monitor, directory, metadata=card)
+    from pathlib import Path
+
+    from rvdiag.atomic import staged_directory
+
+    with staged_directory(Path(directory)) as tmp:  # replaced whole, as every model directory
+        save_classical(monitor, tmp, metadata=card)
+    return Path(directory)
 
 
 __all__ = ["BaselineMonitor", "DETECTORS", "conformal_threshold", "save_monitor"]
