@@ -71,6 +71,8 @@ def unit_seeds(seed: int, n_units: int) -> list[int]:
 
 def make_plan(cfg: LibraryConfig) -> list[Unit]:
     """Every unit of the library with its drawn values (deterministic in ``cfg``)."""
+    if cfg.baseline is not None:
+        return _paired_plan(cfg)
     seeds = unit_seeds(cfg.seed, cfg.n_simulations)
     keys = scaled_keys(cfg)
     units = []
@@ -98,6 +100,51 @@ def make_plan(cfg: LibraryConfig) -> list[Unit]:
             units.append(Unit(u, state, k, seeds[u], severity, speed, load, snr, scales, split,
                               cfg.rows_per_simulation(state), mounting, colour, profile, sensor, specimen, density))
             u += 1
+    return units
+
+
+def _paired_plan(cfg: LibraryConfig) -> list[Unit]:
+    """The units of a paired library (:mod:`rvdiag.library.paired`), reducer by reducer, each reducer's records in
+    :meth:`BaselineConfig.schedule` order (its commissioning records first).
+
+    What makes the reducer is drawn once, from :func:`rvdiag.library.paired.reducer_seed`, in the order of
+    :func:`make_plan`'s draws: the noise level, the parameter scales, the path, the noise colour, the sensor, the
+    noise density, then its specimen (from the reducer seed's specimen stream).  Each record draws from its own
+    unit's stream: its severities, its operating point (monitored records: one of ``operating_points``, equally
+    likely), then its run-to-run factors; its speed and load are the point's times the speed and load factors.
+    The last ``test_reducers`` reducers are the test set, every record of them."""
+    from rvdiag.library.paired import draw_variation, reducer_seed
+
+    b = cfg.baseline
+    assert b is not None
+    schedule = b.schedule(cfg.classes)
+    seeds = unit_seeds(cfg.seed, cfg.n_simulations)
+    keys = scaled_keys(cfg)
+    n_points = len(b.operating_points)
+    units = []
+    for r in range(b.reducers):
+        r_seed = reducer_seed(cfg.seed, r)
+        rng = np.random.default_rng(_streams(r_seed)[0])
+        snr = None if cfg.noise_snr_db is None else cfg.noise_snr_db.draw(rng)
+        scales = {f"{s}.{key}": float(1.0 + pct / 100.0 * rng.uniform(-1.0, 1.0)) for s, key, pct in keys}
+        mounting = {key: float(sw.draw(rng)) for key, sw in cfg.path.items()}
+        colour = None if cfg.noise_colour_exponent is None else float(cfg.noise_colour_exponent.draw(rng))
+        sensor = {key: float(sw.draw(rng)) for key, sw in cfg.sensor.items()}
+        density = None if cfg.noise_density_ug_per_rthz is None else float(cfg.noise_density_ug_per_rthz.draw(rng))
+        specimen = draw_specimen(specimen_seed(r_seed), cfg.iso1328_grade) if cfg.specimen else {}
+        split = "test" if r >= b.reducers - b.test_reducers else "train"
+        for k, (role, state, point) in enumerate(schedule):
+            u = len(units)
+            rng = np.random.default_rng(_streams(seeds[u])[0])
+            severity = {p: sw.draw(rng) for p, sw in cfg.states[state].items()}
+            draw = rng.random()  # always drawn, so that every record's stream stays aligned
+            if point is None:
+                point = min(int(draw * n_points), n_points - 1)
+            variation = draw_variation(rng, b.variation)
+            speed, load = b.operating_points[point]
+            units.append(Unit(u, state, k, seeds[u], severity, speed * variation["speed"], load * variation["load"],
+                              snr, scales, split, cfg.rows_per_simulation(state), mounting, colour, {}, sensor,
+                              specimen, density, reducer=r, role=role, operating_point=point, variation=variation))
     return units
 
 

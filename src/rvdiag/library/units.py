@@ -26,6 +26,7 @@ import numpy as np
 from rvdiag import __version__
 from rvdiag.errors import ConfigError, SimulationError
 from rvdiag.library.config import NOISE_REFERENCE_S, STANDARD_GRAVITY, LibraryConfig, scaled_keys
+from rvdiag.library.paired import apply_variation
 from rvdiag.library.specimens import apply_specimen
 from rvdiag.library.states import FaultSpec
 
@@ -75,6 +76,13 @@ class Unit:
     specimen: Mapping[str, int] = field(default_factory=dict)
     #: ``noise_density_ug_per_rthz`` drawn for this unit ("floor" noise given as a density), else ``None``
     noise_density: float | None = None
+    #: paired libraries (``[baseline]``, :mod:`rvdiag.library.paired`): the simulated reducer's id, the record's
+    #: role ("baseline" or "monitored"), the index of its nominal operating point in ``[baseline] operating_points``
+    #: and its run-to-run factors (:func:`rvdiag.library.paired.draw_variation`); ``None`` / empty otherwise
+    reducer: int | None = None
+    role: str | None = None
+    operating_point: int | None = None
+    variation: Mapping[str, float] = field(default_factory=dict)
 
     def sensor_geometry(self, radius_m: float) -> tuple[tuple[float, float] | None, tuple[float, float]]:
         """``(sensor point (x, y) in m or None for the model's default, unit sensing direction (dx, dy))`` of the
@@ -147,6 +155,8 @@ class Job:
     noise_reference: tuple[float, float] | None = None
     #: the config draws specimens: record ``error_seed`` and ``iso1328_grade``
     specimen_columns: bool = False
+    #: a paired library: record ``reducer``, ``role``, ``operating_point`` and the run-to-run factors
+    paired_columns: bool = False
     #: the client's rvdiag release and physics revision: a worker running other code refuses the unit
     #: (``None``: not checked)
     rvdiag_version: str | None = None
@@ -164,6 +174,7 @@ class Job:
             profile_columns=cfg.profile is not None, rvdiag_version=__version__,
             physics_revision=_physics_revision(), noise_mode=cfg.noise_mode,
             noise_reference=cfg.noise_reference() if cfg.noise_floor else None, specimen_columns=cfg.specimen,
+            paired_columns=cfg.paired,
         )
 
 
@@ -272,9 +283,10 @@ def run_unit(unit: Unit, job: Job) -> UnitResult:
     return finish_unit(unit, job, simulate_unit(unit, job), t0)
 
 
-def unit_params(unit: Unit, job: Job) -> Any:
+def unit_params(unit: Unit, job: Job, varied: bool = True) -> Any:
     """The :class:`rvdiag.params.ReducerParams` of the reducer ``unit`` simulates: the job's, scaled and mounted as
-    drawn, with the unit's specimen."""
+    drawn, with the unit's specimen, and (``varied``, paired libraries) the record's run-to-run temperature and mesh
+    damping (:func:`rvdiag.library.paired.apply_variation`)."""
     from rvdiag.params import ReducerParams
 
     params = ReducerParams.from_dict(dict(job.params), source="<library>")
@@ -286,7 +298,10 @@ def unit_params(unit: Unit, job: Job) -> Any:
         params = params.replace(**changes)
     if unit.mounting:
         params = params.replace(mounting=dict(unit.mounting))
-    return apply_specimen(params, unit.specimen)
+    params = apply_specimen(params, unit.specimen)
+    if varied and unit.variation:
+        params = apply_variation(params, unit.variation)
+    return params
 
 
 def simulator_call(unit: Unit, job: Job, twin: bool = False) -> tuple[Callable[..., Any], tuple[Any, ...],
@@ -297,8 +312,9 @@ def simulator_call(unit: Unit, job: Job, twin: bool = False) -> tuple[Callable[.
     ``twin``: the call of the unit's healthy twin instead, whose power sets a "floor" noise level (docs/library.md,
     "Noise"): the same reducer and sensor, healthy, at the job's reference point (:attr:`Job.noise_reference`) at
     constant speed without a gravity arm, :data:`rvdiag.library.config.NOISE_REFERENCE_S` recorded after the
-    job's transient, simulator seed 0 (so the twin depends on the reducer alone, not on the unit's seed)."""
-    params = unit_params(unit, job)
+    job's transient, simulator seed 0 (so the twin depends on the reducer alone, not on the unit's seed, nor on a
+    paired record's run-to-run variation: one floor per reducer)."""
+    params = unit_params(unit, job, varied=not twin)
     spec = FaultSpec("T1", {}) if twin else FaultSpec(unit.state, unit.severity)
     sim = resolve_simulator(job.simulator)
     fault = spec if getattr(sim, "accepts_fault_spec", False) else spec.to_tooth_faults()
@@ -406,6 +422,8 @@ def finish_unit(unit: Unit, job: Job, result: Any, t0: float, twin: Any = None) 
     _, _, noise_ss, split_ss = _streams(unit.seed)
     x = kept_signal(unit, job, result, job.samples_per_signal)
     del result  # keep only the one channel
+    if unit.variation:  # a paired record's sensor gain, before the sensor's own noise floor
+        x = x * unit.variation["gain"]
     sigma = None
     if job.noise_mode == "floor":
         from rvdiag.dynamics.noise import add_noise_power  # here: keep numba out of `import rvdiag.library`
@@ -467,6 +485,12 @@ def finish_unit(unit: Unit, job: Job, result: Any, t0: float, twin: Any = None) 
         grade = unit.specimen.get("iso1328_grade", dict(job.params.get("modification") or {}).get("iso1328_grade"))
         meta["error_seed"] = [unit.specimen["error_seed"]] * rows
         meta["iso1328_grade"] = [grade] * rows
+    if job.paired_columns:
+        meta["reducer"] = [unit.reducer] * rows
+        meta["role"] = [unit.role] * rows
+        meta["operating_point"] = [unit.operating_point] * rows
+        for key, value in unit.variation.items():
+            meta["variation." + key] = [value] * rows
     if job.profile_columns:
         for key, value in unit.profile.items():
             meta[key] = [value] * rows
