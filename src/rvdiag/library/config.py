@@ -114,6 +114,12 @@ SENSOR_KEYS: dict[str, tuple[float, float]] = {
     "sensor_position_deg": (-360.0, 360.0),
     "sensor_direction_deg": (-360.0, 360.0),
 }
+#: run-to-run variation between two records of one reducer, each a factor drawn uniformly in 1 +- pct/100 in this
+#: order: ``load`` (output load torque), ``speed`` (output speed), ``temperature`` (every stiffness together),
+#: ``mesh_damping`` (the mesh damping ratio) and ``gain`` (the sensor's sensitivity); the defaults (%) of
+#: ``[baseline] <key>_pct`` (:mod:`rvdiag.library.paired`)
+VARIATION_KEYS: dict[str, float] = {"load": 3.0, "speed": 1.0, "temperature": 2.0, "mesh_damping": 10.0,
+                                    "gain": 3.0}
 #: Parameters scaled by ``[randomise] damping_pct``.
 DAMPING_KEYS: tuple[tuple[str, str], ...] = (
     ("damping", "mesh_damping_ratio"),
@@ -335,7 +341,7 @@ class BaselineConfig:
     Every simulated reducer has ``records_per_point`` healthy commissioning records at each of the
     ``operating_points`` (``(output speed deg/s, load N m)``), then ``monitored_healthy`` T1 records and
     ``monitored_per_state`` records of each other state, at operating points drawn among the same; ``variation``
-    gives the run-to-run ranges in percent (keys of :data:`rvdiag.library.paired.VARIATION_KEYS`).  The last
+    gives the run-to-run ranges in percent (keys of :data:`VARIATION_KEYS`).  The last
     ``test_reducers`` reducers form the test set, every record of them (the split is by reducer).
     """
 
@@ -369,8 +375,6 @@ class BaselineConfig:
 def _parse_baseline(raw: Mapping[str, Any], spl: Mapping[str, Any], w: str, ws: str, *, speed_key: str, speed: Sweep, load: Sweep, states: Sequence[str]) -> BaselineConfig:
     """Validate a ``[baseline]`` table and the paired ``[split]`` keys (``w``, ``ws``: "FILE: [baseline]",
     "FILE: [split]")."""
-    from rvdiag.library.paired import VARIATION_KEYS
-
     if speed_key != "output_speed_deg_s":
         raise ConfigError(f"{w} operating_points: commissioning records are matched by output speed; give "
                           f"[operation] output_speed_deg_s instead of {speed_key}")

@@ -9,8 +9,8 @@ damping, sensor path, sensor and noise floor (drawn once per reducer, from :func
   every other configured state, each at one of the operating points, drawn.
 
 Between any two records of one reducer, commissioning ones included, the run-to-run variation of
-:data:`VARIATION_KEYS` is drawn per record (:func:`draw_variation`) and recorded: load, speed, temperature (every
-stiffness of :data:`rvdiag.library.config.STIFFNESS_KEYS` by one factor), mesh damping and sensor gain, each a
+:data:`rvdiag.library.config.VARIATION_KEYS` is drawn per record (:func:`draw_variation`) and recorded: load,
+speed, temperature (every stiffness of :data:`rvdiag.library.config.STIFFNESS_KEYS` by one factor), mesh damping and sensor gain, each a
 factor uniform in ``1 +- pct / 100``.  Without it a record differs from its baseline only by its fault and noise,
 and every figure measured on the library would be meaningless.
 """
@@ -21,14 +21,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from rvdiag.library.config import STIFFNESS_KEYS
+from rvdiag.library.config import STIFFNESS_KEYS, VARIATION_KEYS
 
-#: run-to-run variation between two records of one reducer, each a factor drawn uniformly in 1 +- pct/100 in this
-#: order: ``load`` (output load torque), ``speed`` (output speed), ``temperature`` (every stiffness together),
-#: ``mesh_damping`` (the mesh damping ratio) and ``gain`` (the sensor's sensitivity); the defaults (%) of
-#: ``[baseline] <key>_pct``
-VARIATION_KEYS: dict[str, float] = {"load": 3.0, "speed": 1.0, "temperature": 2.0, "mesh_damping": 10.0,
-                                    "gain": 3.0}
 #: the first element of a reducer's spawn key (:func:`reducer_seed`): two elements, so never a unit's key ``(u,)``
 REDUCER_STREAM = 27
 
