@@ -103,7 +103,8 @@ def main() -> None:
     t0 = time.perf_counter()
     mon = demo_monitoring.run(paired, DEMO_ALPHA)
     (out / "monitoring.json").write_text(json.dumps(mon, indent=2) + "\n")
-    print(f"   {mon['test_reducers']} held-out reducers, {mon['test_windows']} windows: accuracy {mon['accuracy']:.4f}, "
+    print(f"   {mon['test_reducers']} held-out reducers, {mon['test_windows']} windows: "
+          f"accuracy {mon['accuracy']:.4f}, "
           f"detection rate {mon['detection_rate']:.4f}, false-alarm rate {mon['false_alarm_rate']:.4f} "
           f"({time.perf_counter() - t0:.1f} s; wrote {out / 'monitoring.json'})")
     print(f"\nDemo finished in {time.perf_counter() - t_start:.0f} s. Report: {report.resolve()}")

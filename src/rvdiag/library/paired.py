@@ -10,7 +10,8 @@ damping, sensor path, sensor and noise floor (drawn once per reducer, from :func
 
 Between any two records of one reducer, commissioning ones included, the run-to-run variation of
 :data:`rvdiag.library.config.VARIATION_KEYS` is drawn per record (:func:`draw_variation`) and recorded: load,
-speed, temperature (every stiffness of :data:`rvdiag.library.config.STIFFNESS_KEYS` by one factor), mesh damping and sensor gain, each a
+speed, temperature (every stiffness of :data:`rvdiag.library.config.STIFFNESS_KEYS` by one factor), mesh damping
+and sensor gain, each a
 factor uniform in ``1 +- pct / 100``.  Without it a record differs from its baseline only by its fault and noise,
 and every figure measured on the library would be meaningless.
 """
