@@ -16,7 +16,11 @@ Per reducer r (seeded by ``SeedSequence(seed).spawn(reducers)[r]``; every draw i
 - monitored: ``--healthy`` records of T1 and ``--per-state`` of each of T2..T6 at a random operating point, with
   severities drawn as configs/independent.toml but wear 5-20 um (crack 1.4-2.2 mm at 30-60 deg, broken 0.3-1.0);
 - run-to-run variation of every record (baseline included): load +-3 %, speed +-1 %, temperature +-2 % (every
-  stiffness by one factor), mesh damping +-10 %, sensor gain +-3 %, uniform.
+  stiffness by one factor), mesh damping +-10 %, sensor gain +-3 %, uniform: the library's own
+  :func:`rvdiag.library.paired.draw_variation` and :func:`~rvdiag.library.paired.apply_variation` (they were
+  written here first; the same draws, so this script's output is unchanged).  A paired library config
+  (``[baseline]``, docs/library.md) now builds such data as a sample store; this script stays as the probe
+  behind the figures of docs/monitoring.md.
 
 The records are channel 0 (x) of :func:`rvdiag.dynamics.simulate` at 48 kHz after a 0.2 s run-in.
 """
@@ -31,6 +35,7 @@ import numpy as np
 
 from rvdiag.dynamics import ModelSettings, simulate
 from rvdiag.library.config import DAMPING_KEYS, STIFFNESS_KEYS
+from rvdiag.library.paired import apply_variation, draw_variation
 from rvdiag.library.states import tooth_faults
 from rvdiag.params import ReducerParams
 
@@ -39,7 +44,6 @@ SEVERITY = {"broken_fraction": (0.3, 1.0), "wear_depth": (5e-6, 20e-6), "crack_d
 STATE_KEYS = {"T1": (), "T2": ("broken_fraction",), "T3": ("wear_depth",),
               "T4": ("crack_depth", "crack_angle_deg"), "T5": ("broken_fraction", "wear_depth"),
               "T6": ("broken_fraction", "wear_depth", "crack_depth", "crack_angle_deg")}
-RUN_TO_RUN = {"load": 0.03, "speed": 0.01, "temperature": 0.02, "mesh_damping": 0.10, "gain": 0.03}
 
 
 def specimen(rng, base: ReducerParams) -> tuple[ReducerParams, dict]:
@@ -57,13 +61,9 @@ def specimen(rng, base: ReducerParams) -> tuple[ReducerParams, dict]:
 
 
 def run_params(rng, p: ReducerParams) -> tuple[ReducerParams, dict]:
-    """One record's run-to-run draw applied to the specimen's parameters."""
-    d = {k: float(1 + v * rng.uniform(-1, 1)) for k, v in RUN_TO_RUN.items()}
-    changes: dict[str, dict] = {}
-    for s, k in STIFFNESS_KEYS:
-        changes.setdefault(s, {})[k] = getattr(getattr(p, s), k) * d["temperature"]
-    changes.setdefault("damping", {})["mesh_damping_ratio"] = p.damping.mesh_damping_ratio * d["mesh_damping"]
-    return p.replace(**changes), d
+    """One record's run-to-run draw (the library's defaults) applied to the specimen's parameters."""
+    d = draw_variation(rng)
+    return apply_variation(p, d), d
 
 
 def main() -> None:

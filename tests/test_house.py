@@ -70,9 +70,6 @@ def test_one_home_for_window_starts_and_the_spectral_peak():
         pytest.approx(12.34, rel=1e-3)
 
 
-@pytest.mark.xfail(strict=True, reason="library/build.py <-> library/gpu.py: breaking it moves the unit execution "
-                   "out of build.py (a library/units.py below both), left until the specimens work on build.py "
-                   "has merged")
 def test_no_two_modules_import_each_other():
     """Module level, not only between subpackages (library/build.py and library/gpu.py imported each other)."""
     mods = {}

@@ -114,6 +114,12 @@ SENSOR_KEYS: dict[str, tuple[float, float]] = {
     "sensor_position_deg": (-360.0, 360.0),
     "sensor_direction_deg": (-360.0, 360.0),
 }
+#: run-to-run variation between two records of one reducer, each a factor drawn uniformly in 1 +- pct/100 in this
+#: order: ``load`` (output load torque), ``speed`` (output speed), ``temperature`` (every stiffness together),
+#: ``mesh_damping`` (the mesh damping ratio) and ``gain`` (the sensor's sensitivity); the defaults (%) of
+#: ``[baseline] <key>_pct`` (:mod:`rvdiag.library.paired`)
+VARIATION_KEYS: dict[str, float] = {"load": 3.0, "speed": 1.0, "temperature": 2.0, "mesh_damping": 10.0,
+                                    "gain": 3.0}
 #: Parameters scaled by ``[randomise] damping_pct``.
 DAMPING_KEYS: tuple[tuple[str, str], ...] = (
     ("damping", "mesh_damping_ratio"),
@@ -121,7 +127,7 @@ DAMPING_KEYS: tuple[tuple[str, str], ...] = (
 )
 
 _TOP_KEYS = {"name", "mode", "seed", "simulator", "params", "channel", "model",
-             "signal", "operation", "randomise", "profile", "split", "states"}
+             "signal", "operation", "randomise", "profile", "split", "states", "baseline"}
 _SECTION_KEYS = {
     "signal": {"fs", "duration_s", "transient_s", "segment_length", "hop"},
     "operation": {"input_speed_rpm", "output_speed_deg_s", "load_Nm", "noise_snr_db", "noise_mode",
@@ -132,7 +138,9 @@ _SECTION_KEYS = {
     "profile": {"trapezoid_fraction", "scurve_fraction", "accel_deg_s2", "jerk_deg_s3", "arm_mass_kg",
                 "arm_length_m", "arm_angle_deg"},
     "split": {"train_per_state", "test_per_state", "assign",
-              "simulations_per_state", "test_simulations_per_state"},
+              "simulations_per_state", "test_simulations_per_state", "reducers", "test_reducers"},
+    "baseline": {"operating_points", "records_per_point", "monitored_healthy", "monitored_per_state",
+                 "load_pct", "speed_pct", "temperature_pct", "mesh_damping_pct", "gain_pct"},
 }
 
 
@@ -325,6 +333,92 @@ def _parse_profile(raw: Mapping[str, Any], w: str, *, speed_key: str, speed: Swe
     return ProfileConfig(frac, accel, arm, sfrac, jerk)
 
 
+@dataclass(frozen=True)
+class BaselineConfig:
+    """The ``[baseline]`` table of a paired library (:mod:`rvdiag.library.paired`, docs/library.md "Paired
+    libraries"), with ``[split] reducers`` and ``test_reducers``.
+
+    Every simulated reducer has ``records_per_point`` healthy commissioning records at each of the
+    ``operating_points`` (``(output speed deg/s, load N m)``), then ``monitored_healthy`` T1 records and
+    ``monitored_per_state`` records of each other state, at operating points drawn among the same; ``variation``
+    gives the run-to-run ranges in percent (keys of :data:`VARIATION_KEYS`).  The last
+    ``test_reducers`` reducers form the test set, every record of them (the split is by reducer).
+    """
+
+    operating_points: tuple[tuple[float, float], ...]
+    reducers: int
+    test_reducers: int = 0
+    records_per_point: int = 1
+    monitored_healthy: int = 1
+    monitored_per_state: int = 1
+    variation: Mapping[str, float] = field(default_factory=dict)
+
+    def schedule(self, states: Sequence[str]) -> list[tuple[str, str, int | None]]:
+        """One reducer's records in order: ``(role, state, operating point index or None = drawn)``; the
+        commissioning records first, point by point, then the monitored ones in T-number order."""
+        out: list[tuple[str, str, int | None]] = [("baseline", "T1", i) for i in range(len(self.operating_points))
+                                                  for _ in range(self.records_per_point)]
+        for state in states:
+            n = self.monitored_healthy if state == "T1" else self.monitored_per_state
+            out += [("monitored", state, None)] * n
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"operating_points": [list(p) for p in self.operating_points],
+                               "records_per_point": self.records_per_point,
+                               "monitored_healthy": self.monitored_healthy,
+                               "monitored_per_state": self.monitored_per_state}
+        out.update({f"{k}_pct": v for k, v in self.variation.items()})
+        return out
+
+
+def _parse_baseline(raw: Mapping[str, Any], spl: Mapping[str, Any], w: str, ws: str, *, speed_key: str, speed: Sweep, load: Sweep, states: Sequence[str]) -> BaselineConfig:
+    """Validate a ``[baseline]`` table and the paired ``[split]`` keys (``w``, ``ws``: "FILE: [baseline]",
+    "FILE: [split]")."""
+    if speed_key != "output_speed_deg_s":
+        raise ConfigError(f"{w} operating_points: commissioning records are matched by output speed; give "
+                          f"[operation] output_speed_deg_s instead of {speed_key}")
+    if "T1" not in states:
+        raise ConfigError(f"{w}: a paired library needs [states.T1] (the commissioning records and the healthy "
+                          "monitored records the alarm is calibrated on)")
+    for key in ("simulations_per_state", "test_simulations_per_state"):
+        if key in spl:
+            raise ConfigError(f"{ws} {key}: a paired library has records per reducer ([baseline] "
+                              "monitored_per_state); give [split] reducers and test_reducers")
+    if "reducers" not in spl:
+        raise ConfigError(f"{ws} reducers: missing (simulated reducers of the paired library)")
+    reducers = _int(spl["reducers"], f"{ws} reducers", 1)
+    test = _int(spl.get("test_reducers", 0), f"{ws} test_reducers", 0)
+    if test >= reducers:
+        raise ConfigError(f"{ws} test_reducers: {test} leaves no training reducer out of reducers = {reducers}")
+    pts = raw.get("operating_points")
+    if not isinstance(pts, (list, tuple)) or not pts:
+        raise ConfigError(f"{w} operating_points: missing; a list of [output speed deg/s, load N m] pairs, e.g. "
+                          "[[30.0, 50.0], [60.0, 130.0]]")
+    points = []
+    for i, p in enumerate(pts):
+        if not isinstance(p, (list, tuple)) or len(p) != 2:
+            raise ConfigError(f"{w} operating_points[{i}]: expected [output speed deg/s, load N m], got {p!r}")
+        v, t = _number(p[0], f"{w} operating_points[{i}][0]"), _number(p[1], f"{w} operating_points[{i}][1]")
+        if not (speed.lo <= v <= speed.hi and load.lo <= t <= load.hi) or v <= 0 or t <= 0:
+            raise ConfigError(f"{w} operating_points[{i}]: ({v:g} deg/s, {t:g} N m) must be > 0 and lie in the "
+                              f"[operation] ranges ({speed.lo:g}..{speed.hi:g} deg/s, {load.lo:g}..{load.hi:g} N m)")
+        points.append((v, t))
+    if len(set(points)) != len(points):
+        raise ConfigError(f"{w} operating_points: an operating point is listed twice")
+    variation = {}
+    for key, default in VARIATION_KEYS.items():
+        variation[key] = _number(raw.get(f"{key}_pct", default), f"{w} {key}_pct")
+        if not 0.0 <= variation[key] < 100.0:
+            raise ConfigError(f"{w} {key}_pct: must lie in [0, 100) percent, got {variation[key]:g}")
+    return BaselineConfig(
+        operating_points=tuple(points), reducers=reducers, test_reducers=test,
+        records_per_point=_int(raw.get("records_per_point", 1), f"{w} records_per_point", 1),
+        monitored_healthy=_int(raw.get("monitored_healthy", 1), f"{w} monitored_healthy", 0),
+        monitored_per_state=_int(raw.get("monitored_per_state", 1), f"{w} monitored_per_state", 0),
+        variation=variation)
+
+
 # ---------------------------------------------------------------------- the config
 @dataclass(frozen=True)
 class LibraryConfig:
@@ -366,6 +460,8 @@ class LibraryConfig:
     noise_mode: str | None = None
     #: ``[operation] noise_density_ug_per_rthz``: a "floor" given as the sensor's noise density instead of an SNR
     noise_density_ug_per_rthz: Sweep | None = None
+    #: the ``[baseline]`` table of a paired library (:class:`BaselineConfig`), ``None``: not paired
+    baseline: BaselineConfig | None = None
     train_per_state: int = 0
     test_per_state: int = 0
     assign: str = "random"
@@ -411,11 +507,20 @@ class LibraryConfig:
         return 0.5 * (self.speed.lo + self.speed.hi), 0.5 * (self.load_Nm.lo + self.load_Nm.hi)
 
     @property
+    def paired(self) -> bool:
+        """The config has a ``[baseline]`` table: every reducer recorded healthy first, then in its states."""
+        return self.baseline is not None
+
+    @property
     def n_simulations(self) -> int:
+        if self.baseline is not None:
+            return self.baseline.reducers * len(self.baseline.schedule(self.classes))
         return len(self.states) * self.simulations_per_state
 
     @property
     def n_samples(self) -> int:
+        if self.baseline is not None:
+            return self.n_simulations * self.segments_per_simulation
         return sum(self.rows_per_simulation(s) * self.simulations_per_state for s in self.states)
 
     # ------------------------------------------------------------------ construction
@@ -631,10 +736,13 @@ class LibraryConfig:
         n_seg = (n_keep - segment_length) // hop + 1
         kw: dict[str, Any] = {}
         if mode == "paper":
-            for key in ("simulations_per_state", "test_simulations_per_state"):
+            for key in ("simulations_per_state", "test_simulations_per_state", "reducers", "test_reducers"):
                 if key in spl:
                     raise ConfigError(f"{w} {key}: only for mode = 'split-by-simulation' (paper mode has one simulation "
                                       "per state)")
+            if "baseline" in data:
+                raise ConfigError(f"{source}: [baseline]: a paired library splits by reducer; set mode = "
+                                  "\"split-by-simulation\"")
             for key in ("train_per_state", "test_per_state"):
                 if key not in spl:
                     raise ConfigError(f"{w} {key}: missing (paper mode splits each state's segments)")
@@ -650,6 +758,15 @@ class LibraryConfig:
             if assign not in SPLIT_ASSIGN:
                 raise ConfigError(f"{w} assign: must be one of {', '.join(SPLIT_ASSIGN)}, got {assign!r}")
             kw.update(train_per_state=train, test_per_state=test, assign=assign, simulations_per_state=1)
+        elif "baseline" in data:
+            for key in ("train_per_state", "test_per_state", "assign"):
+                if key in spl:
+                    raise ConfigError(f"{w} {key}: a paired library splits by reducer (reducers, test_reducers)")
+            if profile is not None:
+                raise ConfigError(f"{source}: [profile]: a paired library runs at constant speed and load (its "
+                                  "records are matched by operating point); remove [profile]")
+            kw["baseline"] = _parse_baseline(sections["baseline"], spl, f"{source}: [baseline]", w,
+                                             speed_key=speed_key, speed=speed, load=load, states=list(states))
         else:
             for key in ("train_per_state", "test_per_state", "assign"):
                 if key in spl:
@@ -657,6 +774,9 @@ class LibraryConfig:
                         f"{w} {key}: only for mode = 'paper'; mode split-by-simulation splits by simulation "
                         f"(simulations_per_state, test_simulations_per_state)"
                     )
+            for key in ("reducers", "test_reducers"):
+                if key in spl:
+                    raise ConfigError(f"{w} {key}: only for a paired library (a [baseline] table)")
             if "simulations_per_state" not in spl:
                 raise ConfigError(f"{w} simulations_per_state: missing")
             n_sim = _int(spl["simulations_per_state"], f"{w} simulations_per_state", 1)
@@ -687,6 +807,8 @@ class LibraryConfig:
         if self.mode == "paper":
             split = {"train_per_state": self.train_per_state, "test_per_state": self.test_per_state,
                      "assign": self.assign}
+        elif self.baseline is not None:
+            split = {"reducers": self.baseline.reducers, "test_reducers": self.baseline.test_reducers}
         else:
             split = {"simulations_per_state": self.simulations_per_state,
                      "test_simulations_per_state": self.test_simulations_per_state}
@@ -714,6 +836,8 @@ class LibraryConfig:
         }
         if self.profile is not None:  # only then: a config without it keeps its hash
             out["profile"] = self.profile.to_dict()
+        if self.baseline is not None:  # only then: a config without it keeps its hash
+            out["baseline"] = self.baseline.to_dict()
         return out
 
     def _randomise_dict(self) -> dict[str, Any]:
