@@ -213,3 +213,17 @@ def test_the_true_speed_is_confirmed_and_its_harmonics_and_subharmonics_are_refu
     for k in (0.5, 1 / 3):
         wrong = confirm_speed(x, 48000.0, p, k * speed)
         assert not wrong["confirmed"] and wrong["reason"].startswith("no cycloid-pin mesh line")
+
+
+def test_an_unsure_answer_warns_with_the_windows_split():
+    """A record whose answer the other classes together outweigh (a T5 record with wear beyond the training
+    range gave T6 at 0.39, windows 5 T5 / 4 T6 / 2 T2) says so, whatever the held-out test."""
+    from rvdiag.cli.diagnose import state_name
+    from rvdiag.models.conditions import record_warnings
+
+    p = {"T2": 0.2, "T5": 0.38, "T6": 0.42}
+    (line,) = record_warnings(p, ["T5"] * 5 + ["T6"] * 4 + ["T2"] * 2, state_name)
+    assert line.startswith("warning: unsure answer: T6 (broken tooth + wear + root crack)") and "0.42" in line
+    assert line.endswith("5 T5 (broken tooth + wear), 4 T6 (broken tooth + wear + root crack), 2 T2 (broken tooth)")
+    assert record_warnings({"T1": 0.5, "T4": 0.5}, ["T1", "T4"]) == []  # one half: not below
+    assert record_warnings(None, []) == []  # not recognised: no answer

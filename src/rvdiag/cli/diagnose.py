@@ -268,8 +268,10 @@ def recognition(loaded, x: np.ndarray, fs: float | None, res: dict, speed: dict,
 
 def trust_warnings(loaded, res: dict, speed: dict, load: float | None, fs: float | None, x: np.ndarray) -> list[str]:
     """The warnings that qualify an answer: the OOD check unavailable (an older model), the operating point or the
-    level outside the training range, the answer a class the model confuses (:mod:`rvdiag.models.conditions`)."""
-    from rvdiag.models.conditions import answer_warnings, class_limits, condition_warnings, signal_rms
+    level outside the training range, the answer a class the model confuses, an unsure answer (its mean
+    probability below one half; :mod:`rvdiag.models.conditions`)."""
+    from rvdiag.models.conditions import (answer_warnings, class_limits, condition_warnings, record_warnings,
+                                          signal_rms)
 
     out = []
     if loaded.novelty is None:
@@ -281,6 +283,7 @@ def trust_warnings(loaded, res: dict, speed: dict, load: float | None, fs: float
                               level_rms=float(signal_rms(x[None, :])[0]))
     if res.get("diagnosis") is not None:
         out += answer_warnings(class_limits(loaded.card.get("metrics")), res["diagnosis"], state_name)
+        out += record_warnings(res.get("probabilities"), [w["prediction"] for w in res["windows"]], state_name)
     return out
 
 

@@ -201,3 +201,25 @@ def untrained_conditions(rng: Mapping | None, config: Mapping | None) -> list[st
         out.append(f"only the states {', '.join(states)}: any other fault is named as one of them"
                    + (f"; severities trained: {sev}" if sev else ""))
     return out
+
+
+#: a record's answer is unsure when its mean probability is below this (the other classes together are likelier)
+UNSURE_PROBABILITY = 0.5
+
+
+def record_warnings(probabilities: Mapping[str, float] | None, window_predictions, name=lambda c: c) -> list[str]:
+    """The warning of one record's own answer, apart from the model's held-out test: the answer's mean probability
+    over the record's windows is below :data:`UNSURE_PROBABILITY`; the line counts the windows' answers (a split
+    record may hold a state the model confuses, or one it has not seen, e.g. a severity outside its training)."""
+    if not probabilities:
+        return []
+    answer = max(probabilities, key=probabilities.get)
+    p = float(probabilities[answer])
+    if p >= UNSURE_PROBABILITY:
+        return []
+    counts: dict = {}
+    for c in window_predictions:
+        counts[c] = counts.get(c, 0) + 1
+    split = ", ".join(f"{n} {name(c)}" for c, n in sorted(counts.items(), key=lambda kv: -kv[1]))
+    return [f"warning: unsure answer: {name(answer)} has a mean probability of only {p:.2f} (below "
+            f"{UNSURE_PROBABILITY:g}); the windows say {split}"]
