@@ -113,7 +113,7 @@ def test_the_limits_section_names_a_weak_class_and_its_confusion():
     assert "weak: held-out recall &lt; 0.9" in text and "None: every class" not in text
     assert "<td>T1</td><td>100.00 %</td>" in text  # every class's recall
     for condition in ("output_speed_deg_s: trained on 45 deg/s only", "load_Nm: trained on 75 N m only",
-                      "trained at 4.8e+04 Hz only", "RMS 0.5-2 m/s^2", "held load_Nm fixed at 75 N m",
+                      "trained at 48000 Hz only", "RMS 0.5-2 m/s^2", "held load_Nm fixed at 75 N m",
                       "added white noise fixed at 40 dB SNR", "did not vary the damping", "one specimen",
                       "only the states T1, T2, T3", "T3 wear_depth 5e-06-1.5e-05 m"):
         assert condition in text, condition

@@ -163,7 +163,7 @@ def untrained_conditions(rng: Mapping | None, config: Mapping | None) -> list[st
             span = _fmt(r["min"]) if r["min"] == r["max"] else f"{_fmt(r['min'])}-{_fmt(r['max'])}"
             out.append(f"{column}: trained on {span} {r['unit']} only; other operating points are not known to it")
     if rng and rng.get("fs"):
-        out.append(f"sampling rate: trained at {_fmt(rng['fs'])} Hz only; records at another rate must be "
+        out.append(f"sampling rate: trained at {rng['fs']:g} Hz only; records at another rate must be "
                    "resampled")
     lv = (rng or {}).get("level") or {}
     if lv.get("rms_p01") is not None and math.isfinite(lv["rms_p01"]):
