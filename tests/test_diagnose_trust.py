@@ -182,3 +182,48 @@ def test_false_alarm_rate_is_the_share_of_healthy_samples_called_faulty():
     m = classification_metrics(["T1"] * 4 + ["T2"] * 4, ["T1", "T2", "T3", "T1"] + ["T2"] * 4, labels=["T1", "T2", "T3"])
     assert m["healthy_recall"] == 0.5 and m["false_alarm_rate"] == 0.5 and m["recall"]["T3"] is None
     assert classification_metrics(["a", "b"], ["a", "a"])["false_alarm_rate"] is None
+
+
+@pytest.fixture(scope="module")
+def healthy_records():
+    """0.5 s healthy records simulated at 30, 45 and 60 deg/s (75 N m, 40 dB SNR, the demo library's model)."""
+    from rvdiag.dynamics import ModelSettings, simulate
+    from rvdiag.gears import ToothFaults
+
+    return {sp: simulate(fault=ToothFaults.for_state("T1"), output_speed_deg_s=sp, load_Nm=75.0, duration_s=0.5,
+                         noise_snr_db=40.0, settings=ModelSettings(substeps=4)).signal[0]
+            for sp in (30.0, 45.0, 60.0)}
+
+
+@pytest.mark.parametrize("speed", [30.0, 45.0, 60.0])
+def test_the_true_speed_is_confirmed_and_its_harmonics_and_subharmonics_are_refused(healthy_records, speed):
+    """Issue 28.4: twice the true speed put the cycloid-pin mesh's 2nd harmonic where the mesh line should be, and
+    was accepted (90 deg/s for records at 45 deg/s).  The line at half the mesh frequency now gives it away."""
+    from rvdiag.features.mesh_lines import confirm_speed
+    from rvdiag.params import ReducerParams
+
+    p, x = ReducerParams.default(), healthy_records[speed]
+    ok = confirm_speed(x, 48000.0, p, speed)
+    assert ok["confirmed"] and ok["reason"] is None and ok["harmonic_of"] is None
+    twice = confirm_speed(x, 48000.0, p, 2 * speed)
+    assert twice["stage2_height_db"] >= 10.0  # the mesh's 2nd harmonic stands where the mesh line should be
+    assert not twice["confirmed"] and twice["harmonic_of"] == pytest.approx(speed)
+    assert f"the lines fit {speed:.4g} deg/s" in twice["reason"]
+    assert not confirm_speed(x, 48000.0, p, 3 * speed)["confirmed"]
+    for k in (0.5, 1 / 3):
+        wrong = confirm_speed(x, 48000.0, p, k * speed)
+        assert not wrong["confirmed"] and wrong["reason"].startswith("no cycloid-pin mesh line")
+
+
+def test_an_unsure_answer_warns_with_the_windows_split():
+    """A record whose answer the other classes together outweigh (a T5 record with wear beyond the training
+    range gave T6 at 0.39, windows 5 T5 / 4 T6 / 2 T2) says so, whatever the held-out test."""
+    from rvdiag.cli.diagnose import state_name
+    from rvdiag.models.conditions import record_warnings
+
+    p = {"T2": 0.2, "T5": 0.38, "T6": 0.42}
+    (line,) = record_warnings(p, ["T5"] * 5 + ["T6"] * 4 + ["T2"] * 2, state_name)
+    assert line.startswith("warning: unsure answer: T6 (broken tooth + wear + root crack)") and "0.42" in line
+    assert line.endswith("5 T5 (broken tooth + wear), 4 T6 (broken tooth + wear + root crack), 2 T2 (broken tooth)")
+    assert record_warnings({"T1": 0.5, "T4": 0.5}, ["T1", "T4"]) == []  # one half: not below
+    assert record_warnings(None, []) == []  # not recognised: no answer

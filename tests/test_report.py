@@ -83,3 +83,43 @@ def test_example_plot_marks_frequencies():
     xs = sorted(round(float(line.get_xdata()[0]), 1) for line in spec_ax.get_lines()[1:])
     assert xs == [15.1, 165.0, 195.0]
     plots.figure_to_base64(fig)
+
+
+def _limits_report(y_pred, **card_extra):
+    """A report whose model card's held-out test gave ``y_pred`` for ten samples of each of T1, T2, T3."""
+    y = np.repeat(["T1", "T2", "T3"], 10)
+    m = classification_metrics(y, np.asarray(y_pred), labels=["T1", "T2", "T3"])
+    card = {"model": "cnn1d-lean", "kind": "cnn", "classes": ["T1", "T2", "T3"], "metrics": m,
+            "training_store": {"config_hash": "abc"}, **card_extra}
+    store = {"path": "lib.zarr", "split": "test", "kind": "simulated", "config_hash": "abc",
+             "config": {"operation": {"output_speed_deg_s": 45.0, "load_Nm": 75.0, "noise_snr_db": 40.0},
+                        "randomise": {"stiffness_pct": 0.0, "damping_pct": 0.0}, "params": "",
+                        "states": {"T1": {}, "T2": {"broken_fraction": 1.0},
+                                   "T3": {"wear_depth": {"min": 5e-6, "max": 1.5e-5}}}}}
+    full = render_report(title="t", metrics=m, card=card, store_info=store)
+    return full[full.index("What this model cannot do"):full.index("Library config")]
+
+
+def test_the_limits_section_names_a_weak_class_and_its_confusion():
+    """Issue 28.3: 4 of the 10 held-out T3 samples called T1: T3 is weak (60 %) and confused with T1, by the
+    rule diagnose warns with; the card's operating range and the library's fixed conditions are listed."""
+    pred = ["T1"] * 10 + ["T2"] * 10 + ["T1"] * 4 + ["T3"] * 6
+    rng = {"output_speed_deg_s": {"min": 45.0, "max": 45.0, "unit": "deg/s"},
+           "load_Nm": {"min": 75.0, "max": 75.0, "unit": "N m"}, "fs": 48000.0,
+           "level": {"rms_p01": 0.5, "rms_median": 1.0, "rms_p99": 2.0, "unit": "m/s^2", "note": "z-scored"}}
+    text = _limits_report(pred, operating_range=rng)
+    assert "weak: <b>T3</b>, recall 60.00 %" in text
+    assert "40 % of the <b>T3</b> samples diagnosed as <b>T1</b>" in text
+    assert "weak: held-out recall &lt; 0.9" in text and "None: every class" not in text
+    assert "<td>T1</td><td>100.00 %</td>" in text  # every class's recall
+    for condition in ("output_speed_deg_s: trained on 45 deg/s only", "load_Nm: trained on 75 N m only",
+                      "trained at 48000 Hz only", "RMS 0.5-2 m/s^2", "held load_Nm fixed at 75 N m",
+                      "added white noise fixed at 40 dB SNR", "did not vary the damping", "one specimen",
+                      "only the states T1, T2, T3", "T3 wear_depth 5e-06-1.5e-05 m"):
+        assert condition in text, condition
+
+
+def test_the_limits_section_of_a_model_without_weak_classes_says_so():
+    text = _limits_report(["T1"] * 10 + ["T2"] * 10 + ["T3"] * 10)
+    assert "None: every class is recognised in at least 90 %" in text and "weak: <b>" not in text
+    assert "no operating range" in text  # a card from before rvdiag recorded one

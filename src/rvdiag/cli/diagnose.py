@@ -44,8 +44,9 @@ SPEED_META = ("output_speed_deg_s", "input_speed_rpm")
 def record_speed(sig, meta: dict[str, float] | None = None, params=None) -> dict:
     """The record's output speed and where it came from: ``--output-speed`` / ``--meta output_speed_deg_s=...``
     (or ``input_speed_rpm=...``), else the speed a simulated record states, else the stage-1 mesh peak
-    (:func:`rvdiag.io.angles.input_revolutions`), accepted only when the stage-2 (carrier) mesh confirms it
-    (:func:`rvdiag.features.mesh_lines.confirm_speed`).
+    (:func:`rvdiag.io.angles.input_revolutions`), accepted only when the record's mesh lines confirm it
+    (:func:`rvdiag.features.mesh_lines.confirm_speed`: the cycloid-pin mesh line with a second line of its family,
+    and no line at half or a third of it, where a harmonic would be read as the mesh).
 
     Returns ``{"output_speed_deg_s", "source", "stated", "detail", "input_revs"}``, with ``output_speed_deg_s`` None
     and ``error`` the reason when the speed is unknown (no sampling rate, an unconfirmed estimate)."""
@@ -76,8 +77,7 @@ def record_speed(sig, meta: dict[str, float] | None = None, params=None) -> dict
         if not check["confirmed"]:
             return {**unknown, "estimate": check,
                     "error": f"speed unknown: the stage-1 mesh peak gives {speed:.4g} deg/s, which the record's "
-                             f"cycloid-pin mesh does not confirm (no line at {check['stage2_hz']:.5g} Hz); give "
-                             "--output-speed"}
+                             f"mesh lines do not confirm ({check['reason']}); give --output-speed"}
         detail += f", confirmed by the cycloid-pin mesh line at {check['stage2_peak_hz']:.5g} Hz"
     return {"output_speed_deg_s": speed, "source": got.source, "stated": got.source != "estimate", "detail": detail,
             "input_revs": got.revs}
@@ -268,8 +268,10 @@ def recognition(loaded, x: np.ndarray, fs: float | None, res: dict, speed: dict,
 
 def trust_warnings(loaded, res: dict, speed: dict, load: float | None, fs: float | None, x: np.ndarray) -> list[str]:
     """The warnings that qualify an answer: the OOD check unavailable (an older model), the operating point or the
-    level outside the training range, the answer a class the model confuses (:mod:`rvdiag.models.conditions`)."""
-    from rvdiag.models.conditions import answer_warnings, class_limits, condition_warnings, signal_rms
+    level outside the training range, the answer a class the model confuses, an unsure answer (its mean
+    probability below one half; :mod:`rvdiag.models.conditions`)."""
+    from rvdiag.models.conditions import (answer_warnings, class_limits, condition_warnings, record_warnings,
+                                          signal_rms)
 
     out = []
     if loaded.novelty is None:
@@ -281,6 +283,7 @@ def trust_warnings(loaded, res: dict, speed: dict, load: float | None, fs: float
                               level_rms=float(signal_rms(x[None, :])[0]))
     if res.get("diagnosis") is not None:
         out += answer_warnings(class_limits(loaded.card.get("metrics")), res["diagnosis"], state_name)
+        out += record_warnings(res.get("probabilities"), [w["prediction"] for w in res["windows"]], state_name)
     return out
 
 

@@ -1,7 +1,9 @@
 """The evaluation report: ONE self-contained HTML file (figures embedded as base64 PNG, inline CSS,
 no script, no external resource), readable from disk without a server.
 
-Sections: summary metrics; per-class precision / recall / F1 and the confusion matrix; a t-SNE map of
+Sections: summary metrics; per-class precision / recall / F1 and the confusion matrix; what the model cannot do
+(:func:`limits_section`: its weak classes and confusions on its held-out test, the conditions it was not trained
+on); a t-SNE map of
 the model's learned features (CNN: last hidden layer; classical: the standardised features); the
 training curve (CNN); one example waveform and spectrum per state with the characteristic frequencies
 of ``rvdiag freqs`` marked; the gear condition indicators (sun shaft) per state, median and quartiles of at
@@ -180,6 +182,7 @@ def render_report(*, title: str, metrics: Mapping[str, Any], card: Mapping[str, 
                  "papers' per-state accuracy). Rows: green &ge; 99 %, red &lt; 90 %.</p></div>"
                  f"<div>{_img(cm_png, 'confusion matrix')}<p class='muted'>Rows: true state; columns: "
                  "diagnosis; shading: share of the row.</p></div></div>")
+    parts.append(limits_section(card, metrics, store_info))
     if embedding is not None and len(embedding):
         png = plots.figure_to_base64(plots.plot_tsne(embedding, embedding_labels))
         parts.append("<h2>t-SNE map of the learned features</h2><div class='flex'>"
@@ -216,6 +219,57 @@ def render_report(*, title: str, metrics: Mapping[str, Any], card: Mapping[str, 
     parts.append(f"<h2>Model card</h2><pre>{html.escape(json.dumps(card_view, indent=2, default=str))}</pre>")
     parts.append("</body></html>")
     return "\n".join(parts)
+
+
+def limits_section(card: Mapping[str, Any], metrics: Mapping[str, Any], store_info: Mapping[str, Any]) -> str:
+    """The "What this model cannot do" section: the model's recall of each class on its held-out test (the card's
+    ``metrics``; the evaluated split's when the card has none), its weak classes and confusions by the rule that
+    ``rvdiag diagnose`` warns with (:func:`rvdiag.models.conditions.class_limits`), and the conditions it was not
+    trained on (:func:`rvdiag.models.conditions.untrained_conditions`: the card's ``operating_range``, and what
+    the training library held fixed when the evaluated store is that library)."""
+    from rvdiag.models.conditions import class_limits, untrained_conditions
+
+    held_out = card.get("metrics") or {}
+    source = "its held-out test split (the model card)"
+    if "per_class" not in held_out:
+        held_out, source = metrics, "the evaluated split (the card holds no held-out test)"
+    lim = class_limits(held_out)
+    esc = html.escape
+    if lim:
+        confused = {}
+        for c in lim["confused"]:
+            confused.setdefault(c["true"], []).append(f"{esc(c['predicted'])} ({100 * c['share']:.0f} %)")
+        rows = "".join(
+            f"<tr class='{'bad' if c in lim['weak'] else ''}'><td>{esc(c)}</td><td>{_pct(r)}</td>"
+            f"<td>{'weak' if c in lim['weak'] else ''}</td><td>{', '.join(confused.get(c, [])) or '-'}</td></tr>"
+            for c, r in lim["recall"].items())
+        items = [f"<li>weak: <b>{esc(c)}</b>, recall {_pct(lim['recall'][c])}</li>" for c in lim["weak"]]
+        items += [f"<li>confused: {100 * c['share']:.0f} % of the <b>{esc(c['true'])}</b> samples diagnosed as "
+                  f"<b>{esc(c['predicted'])}</b>: an answer {esc(c['predicted'])} may be {esc(c['true'])}</li>"
+                  for c in lim["confused"]]
+        found = (f"<ul class='weak'>{''.join(items)}</ul>" if items else
+                 "<p class='none-weak'>None: every class is recognised in at least 90 % of its held-out samples "
+                 "and no class is diagnosed as another in 10 % or more of them.</p>")
+        classes = (f"<p>Per-class recall on {esc(source)}; rule: {esc(lim['rule'])}.</p>{found}"
+                   "<table class='limits'><tr><th>class</th><th>recall</th><th></th><th>diagnosed as (share of the "
+                   f"class)</th></tr>{rows}</table>")
+    else:
+        classes = "<p>The model card holds no held-out test: its weak classes are not known.</p>"
+    trained = card.get("training_store") or {}
+    same = trained.get("config_hash") and trained.get("config_hash") == store_info.get("config_hash")
+    config = store_info.get("config") if same else None
+    untrained = untrained_conditions(card.get("operating_range"), config)
+    cond = "" if card.get("operating_range") else ("<p>The model card states no operating range (a model "
+                                                  "trained before rvdiag recorded one).</p>")
+    if untrained:
+        cond += "<ul class='untrained'>" + "".join(f"<li>{esc(u)}</li>" for u in untrained) + "</ul>"
+    if not same:
+        cond += ("<p class='muted'>The evaluated store is not the training library: what that library held fixed "
+                 "is not listed.</p>")
+    return ("<h2 id='limits'>What this model cannot do</h2>" + classes +
+            "<h3>Conditions it was not trained on</h3>" + cond +
+            "<p class='muted'><code>rvdiag diagnose</code> warns when an answer is a weak or confused class, and "
+            "when a record lies outside the training range.</p>")
 
 
 def _indicator_section(ind: Mapping[str, Any]) -> str:

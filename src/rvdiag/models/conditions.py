@@ -6,7 +6,8 @@ the store says it); :func:`condition_warnings` gives one line for each condition
 
 :func:`class_limits` reads the model's held-out test (the card's ``metrics``) for the classes it confuses, by a
 stated rule (:data:`WEAK_RECALL`, :data:`CONFUSION_SHARE`); :func:`answer_warnings` turns it into the warnings of
-one answer.
+one answer.  :func:`untrained_conditions` lists what the model was not trained on (the operating range and what
+its training library held fixed), for the report's "What this model cannot do".
 """
 
 from __future__ import annotations
@@ -128,3 +129,97 @@ def answer_warnings(limits: Mapping, answer: str, name=lambda c: c) -> list[str]
             out.append(f"warning: the model diagnosed {100 * c['share']:.0f} % of its held-out {name(c['true'])} "
                        f"samples as {name(answer)}: this answer may be {name(c['true'])}")
     return out
+
+
+#: ``[randomise]`` keys of a library config and what each varies between simulations, when the config draws it
+VARIED_BY_RANDOMISE = {
+    "stiffness_pct": "the stiffnesses", "damping_pct": "the damping",
+    "path_resonance_hz": "the transfer path to the sensor", "path_damping_ratio": "the transfer path to the sensor",
+    "housing_added_mass": "the housing's added mass", "noise_colour_exponent": "the noise colour",
+    "sensor_position_deg": "the sensor's position", "sensor_direction_deg": "the sensor's direction",
+}
+#: operating conditions of a library config's ``[operation]`` table, with their unit
+OPERATION_UNITS = {"output_speed_deg_s": "deg/s", "input_speed_rpm": "rev/min", "load_Nm": "N m",
+                   "noise_snr_db": "dB SNR"}
+
+
+def _span(v) -> str:
+    """``45`` or ``15-90`` of a config value (a number or ``{min, max}``)."""
+    if isinstance(v, Mapping):
+        return f"{_fmt(float(v['min']))}-{_fmt(float(v['max']))}"
+    return _fmt(float(v))
+
+
+def untrained_conditions(rng: Mapping | None, config: Mapping | None) -> list[str]:
+    """What a model was not trained on, one sentence each: outside the card's ``operating_range`` ``rng``
+    (:func:`operating_range`: the speeds, loads, sampling rate and signal level of its training samples) and,
+    from the training library's ``config`` (:meth:`rvdiag.library.config.LibraryConfig.to_dict`, None when not
+    known), what the library held fixed: operating conditions, the noise, the randomised parameters, a speed
+    profile, the specimen (one parameter set, one draw of its manufacturing errors), the fault states and
+    their severity ranges."""
+    out = []
+    for column, r in (rng or {}).items():
+        if column in CONDITION_COLUMNS and isinstance(r, Mapping):
+            span = _fmt(r["min"]) if r["min"] == r["max"] else f"{_fmt(r['min'])}-{_fmt(r['max'])}"
+            out.append(f"{column}: trained on {span} {r['unit']} only; other operating points are not known to it")
+    if rng and rng.get("fs"):
+        out.append(f"sampling rate: trained at {rng['fs']:g} Hz only; records at another rate must be "
+                   "resampled")
+    lv = (rng or {}).get("level") or {}
+    if lv.get("rms_p01") is not None and math.isfinite(lv["rms_p01"]):
+        unit = f" {lv['unit']}" if lv.get("unit") else ""
+        out.append(f"signal level: training samples' RMS {_fmt(lv['rms_p01'])}-{_fmt(lv['rms_p99'])}{unit} "
+                   f"(1st-99th percentile); {lv.get('note', '')}")
+    if not config:
+        return out
+    op = config.get("operation") or {}
+    for key, unit in OPERATION_UNITS.items():
+        if key in op and not isinstance(op[key], Mapping):
+            what = "added white noise" if key == "noise_snr_db" else key
+            out.append(f"the library held {what} fixed at {_span(op[key])} {unit}")
+    rnd = config.get("randomise") or {}
+    drawn = {VARIED_BY_RANDOMISE[k] for k, v in rnd.items() if k in VARIED_BY_RANDOMISE and v}
+    fixed = sorted({v for v in VARIED_BY_RANDOMISE.values()} - drawn)
+    if fixed:
+        out.append("the library did not vary " + ", ".join(fixed) + " between simulations")
+    if not config.get("profile"):
+        out.append("constant speed and load in every simulation: no acceleration, no gravity arm")
+    if not any("specimen" in k or "error_seed" in k for k in (*config, *rnd)):
+        params = config.get("params") or "the built-in RV-20E"
+        out.append(f"one specimen: every simulation is the reducer of {params} with the same manufacturing "
+                   "errors (one error_seed); another reducer of the same design was not seen")
+    states = config.get("states") or {}
+    if states:
+        from rvdiag.library.states import SEVERITY_PARAMETERS
+
+        def unit(k):
+            u = getattr(SEVERITY_PARAMETERS.get(k), "unit", "")
+            return "" if u in ("", "1") else f" {u}"
+
+        sev = "; ".join(f"{s} " + ", ".join(f"{k} {_span(v)}{unit(k)}" for k, v in sw.items())
+                        for s, sw in states.items() if sw)
+        out.append(f"only the states {', '.join(states)}: any other fault is named as one of them"
+                   + (f"; severities trained: {sev}" if sev else ""))
+    return out
+
+
+#: a record's answer is unsure when its mean probability is below this (the other classes together are likelier)
+UNSURE_PROBABILITY = 0.5
+
+
+def record_warnings(probabilities: Mapping[str, float] | None, window_predictions, name=lambda c: c) -> list[str]:
+    """The warning of one record's own answer, apart from the model's held-out test: the answer's mean probability
+    over the record's windows is below :data:`UNSURE_PROBABILITY`; the line counts the windows' answers (a split
+    record may hold a state the model confuses, or one it has not seen, e.g. a severity outside its training)."""
+    if not probabilities:
+        return []
+    answer = max(probabilities, key=probabilities.get)
+    p = float(probabilities[answer])
+    if p >= UNSURE_PROBABILITY:
+        return []
+    counts: dict = {}
+    for c in window_predictions:
+        counts[c] = counts.get(c, 0) + 1
+    split = ", ".join(f"{n} {name(c)}" for c, n in sorted(counts.items(), key=lambda kv: -kv[1]))
+    return [f"warning: unsure answer: {name(answer)} has a mean probability of only {p:.2f} (below "
+            f"{UNSURE_PROBABILITY:g}); the windows say {split}"]
