@@ -197,7 +197,7 @@ def healthy_records():
 
 @pytest.mark.parametrize("speed", [30.0, 45.0, 60.0])
 def test_the_true_speed_is_confirmed_and_its_harmonics_and_subharmonics_are_refused(healthy_records, speed):
-    """Issue 28.4: twice the true speed put the cycloid-pin mesh's 2nd harmonic where the mesh line should be, and
+    """Twice the true speed put the cycloid-pin mesh's 2nd harmonic where the mesh line should be, and
     was accepted (90 deg/s for records at 45 deg/s).  The line at half the mesh frequency now gives it away."""
     from rvdiag.features.mesh_lines import confirm_speed
     from rvdiag.params import ReducerParams

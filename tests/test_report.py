@@ -101,7 +101,7 @@ def _limits_report(y_pred, **card_extra):
 
 
 def test_the_limits_section_names_a_weak_class_and_its_confusion():
-    """Issue 28.3: 4 of the 10 held-out T3 samples called T1: T3 is weak (60 %) and confused with T1, by the
+    """4 of the 10 held-out T3 samples called T1: T3 is weak (60 %) and confused with T1, by the
     rule diagnose warns with; the card's operating range and the library's fixed conditions are listed."""
     pred = ["T1"] * 10 + ["T2"] * 10 + ["T1"] * 4 + ["T3"] * 6
     rng = {"output_speed_deg_s": {"min": 45.0, "max": 45.0, "unit": "deg/s"},

@@ -1,5 +1,5 @@
 """The baseline flow of the CLI: train, evaluate and diagnose a monitor that compares a reducer with its own healthy
-baseline (issue 27; docs/monitoring.md).  ``rvdiag train`` / ``evaluate`` / ``diagnose`` branch into this module
+baseline (docs/monitoring.md).  ``rvdiag train`` / ``evaluate`` / ``diagnose`` branch into this module
 when the store is paired (:func:`rvdiag.datasets.store.is_paired`) or the model's card says ``needs_baseline``.
 
 - :func:`train_monitor`: :class:`rvdiag.models.monitoring.BaselineMonitor` on
@@ -29,7 +29,7 @@ MONITOR_FEATURES = {"tsa-change": ("none", True), "orders": (None, False), "orde
 #: the TSA change alone: the best six-state accuracy of the routes measured in docs/monitoring.md (59.5 %, false
 #: alarms 4.2 % at alpha 5 %, leave-3-reducers-out)
 DEFAULT_MONITOR_FEATURES = "tsa-change"
-#: the alarm's false-alarm rate per record (issue 27)
+#: the alarm's false-alarm rate per record
 DEFAULT_ALPHA = 0.01
 OPERATING_COLUMNS = ("output_speed_deg_s", "load_Nm")
 #: the reducer-type fields of a parameter set that a baseline must share with the model
@@ -160,7 +160,7 @@ def train_monitor(store, data, out: Path, *, features: str | None, alpha: float 
                   conditions=(), echo=print, warn=None) -> dict:
     """Fit and save a baseline monitor on a paired store (module docstring); returns its test evaluation (or
     None without a test split) and the alarm's achieved ``alpha``."""
-    from rvdiag.cli.train import _content_hash, _signal_info
+    from rvdiag.cli._store_info import training_store_info
     from rvdiag.models.monitoring import BaselineMonitor, save_monitor
     from rvdiag.params import ReducerParams
 
@@ -208,9 +208,7 @@ def train_monitor(store, data, out: Path, *, features: str | None, alpha: float 
     if te is not None and len(te.y):
         metrics = _score(m, te, base, store.fs, store.fs, None, f"the test split of {data}")
         echo("test (held-out reducers): " + headline(metrics))
-    store_info = {"path": str(Path(data).resolve()), "config_hash": store.attrs.get("config_hash")
-                  or _content_hash(store), "kind": store.attrs.get("kind"), "n_train": int(len(tr.y)),
-                  **_signal_info(store)}
+    store_info = training_store_info(store, data, len(tr.y))
     save_monitor(m, out, fs=store.fs, training_store=store_info, metrics=metrics or {}, seed=seed,
                  extra={"reducer": kind, "monitor_features": name})
     echo(f"saved model to {out}: it needs a baseline (card needs_baseline); the alarm's false-alarm rate is "
@@ -343,7 +341,7 @@ def diagnose_monitor(loaded, sig, baseline: Path | None, values: dict, *, output
                      load: float | None) -> dict:
     """``rvdiag diagnose`` of a baseline-referenced model: the record's windows against the baseline windows at its
     operating point; the health index, alarm and state of the mean of the windows' changes."""
-    from rvdiag.cli.diagnose import SPEED_META, flat_reason, recognition, record_speed, state_name
+    from rvdiag.cli._record import SPEED_META, flat_reason, recognition, record_speed, state_name
     from rvdiag.datasets.store import Samples
 
     if baseline is None:

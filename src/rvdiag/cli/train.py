@@ -38,6 +38,7 @@ import typer
 
 from rvdiag.cli import _options as opt
 from rvdiag.cli._progress import bar_columns, progress_bars, stderr_console
+from rvdiag.cli._store_info import signal_info, training_store_info
 from rvdiag.errors import ParameterError, StoreError
 from rvdiag.registry import CLASSICAL_MODELS, CNN_MODELS, RECOMMENDED_TRAINING
 
@@ -46,16 +47,6 @@ CNN_OPTION_NAMES = {"max_epochs": "--epochs", "batch_size": "--batch-size", "n_i
                     "validation_fraction": "--validation-fraction", "learning_rate": "--lr",
                     "input_length": "--input-length", "normalize": "--normalize",
                     "representation": "--representation", "architecture": "--model"}
-
-
-def _content_hash(store) -> str:
-    """Hash of the store's identity when it has no config hash: classes, length, n, labels."""
-    import hashlib
-
-    h = hashlib.sha256()
-    h.update(json.dumps([store.classes, store.length, store.n_samples]).encode())
-    h.update(np.asarray(store.labels, dtype=np.int64).tobytes())
-    return h.hexdigest()[:16]
 
 
 def _with_noise(samples, snr_db: float, seed: list[int]):
@@ -372,9 +363,7 @@ def register(app: typer.Typer) -> None:
         est, metrics = first
         novelty, op_range = _novelty_and_range(est, store, train_idx, tr, te, Xtr, Xte, meta_cols, seed, stream,
                                                where)
-        store_info = {"path": str(Path(data).resolve()),
-                      "config_hash": store.attrs.get("config_hash") or _content_hash(store),
-                      "kind": store.attrs.get("kind"), "n_train": int(len(tr.y)), **_signal_info(store)}
+        store_info = training_store_info(store, data, len(tr.y))
         extra = {} if snr_db is None else {"added_noise": {"snr_db": float(snr_db), "seed": [seed, 0],
                                                            "applies_to": "train and test splits"}}
         extra["operating_range"] = op_range
@@ -432,21 +421,10 @@ def _novelty_and_range(est, store, train_idx, tr, te, Xtr, Xte, meta_cols, seed:
         pick = draw(len(Xtr))
         X_fit, raw, meta = Xtr[pick], tr.X, tr.meta
         X_cal = None if Xte is None or not len(Xte) else Xte[draw(len(Xte))]
-    signal = _signal_info(store)["signal"]
+    signal = signal_info(store)["signal"]
     unit = ("A" if signal == "current" else "m/s^2") if store.attrs.get("kind") == "simulated" else None
     op = operating_range(meta, raw, store.fs, unit=unit, normalize=getattr(est, "normalize", None))
     return fit_novelty(est, X_fit, X_cal), op
-
-
-def _signal_info(store) -> dict:
-    """What the store's samples are: ``channel`` (the library's, e.g. ``x`` or ``i_a``) and ``signal``
-    (``vibration`` or ``current``), so that ``rvdiag diagnose`` reads the same kind of channel of a file."""
-    cfg = store.attrs.get("config") or {}
-    model = cfg.get("model") if isinstance(cfg.get("model"), dict) else {}
-    info = {"signal": str(model.get("signal") or "vibration")}
-    if isinstance(cfg.get("channel"), (str, int)):
-        info["channel"] = cfg["channel"]
-    return info
 
 
 def _streaming_choice(streaming: bool | None, model: str, snr_db: float | None, store) -> bool:

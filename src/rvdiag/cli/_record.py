@@ -1,0 +1,118 @@
+"""What a record is, for ``rvdiag diagnose`` and its baseline flow (:mod:`rvdiag.cli._baseline`): its speed and
+where it came from, whether it is flat, whether it looks like the reducer the model knows, and a state's name.
+One home below both commands, so that neither imports the other."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rvdiag.errors import ParameterError
+
+#: ``--meta`` names that give the speed for the indicators: output deg/s, input rev/min.
+SPEED_META = ("output_speed_deg_s", "input_speed_rpm")
+
+
+def record_speed(sig, meta: dict[str, float] | None = None, params=None) -> dict:
+    """The record's output speed and where it came from: ``--output-speed`` / ``--meta output_speed_deg_s=...``
+    (or ``input_speed_rpm=...``), else the speed a simulated record states, else the stage-1 mesh peak
+    (:func:`rvdiag.io.angles.input_revolutions`), accepted only when the record's mesh lines confirm it
+    (:func:`rvdiag.features.mesh_lines.confirm_speed`: the cycloid-pin mesh line with a second line of its family,
+    and no line at half or a third of it, where a harmonic would be read as the mesh).
+
+    Returns ``{"output_speed_deg_s", "source", "stated", "detail", "input_revs"}``, with ``output_speed_deg_s`` None
+    and ``error`` the reason when the speed is unknown (no sampling rate, an unconfirmed estimate)."""
+    from rvdiag.errors import RvdiagError
+    from rvdiag.features.mesh_lines import confirm_speed
+    from rvdiag.io.angles import AngleSpec, input_revolutions
+    from rvdiag.params import ReducerParams
+
+    meta = meta or {}
+    p = params or ReducerParams.default()
+    out_speed, in_speed = meta.get(SPEED_META[0]), meta.get(SPEED_META[1])
+    if out_speed is not None and in_speed is not None:
+        in_speed = None  # the output speed is the one a library records
+    unknown = {"output_speed_deg_s": None, "source": None, "stated": False, "input_revs": None}
+    try:
+        if not sig.fs:
+            raise ParameterError("the file states no sampling rate: give --fs")
+        got = input_revolutions(sig, AngleSpec(output_speed_deg_s=out_speed, input_speed_rpm=in_speed), p)
+    except RvdiagError as exc:
+        return {**unknown, "error": str(exc)}
+    speed = float(got.rev_per_s) * 360.0 / p.ratio
+    detail = got.detail
+    if out_speed is not None or in_speed is not None:
+        detail = f"--meta {SPEED_META[0] if out_speed is not None else SPEED_META[1]}=" \
+                 f"{out_speed if out_speed is not None else in_speed:g}"
+    if got.source == "estimate":
+        check = confirm_speed(sig.data, float(sig.fs), p, speed)
+        if not check["confirmed"]:
+            return {**unknown, "estimate": check,
+                    "error": f"speed unknown: the stage-1 mesh peak gives {speed:.4g} deg/s, which the record's "
+                             f"mesh lines do not confirm ({check['reason']}); give --output-speed"}
+        detail += f", confirmed by the cycloid-pin mesh line at {check['stage2_peak_hz']:.5g} Hz"
+    return {"output_speed_deg_s": speed, "source": got.source, "stated": got.source != "estimate", "detail": detail,
+            "input_revs": got.revs}
+
+
+#: a window is flat when its standard deviation is at most this fraction of the record's largest |value| (or 0)
+FLAT_FRACTION = 1e-9
+
+
+def state_name(c: str) -> str:
+    """``T2 (broken tooth)``: a state with its fault's name (:data:`rvdiag.gears.faults.STATES`); other classes as
+    they are."""
+    from rvdiag.gears.faults import STATES
+
+    names = {"healthy": "healthy", "broken": "broken tooth", "wear": "wear", "crack": "root crack",
+             "broken+wear": "broken tooth + wear", "broken+wear+crack": "broken tooth + wear + root crack"}
+    kind = STATES.get(str(c))
+    return str(c) if kind is None else f"{c} ({names.get(kind, kind)})"
+
+
+def flat_reason(x: np.ndarray, L: int) -> str | None:
+    """Why the record is flat (a constant or dead signal), or None: every point equal, or most windows of ``L``
+    points without variation (:data:`FLAT_FRACTION`)."""
+    x = np.asarray(x, dtype=np.float64)
+    if not np.all(np.isfinite(x)):
+        return "the signal holds non-finite values"
+    if np.ptp(x) == 0:
+        return f"the signal is constant ({x[0]:g} at every point): a dead or disconnected sensor?"
+    k = x.size // L
+    if k:
+        W = x[: k * L].reshape(k, L)
+        flat = W.std(axis=1) <= FLAT_FRACTION * np.max(np.abs(x))
+        if flat.mean() > 0.5:
+            return f"{int(flat.sum())} of {k} windows are flat (no variation): a dead or saturated sensor?"
+    return None
+
+
+def recognition(loaded, x: np.ndarray, fs: float | None, res: dict, speed: dict, is_current: bool) -> dict:
+    """Does the record look like the reducer the model knows?  ``{"recognised", "reason", "checks"}``, the reason
+    the first failed check: a flat signal (:func:`flat_reason`); no mesh line at a stated speed
+    (:func:`rvdiag.features.mesh_lines.mesh_lines`, vibration models trained on a simulated reducer library);
+    windows far outside the training distribution (:mod:`rvdiag.models.novelty`)."""
+    from rvdiag.features.mesh_lines import mesh_lines
+    from rvdiag.models.novelty import RECORD_SHARE
+    from rvdiag.params import ReducerParams
+
+    checks: dict = {"flat": flat_reason(x, loaded.input_length)}
+    if checks["flat"]:
+        return {"recognised": False, "reason": checks["flat"], "checks": checks}
+    reducer = (loaded.card.get("training_store") or {}).get("kind") == "simulated" and not is_current
+    if reducer and fs and speed.get("stated"):
+        lines = mesh_lines(x, fs, ReducerParams.default(), speed["output_speed_deg_s"])
+        checks["mesh_lines"] = lines
+        if not lines["present"]:
+            return {"recognised": False, "checks": checks,
+                    "reason": f"no mesh line at the stated speed {speed['output_speed_deg_s']:.4g} deg/s: neither "
+                              f"the stage-1 mesh ({lines['stage1']['hz']:.5g} Hz) nor the cycloid-pin mesh "
+                              f"({lines['stage2']['hz']:.5g} Hz) stands {lines['threshold_db']:g} dB above its floor"}
+    ood = res.get("novelty")
+    if ood is not None:
+        checks["novelty"] = {k: v for k, v in ood.items() if k != "distances"}
+        if ood["share_beyond"] > RECORD_SHARE:
+            return {"recognised": False, "checks": checks,
+                    "reason": f"{100 * ood['share_beyond']:.0f} % of the windows lie far outside the training data "
+                              f"(Mahalanobis distance of the model's features above {ood['threshold']:.4g}, which "
+                              f"{100 * ood['rate']:g} % of held-out training windows exceed)"}
+    return {"recognised": True, "reason": None, "checks": checks}
