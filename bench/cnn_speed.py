@@ -2,10 +2,10 @@
 
 Usage::
 
-    .venv/bin/python bench/cnn_speed.py [--samples 256] [--batch 32] [--models cnn1d,cnn1d-lean,mcsa-cnn]
+    .venv/bin/python bench/cnn_speed.py [--samples 256] [--batch 32] [--models cnn1d,cnn1d-lean,spectrum-cnn]
                                         [--devices cpu,cuda] [--repeats 3] [--json FILE]
 
-For each network at its input length (cnn1d: the paper's 6400 points; cnn1d-lean: 4096 and 6400; mcsa-cnn:
+For each network at its input length (cnn1d: the paper's 6400 points; cnn1d-lean: 4096 and 6400; spectrum-cnn:
 4096) the script times, on random windows (timing does not depend on the values):
 
 - ``epoch_s``: one training epoch over ``--samples`` windows in mini-batches of ``--batch`` (Adam,
@@ -28,7 +28,7 @@ import time
 
 import torch
 
-CONFIGS = [("cnn1d", 6400), ("cnn1d-lean", 4096), ("cnn1d-lean", 6400), ("mcsa-cnn", 4096)]
+CONFIGS = [("cnn1d", 6400), ("cnn1d-lean", 4096), ("cnn1d-lean", 6400), ("spectrum-cnn", 4096)]
 
 
 def _sync(dev):
@@ -90,7 +90,7 @@ def main(argv=None) -> None:
     ap.add_argument("--samples", type=int, default=256)
     ap.add_argument("--batch", type=int, default=32)
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--models", default="cnn1d,cnn1d-lean,mcsa-cnn")
+    ap.add_argument("--models", default="cnn1d,cnn1d-lean,spectrum-cnn")
     ap.add_argument("--devices", default="cpu,cuda")
     ap.add_argument("--json", default=None, help="also write the rows as JSON here")
     a = ap.parse_args(argv)

@@ -20,7 +20,7 @@ For each size, each in a fresh process (so that ``ru_maxrss``, the process's pea
 1. ``build``: ``build_library`` on a local Dask cluster of ``--workers`` worker processes.  Reported: the peak RSS of
    the client (which writes the store) and the peak of the sum over the client and its workers, sampled every
    0.1 s with psutil.
-2. ``train-stream``: ``rvdiag train STORE --streaming --epochs 1`` (the recommended mcsa-cnn on log spectra, one
+2. ``train-stream``: ``rvdiag train STORE --streaming --epochs 1`` (the recommended spectrum-cnn on log spectra, one
    full epoch, validation and the test split scored block by block).
 3. ``train-memory`` (the baseline, at the sizes of ``--memory-sizes``): the same command with ``--no-streaming``,
    which loads the training and test splits.
@@ -251,7 +251,7 @@ def main() -> None:
             f"## {dt.date.today().isoformat()} — Memory of a large library: build and streaming training",
             "",
             f"Library: 6 states, 4096-point samples (22 per simulation of 1 s at 48 kHz), simulated by `{simulator}` "
-            f"({what}).  Training: `rvdiag train STORE --epochs 1` (mcsa-cnn on "
+            f"({what}).  Training: `rvdiag train STORE --epochs 1` (spectrum-cnn on "
             f"log spectra), `--streaming` against `--no-streaming` (the baseline).  Each phase in a fresh process; "
             f"peak RSS from `ru_maxrss`, the build's client + workers sampled with psutil every 0.1 s.  Load average "
             f"(1 min) at the end: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores.",

@@ -28,7 +28,7 @@ ROOT = HERE.parent
 RVDIAG = [sys.executable, "-m", "rvdiag"]
 
 # The demo's choices.  The classifier is `rvdiag train`'s default, the setup docs/results.md recommends
-# (mcsa-cnn on log spectra, 40 epochs, lr 3e-3, patience 6: rvdiag.registry.RECOMMENDED_TRAINING).
+# (spectrum-cnn on log spectra, 40 epochs, lr 3e-3, patience 6: rvdiag.registry.RECOMMENDED_TRAINING).
 DEMO_CONFIG = ROOT / "configs" / "demo.toml"
 DEMO_MONITORING_CONFIG = ROOT / "configs" / "demo-monitoring.toml"
 #: the monitoring demo's false-alarm rate: its small library calibrates 24 healthy windows, enough for 5 % (1 % needs
@@ -60,7 +60,7 @@ def main() -> None:
     parser.add_argument("--config", type=Path, default=DEMO_CONFIG,
                         help="library config (default: configs/demo.toml; configs/paper.toml for paper scale)")
     parser.add_argument("--model", default=None,
-                        help="classifier to train (default: rvdiag train's, the recommended mcsa-cnn on log spectra)")
+                        help="classifier to train (default: rvdiag train's, the recommended spectrum-cnn on log spectra)")
     args = parser.parse_args()
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)

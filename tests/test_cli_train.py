@@ -95,7 +95,7 @@ def test_diagnose_windows_a_signal(cnn_model, tmp_path, capsys):
     assert res["n_windows"] == 2 and len(res["windows"]) == 2 and res["window_length"] == L
     assert sum(res["probabilities"].values()) == pytest.approx(1.0, abs=1e-5)
     assert res["diagnosis"] == "T3"
-    assert "no sampling rate" in err and "last 246 points are not used" in err
+    assert "no sampling rate" in err and res["unused_points"] == 246 and "not used" not in err
     code, out, err = run(["diagnose", cnn_model, f, "--fs", "2000"], capsys)
     assert code == 0 and "2000 Hz but the model was trained at 1000 Hz" in err
     assert "diagnosis: T3" in out and "overall" in out
@@ -204,10 +204,10 @@ def test_evaluate_shows_progress_on_stderr_unless_quiet(cnn_model, store, capsys
 
 
 def test_train_defaults_train_the_recommended_setup(store, tmp_path, capsys):
-    """With no model options `train` builds the recommended network (mcsa-cnn on logspec) and says so in the
+    """With no model options `train` builds the recommended network (spectrum-cnn on logspec) and says so in the
     card; the tiny store's 256-point samples are shorter than its 4096-point input, hence the named option."""
     code, _, err = run(["train", store, "-o", tmp_path / "m", "-q"], capsys)
-    assert code == 2 and err == ("error: mcsa-cnn takes windows of 4096 points but the samples have only 256; give a "
+    assert code == 2 and err == ("error: spectrum-cnn takes windows of 4096 points but the samples have only 256; give a "
                                  "shorter --input-length or use cnn1d-lean\n")
     code, _, err = run(["train", store, "-o", tmp_path / "m", "-q", "--input-length", "128", "--epochs", "1",
                         "--device", "cpu"], capsys)
@@ -215,7 +215,7 @@ def test_train_defaults_train_the_recommended_setup(store, tmp_path, capsys):
     from rvdiag.models.persistence import read_card
 
     card = read_card(tmp_path / "m")
-    assert card["model"] == "mcsa-cnn" and card["params"]["representation"] == "logspec"
+    assert card["model"] == "spectrum-cnn" and card["params"]["representation"] == "logspec"
     assert card["params"]["learning_rate"] == 3e-3 and card["params"]["n_iter_no_change"] == 6
 
 

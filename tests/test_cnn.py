@@ -13,7 +13,7 @@ from sklearn.exceptions import NotFittedError
 from rvdiag.errors import ParameterError
 from rvdiag.models.cnn import (
     LeanCNN1D,
-    McsaCNN,
+    SpectrumCNN,
     PaperCNN1D,
     build_network,
     count_parameters,
@@ -63,7 +63,7 @@ def test_paper_cnn_full_size_parameter_count_and_shapes():
 
 
 def test_mcsa_cnn_follows_table5():
-    net = McsaCNN(4, 4096)
+    net = SpectrumCNN(4, 4096)
     conv = [m for m in net.conv if isinstance(m, torch.nn.Conv1d)]
     assert [(c.kernel_size[0], c.out_channels) for c in conv] == [(7, 8), (5, 8), (3, 16)]
     pools = [m for m in net.conv if isinstance(m, torch.nn.MaxPool1d)]

@@ -47,7 +47,7 @@ def test_train_defaults_are_the_recommended_setup_of_results_md():
                        re.S).group(1)
     options = dict(re.findall(r"--([\w-]+) (\S+)", stated))
     assert {k: type(RECOMMENDED_TRAINING[k])(v) for k, v in options.items()} == RECOMMENDED_TRAINING
-    assert RECOMMENDED_TRAINING == {"model": "mcsa-cnn", "representation": "logspec", "epochs": 40, "lr": 3e-3,
+    assert RECOMMENDED_TRAINING == {"model": "spectrum-cnn", "representation": "logspec", "epochs": 40, "lr": 3e-3,
                                    "patience": 6}
     train = typer.main.get_command(build_app()).commands["train"]
     defaults = {p.name: p.default for p in train.params}
@@ -55,4 +55,4 @@ def test_train_defaults_are_the_recommended_setup_of_results_md():
     demo = (REPO / "examples" / "demo.py").read_text()
     assert "--representation" not in demo and "--lr" not in demo and "--epochs" not in demo
     readme = (REPO / "README.md").read_text()
-    assert "rvdiag train out/demo.zarr -o out/model   # the recommended setup: mcsa-cnn on log spectra" in readme
+    assert "rvdiag train out/demo.zarr -o out/model   # the recommended setup: spectrum-cnn on log spectra" in readme

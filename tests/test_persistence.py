@@ -79,7 +79,7 @@ def test_missing_or_foreign_directory(tmp_path):
     (lambda c: json.dumps({**c, "version": 99}), "version"),
     (lambda c: json.dumps({k: v for k, v in c.items() if k != "classes"}), "classes"),
     (lambda c: json.dumps({**c, "classes": ["A", "B", "C"]}), "shape"),  # output layer has 2 units
-    (lambda c: json.dumps({**c, "params": {**c["params"], "architecture": "mcsa-cnn"}}), "weights do not match"),
+    (lambda c: json.dumps({**c, "params": {**c["params"], "architecture": "spectrum-cnn"}}), "weights do not match"),
     (lambda c: json.dumps({**c, "kind": "forest"}), "unknown model kind"),
 ])
 def test_card_that_does_not_match_is_refused(cnn_dir, tmp_path, mutate, match):

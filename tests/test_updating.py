@@ -243,6 +243,57 @@ def test_cli_update_writes_annotated_toml_and_json(csv_file, tmp_path, capsys):
     assert code == 2 and err.startswith("error:") and "use --overwrite" in err
 
 
+@pytest.fixture(scope="module")
+def base_csv(tmp_path_factory):
+    """0.6 s at 48 kHz of the built-in set itself, no noise: the base set is the best fit there is."""
+    path = tmp_path_factory.mktemp("upd0") / "base.csv"
+    write_csv(path, measured_record({}, 0.6, snr_db=300.0))
+    return path
+
+
+def test_a_base_set_that_fits_best_is_returned_exactly(base_csv):
+    """The base values mapped onto the unit cube and back come out moved in the last bits (1e8 ->
+    100000000.00000018): those are the base values, not an update (issue 28 #6)."""
+    x = np.loadtxt(base_csv, delimiter=",", skiprows=1)[:, 1]
+    base = ReducerParams.default()
+    res = update_parameters(base, x, FS, output_speed_deg_s=SPEED, load_Nm=LOAD,
+                            names=["sun_support", "pin_wheel_housing", "crank_cycloid"], max_evals=4, seed=0)
+    assert res.updated == ()
+    assert all(a == b for b, a in res.values.values()), res.values
+    assert res.params_after == base and res.pcc_after == res.pcc_before
+
+
+def test_a_gain_not_above_min_gain_keeps_the_base_set(measured):
+    base = ReducerParams.default()
+    kw = dict(output_speed_deg_s=SPEED, load_Nm=LOAD, names=["path_resonance_hz"], max_evals=3, seed=0)
+    res = update_parameters(base, measured, FS, **kw)
+    assert res.updated == ("path_resonance_hz",) and res.best_gain > 0.01
+    kept = update_parameters(base, measured, FS, min_gain=1.0, **kw)
+    assert kept.updated == () and kept.best_gain == pytest.approx(res.best_gain)
+    assert kept.params_after == base and kept.pcc_after == kept.pcc_before == res.pcc_before
+    assert kept.values["path_resonance_hz"] == (0.0, 0.0)
+
+
+def test_cli_update_without_a_better_set_reports_no_fit_and_keeps_every_source_comment(base_csv, tmp_path, capsys):
+    out = tmp_path / "u.toml"
+    code, stdout, err = run(["update", str(base_csv), "--channel", "acc", "--output-speed", "30", "--load", "100",
+                             "--out", str(out), "--tune", "sun_support,crank_cycloid", "--max-evals", "4", "-q"],
+                            capsys)
+    assert code in (0, None), err
+    assert "(updated)" not in stdout and " -> " not in stdout, stdout
+    assert "values are kept" in stdout
+    assert out.read_text("utf-8") == base_text(ReducerParams.default(), None)
+
+
+def test_told_apart_shows_the_digits_that_differ():
+    from rvdiag.cli.update import _told_apart
+
+    assert _told_apart(0.998401, 0.998432, 4) == ("0.9984", "0.99843")
+    assert _told_apart(1e8, 1.0000002e8, 5) == ("1e+08", "1.0000002e+08")
+    assert _told_apart(0.804, 0.996, 4) == ("0.804", "0.996")
+    assert _told_apart(0.5, 0.5, 4) == ("0.5", "0.5")
+
+
 @pytest.mark.parametrize("change, message", [
     ({"--channel": "nope"}, "no channel matches"),
     ({"--fs": "0"}, "--fs must be positive"),

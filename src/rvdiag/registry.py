@@ -16,7 +16,11 @@ else and never unpickles.
 from __future__ import annotations
 
 #: The 1-D CNN architectures (``rvdiag train --model``; :data:`rvdiag.models.cnn.ARCHITECTURES`).
-CNN_MODELS: tuple[str, ...] = ("cnn1d", "cnn1d-lean", "mcsa-cnn")
+CNN_MODELS: tuple[str, ...] = ("cnn1d", "cnn1d-lean", "spectrum-cnn")
+
+#: Old spellings of model names -> their names now (accepted by ``--model`` with a warning, and in saved cards).
+#: ``mcsa-cnn`` read as motor-current analysis; the network is the default for log spectra of vibration.
+OLD_MODEL_NAMES: dict[str, str] = {"mcsa-cnn": "spectrum-cnn"}
 
 #: The classical pipelines (``rvdiag train --model``; :data:`rvdiag.models.pipelines.MODEL_NAMES`).
 CLASSICAL_MODELS: tuple[str, ...] = ("svm", "kelm", "kelm-mpa", "kelm-ga", "kelm-pso")
@@ -25,7 +29,7 @@ CLASSICAL_MODELS: tuple[str, ...] = ("svm", "kelm", "kelm-mpa", "kelm-ga", "kelm
 #: 5 paper-mode seeds, the best CNN on the demo): the defaults of ``rvdiag train``, so that the command with
 #: no options trains it.  Keys are the ``rvdiag train`` option names without the leading ``--``.
 RECOMMENDED_TRAINING: dict[str, object] = {
-    "model": "mcsa-cnn", "representation": "logspec", "epochs": 40, "lr": 3e-3, "patience": 6,
+    "model": "spectrum-cnn", "representation": "logspec", "epochs": 40, "lr": 3e-3, "patience": 6,
 }
 
 #: The skops type names of everything rvdiag itself puts into a saved classical pipeline.
@@ -97,4 +101,4 @@ def register_trusted_type(name: str) -> None:
     TRUSTED_TYPES.add(name)
 
 
-__all__ = ["CLASSICAL_MODELS", "CNN_MODELS", "RECOMMENDED_TRAINING", "TRUSTED_TYPES", "register_trusted_type"]
+__all__ = ["CLASSICAL_MODELS", "CNN_MODELS", "OLD_MODEL_NAMES", "RECOMMENDED_TRAINING", "TRUSTED_TYPES", "register_trusted_type"]

@@ -5,7 +5,8 @@ Every module in this package other than ``__init__`` and names starting with ``_
 by :func:`pkgutil.iter_modules`, so adding a command never means editing this file.
 
 Errors: an :class:`rvdiag.errors.RvdiagError` (and a missing or unreadable file) becomes one line
-``error: <message>`` on stderr and exit code 2, never a traceback.
+``error: <message>`` on stderr and exit code 2, never a traceback.  Warnings (:mod:`warnings`) become one line
+``warning: <message>`` on stderr, each distinct message once per command (:func:`_show_warning`).
 """
 
 from __future__ import annotations
@@ -61,22 +62,31 @@ def build_app() -> typer.Typer:
     return app
 
 
+#: the warning lines already printed by this command (each distinct message once per command)
+_shown: set[str] = set()
+
+
 def _show_warning(message, category, filename, lineno, file=None, line=None):  # noqa: ANN001
-    """rvdiag's own warnings as one line ``warning: ...`` on stderr (no source line); others as Python shows them."""
+    """Every warning as one line ``warning: ...`` on stderr, each distinct one once per command, without the
+    source path and line Python prints (those say where rvdiag noticed, not what the user can do).  rvdiag's own
+    warnings (:class:`rvdiag.errors.RvdiagWarning`) are their message; others (numpy, a library) keep their
+    category's name in front.  Warnings raised in Dask worker processes come back here through
+    :mod:`rvdiag.library.worker_warnings`."""
     from rvdiag.errors import RvdiagWarning
 
-    if issubclass(category, RvdiagWarning):
-        typer.echo(f"warning: {' '.join(str(message).split())}", err=True)
-    else:
-        _python_showwarning(message, category, filename, lineno, file, line)
-
-
-_python_showwarning = warnings.showwarning
+    text = " ".join(str(message).split())
+    if not issubclass(category, RvdiagWarning):
+        text = f"{category.__name__}: {text}"
+    if text in _shown:
+        return
+    _shown.add(text)
+    typer.echo(f"warning: {text}", err=True)
 
 
 def main(argv: list[str] | None = None) -> None:
     """Entry point of the ``rvdiag`` console script."""
     warnings.showwarning = _show_warning
+    _shown.clear()
     app = build_app()
     try:
         code = app(args=argv, prog_name="rvdiag", standalone_mode=False)

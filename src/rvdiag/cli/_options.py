@@ -160,6 +160,18 @@ def deprecated(old: str, *, flag: bool = False) -> Any:
     return typer.Option(False if flag else None, old, hidden=True, help=f"Deprecated: use {DEPRECATED[old]}.")
 
 
+def renamed(option: str, value: str, old_names: dict[str, str]) -> str:
+    """``value`` of ``option``, or the name now of an old spelling in ``old_names`` (with one ``warning:`` line)."""
+    if value not in old_names:
+        return value
+    new = old_names[value]
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", DeprecatedOptionWarning)
+        warnings.warn(f"{option} {value} is the old name of {new}; use {option} {new}", DeprecatedOptionWarning,
+                      stacklevel=2)
+    return new
+
+
 def resolve(new_value: Any, old_value: Any, old: str, default: Any = None) -> Any:
     """The value of an option given under its new name or its old spelling ``old`` (which warns once).
 

@@ -2,9 +2,10 @@
 
 The signal (one channel, read by :func:`rvdiag.io.read_signal`) is cut into adjacent, non-overlapping
 windows of the model's input length (the training samples' length); the tail shorter than a window is
-not used (a warning says how many points).  Each window gets class probabilities; the overall
-probabilities are their mean, and the diagnosis is the most probable class overall.  A WARNING is
-printed when the file's sampling rate differs from the training rate, or is unknown.
+not used (``--json``: ``unused_points``).  Each window gets class probabilities; the overall
+probabilities are their mean, and the diagnosis is the most probable class overall.  A ``warning:`` line is
+printed when the file's sampling rate differs from the training rate by more than 0.1 %
+(:data:`rvdiag.models.conditions.FS_RTOL`), or is unknown.
 
 A model that reads per-sample metadata (card ``metadata_columns``, e.g. the shaft speed ``rpm`` of
 bearing-envelope features) gets it from ``--meta NAME=VALUE``, else from the file's scalar that the training
@@ -16,7 +17,7 @@ over all its whole revolutions, in a table and in ``--json`` under ``indicators`
 the shaft, where the speed came from, the shaft frequency and the revolutions averaged).  The speed is the
 first of ``--meta output_speed_deg_s=...`` (or ``input_speed_rpm=...``), the speed a simulated record states,
 and the stage-1 mesh peak of the spectrum, as ``rvdiag orders``; indicators that cannot be computed (no
-sampling rate, less than one revolution) leave ``indicators`` null and a WARNING, never a failed diagnosis.
+sampling rate, less than one revolution) leave ``indicators`` null and a ``warning:``, never a failed diagnosis.
 
 A model trained on a motor-current library (card ``training_store.signal == "current"``) reads the library's
 channel (e.g. ``i_a``) when the file has one of that name and ``--channel`` is not given, and shows the
@@ -112,6 +113,8 @@ def diagnose_signal(loaded, x: np.ndarray, fs: float | None, meta: dict[str, flo
     ``meta``: the value of each metadata column the model reads (:attr:`LoadedModel.metadata_columns`),
     the same for every window.
     """
+    from rvdiag.models.conditions import fs_ratio
+
     L = loaded.input_length
     n = int(x.size)
     warnings = []
@@ -119,17 +122,15 @@ def diagnose_signal(loaded, x: np.ndarray, fs: float | None, meta: dict[str, flo
         raise DataFileError(f"the signal has {n} points, shorter than one window of {L} points (the model's "
                             f"input length); give a longer recording")
     train_fs = loaded.fs
+    ratio = fs_ratio(fs, train_fs) if train_fs and fs else None
     if train_fs and fs is None:
-        warnings.append(f"WARNING: the file states no sampling rate; the model was trained at {train_fs:g} Hz "
+        warnings.append(f"warning: the file states no sampling rate; the model was trained at {train_fs:g} Hz "
                         "(give --fs to check)")
-    elif train_fs and fs and abs(fs - train_fs) > 1e-6 * train_fs:
-        warnings.append(f"WARNING: the signal is sampled at {fs:g} Hz but the model was trained at {train_fs:g} Hz; "
-                        "frequencies are off by a factor {:.3g}: resample first for a trustworthy diagnosis".format(fs / train_fs))
+    elif ratio is not None:
+        warnings.append(f"warning: the signal is sampled at {fs:g} Hz but the model was trained at {train_fs:g} Hz; "
+                        f"frequencies are off by a factor {ratio:.4g}: resample first for a trustworthy diagnosis")
     k = n // L
-    rest = n - k * L
-    if rest:
-        warnings.append(f"WARNING: {n} points is not a multiple of the model's {L}-point window: "
-                        f"the last {rest} points are not used")
+    rest = n - k * L  # the tail shorter than a window: routine (a 1 s record at 48 kHz is 11.7 windows), no warning
     X = x[: k * L].reshape(k, L)
     columns = {c: np.full(k, v, dtype=np.float64) for c, v in (meta or {}).items()}
     X = loaded.inputs(X, columns, where="the signal (give the value with --meta NAME=VALUE)")
@@ -149,6 +150,7 @@ def diagnose_signal(loaded, x: np.ndarray, fs: float | None, meta: dict[str, flo
         "probabilities": {c: float(p) for c, p in zip(classes, overall)},
         "n_windows": k,
         "window_length": L,
+        "unused_points": rest,
         "fs": fs,
         "training_fs": train_fs,
         "metadata": {c: float(v) for c, v in (meta or {}).items() if c in loaded.metadata_columns},
@@ -218,11 +220,11 @@ def build_diagnosis(loaded, sig, values: dict, *, is_current: bool, output_speed
     if is_current:
         res.update(file_current_lines(sig, values))
         if res["current_lines"] is None:
-            res["warnings"].append(f"WARNING: no current line table: {res['current_lines_error']}")
+            res["warnings"].append(f"warning: no current line table: {res['current_lines_error']}")
     else:
         res.update(file_indicators(sig, speed))
         if res["indicators"] is None:
-            res["warnings"].append(f"WARNING: no gear condition indicators: {res['indicators_source']['error']}")
+            res["warnings"].append(f"warning: no gear condition indicators: {res['indicators_source']['error']}")
     return res
 
 

@@ -44,7 +44,7 @@ def register(app: typer.Typer) -> None:
                                          help="Metadata column whose values group the samples by operating speed."),
         feature_sets: str = typer.Option("time,wpt,cnn", "--feature-sets",
                                          help="Comma-separated: time (10 time-domain statistics) | wpt (level-4 "
-                                              "wavelet-packet energies) | cnn (features of the mcsa-cnn)."),
+                                              "wavelet-packet energies) | cnn (features of the spectrum-cnn)."),
         repeats: int = typer.Option(10, "--repeats", help="Random splits per speed and feature set."),
         test_size: float = typer.Option(0.3, "--test-size", help="Share of each class on the test side of a split."),
         seed: int = opt.seed("Seed the split seeds (and CNN seeds) derive from; recorded in mcsa.json."),

@@ -1,6 +1,6 @@
 """``rvdiag train``: train a CNN or a classical model on a sample store and save it as a model directory.
 
-    rvdiag train DATA.zarr -o MODEL_DIR [--model cnn1d|cnn1d-lean|mcsa-cnn|svm|kelm|kelm-mpa|kelm-ga|kelm-pso]
+    rvdiag train DATA.zarr -o MODEL_DIR [--model cnn1d|cnn1d-lean|spectrum-cnn|svm|kelm|kelm-mpa|kelm-ga|kelm-pso]
                  [--features time|spectrum|spectrum-abs|logspec|envelope|bearing-envelope|wpd|eemd|none|cnn]
                  [--epochs N] [--device auto|cpu|cuda] [--seed N] [--repeat N]
                  [--bearing-geometry N_BALLS,D_BALL_MM,D_PITCH_MM,CONTACT_DEG] [--rpm-column NAME]
@@ -11,7 +11,7 @@ bearing's geometry and reads each sample's shaft speed (rev/min) from the store'
 ``--rpm-column``; the model card records the column, and ``evaluate`` / ``diagnose`` supply it.
 
 With no options it trains the setup docs/results.md recommends (:data:`rvdiag.registry.RECOMMENDED_TRAINING`:
-``mcsa-cnn`` on ``--representation logspec``, 40 epochs, lr 3e-3, patience 6).  The model names are those of
+``spectrum-cnn`` on ``--representation logspec``, 40 epochs, lr 3e-3, patience 6).  The model names are those of
 :mod:`rvdiag.registry`.  Trains on the store's ``train`` split, scores the ``test`` split (when present) into
 the model card, and with ``--repeat N`` trains N seeds (seed, seed+1, ...) and prints best / mean accuracy per
 class.
@@ -40,7 +40,7 @@ from rvdiag.cli import _options as opt
 from rvdiag.cli._progress import bar_columns, progress_bars, stderr_console
 from rvdiag.cli._store_info import signal_info, training_store_info
 from rvdiag.errors import ParameterError, StoreError
-from rvdiag.registry import CLASSICAL_MODELS, CNN_MODELS, RECOMMENDED_TRAINING
+from rvdiag.registry import CLASSICAL_MODELS, CNN_MODELS, OLD_MODEL_NAMES, RECOMMENDED_TRAINING
 
 #: Python parameters of :class:`rvdiag.models.torch_estimator.CNNClassifier` -> the options that set them.
 CNN_OPTION_NAMES = {"max_epochs": "--epochs", "batch_size": "--batch-size", "n_iter_no_change": "--patience",
@@ -205,7 +205,7 @@ def register(app: typer.Typer) -> None:
         batch_size: int = typer.Option(32, "--batch-size", help="CNN mini-batch size."),
         lr: float = typer.Option(RECOMMENDED_TRAINING["lr"], "--lr", help="CNN Adam learning rate."),
         input_length: int = typer.Option(None, "--input-length",
-                                         help="CNN input in points (default: 6400 cnn1d, 4096 mcsa-cnn, sample length for cnn1d-lean)."),
+                                         help="CNN input in points (default: 6400 cnn1d, 4096 spectrum-cnn, sample length for cnn1d-lean)."),
         patience: int = typer.Option(RECOMMENDED_TRAINING["patience"], "--patience",
                                      help="CNN early-stopping patience (epochs)."),
         validation_fraction: float = typer.Option(0.2, "--validation-fraction",
@@ -254,12 +254,13 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Train a classifier on the train split of a store and save it as a model directory.
 
-        With no options: the recommended setup of docs/results.md (mcsa-cnn on the log spectrum)."""
+        With no options: the recommended setup of docs/results.md (spectrum-cnn on the log spectrum)."""
         from rvdiag.datasets import SampleStore
         from rvdiag.evaluation.metrics import classification_metrics, headline, repeat_summary
         from rvdiag.models.persistence import save_model
         from rvdiag.io.windows import covering_starts
 
+        model = opt.renamed("--model", model, OLD_MODEL_NAMES)
         if repeat < 1:
             raise ParameterError(f"--repeat must be >= 1, got {repeat}")
         if epochs < 1:

@@ -120,8 +120,9 @@ def register(app: typer.Typer) -> None:
                 with opt.option_names(UPDATE_OPTION_NAMES):
                     result = update_parameters(base, sig.data, sig.fs, progress=progress, **kw)
 
+        pcc_b, pcc_a = _told_apart(result.pcc_before, result.pcc_after, 4)
         comment = (f"updated by rvdiag update from {measured_file.name}: was {{was}}, {objective} PCC before/after "
-                   f"{result.pcc_before:.4f}/{result.pcc_after:.4f}")
+                   f"{pcc_b}/{pcc_a}")
         toml_text = annotated_toml(base, result.params_after, text, comment)
         try:
             out.write_text(toml_text, encoding="utf-8")
@@ -136,12 +137,32 @@ def register(app: typer.Typer) -> None:
             typer.echo(json.dumps({
                 "pcc_before": result.pcc_before, "pcc_after": result.pcc_after, "objective": objective,
                 "parameters": {k: [b, a] for k, (b, a) in result.values.items()},
+                "updated": list(result.updated), "best_gain": result.best_gain, "min_gain": result.min_gain,
                 "evaluations": result.evaluations, "seed": seed, "out": str(out),
             }, indent=2))
             return
-        typer.echo(f"{objective} PCC {result.pcc_before:.4f} -> {result.pcc_after:.4f} "
-                   f"({result.evaluations} simulations, seed {seed})")
+        runs = f"{result.evaluations} simulations, seed {seed}"
+        if result.updated:
+            typer.echo(f"{objective} PCC {pcc_b} -> {pcc_a} ({runs})")
+        elif result.best_gain == 0.0:
+            typer.echo(f"{objective} PCC {pcc_b}: no set found matches better than the base set; its values are "
+                       f"kept ({runs})")
+        else:
+            typer.echo(f"{objective} PCC {pcc_b}: the best set found raises it by {result.best_gain:+.2g}, not more "
+                       f"than {result.min_gain:g}; the base values are kept ({runs})")
         for name, (b, a) in result.values.items():
-            mark = "" if a == b else "  (updated)"
-            typer.echo(f"  {name:24s} {b:12.5g} -> {a:12.5g}{mark}")
+            if name in result.updated:
+                tb, ta = _told_apart(b, a, 5)
+                typer.echo(f"  {name:24s} {tb:>12s} -> {ta:>12s}  (updated)")
+            else:
+                typer.echo(f"  {name:24s} {b:12.5g}    (unchanged)")
         typer.echo(f"wrote {out}" + (f" and {plot}" if plot is not None else ""))
+
+
+def _told_apart(before: float, after: float, digits: int) -> tuple[str, str]:
+    """``before`` and ``after`` with the fewest significant digits, at least ``digits``, that tell them apart."""
+    for n in range(digits, 18):
+        tb, ta = f"{before:.{n}g}", f"{after:.{n}g}"
+        if tb != ta or before == after:
+            break
+    return tb, ta

@@ -10,6 +10,7 @@ import numpy as np
 from rvdiag.errors import ModelFileError
 from rvdiag.evaluation.metrics import classification_metrics
 from rvdiag.models.novelty import learned_features
+from rvdiag.models.conditions import fs_ratio
 from rvdiag.progress import report
 
 
@@ -49,8 +50,8 @@ def check_store_matches(card: dict, store) -> list[str]:
             f"the store {store.path} has classes {unknown} the model was not trained on "
             f"(model classes: {', '.join(map(str, card['classes']))})")
     warnings = []
-    if card.get("fs") and store.fs and abs(float(card["fs"]) - float(store.fs)) > 1e-6 * float(card["fs"]):
-        warnings.append(f"WARNING: the store's fs {store.fs:g} Hz differs from the training fs {card['fs']:g} Hz")
+    if card.get("fs") and store.fs and fs_ratio(store.fs, card["fs"]) is not None:
+        warnings.append(f"warning: the store's fs {store.fs:g} Hz differs from the training fs {card['fs']:g} Hz")
     return warnings
 
 

@@ -22,7 +22,7 @@ Feature sets (:data:`FEATURE_SETS`):
           study's set, so the existing ``time`` features are used as they are;
 ``wpt``   the relative energies of the 16 bands of a level-4 wavelet-packet decomposition
           (:class:`rvdiag.features.wavelet.WaveletPacketEnergy`, ``db4``, frequency order);
-``cnn``   the 32 FC activations of the study's CNN (``mcsa-cnn``, Table 5, 1 x 4096 input;
+``cnn``   the 32 FC activations of the study's CNN (``spectrum-cnn``, Table 5, 1 x 4096 input;
           :class:`rvdiag.models.cnn_features.CNNFeatures`), trained on the training side of each split only.
 
 ``time`` and ``wpt`` learn nothing from the data, so their features are computed once per speed and split
@@ -60,7 +60,7 @@ FORMAT = "rvdiag-mcsa/1"
 FEATURE_SETS = {
     "time": "time-domain statistics (10)",
     "wpt": "wavelet-packet energies (level 4)",
-    "cnn": "CNN features (mcsa-cnn FC 32)",
+    "cnn": "CNN features (spectrum-cnn FC 32)",
 }
 
 #: The figures of the study on measured motor current (4 states), for comparison (docs/references.md).
@@ -315,7 +315,7 @@ def _fixed_features(name: str, settings: McsaSettings, X: np.ndarray) -> np.ndar
 def _cnn(settings: McsaSettings, seed: int):
     from rvdiag.models.cnn_features import CNNFeatures
 
-    return CNNFeatures(architecture="mcsa-cnn", input_length=settings.cnn_input_length,
+    return CNNFeatures(architecture="spectrum-cnn", input_length=settings.cnn_input_length,
                        max_epochs=int(settings.cnn_epochs), batch_size=int(settings.cnn_batch_size),
                        learning_rate=float(settings.cnn_lr), n_iter_no_change=int(settings.cnn_patience),
                        validation_fraction=float(settings.cnn_validation_fraction), device=settings.device,

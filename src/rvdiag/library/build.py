@@ -52,6 +52,8 @@ from rvdiag.library.units import (_TWIN_POWERS, Job, Unit, UnitResult, _streams,
                                   resolve_simulator, run_unit, segment_starts, simulate_unit, simulator_call,
                                   twin_key, twin_power, unit_params, window_angles)
 
+from rvdiag.library.worker_warnings import Caught, caught, reissue
+
 #: Key added to the stored config so that its hash also covers the reducer parameter values.
 PARAMS_HASH_KEY = "reducer_params_hash"
 #: Key added to the stored config so that its hash also covers the simulator's physics revision
@@ -392,8 +394,11 @@ def _check_resume_device(out: Path, builder: StoreBuilder, device: str) -> None:
                          "another --out")
 
 
-def _unit_handler(write: Callable[[UnitResult], None], advance: Callable[[], None]) -> Callable[[UnitResult], None]:
-    def handle(res: UnitResult) -> None:
+def _unit_handler(write: Callable[[UnitResult], None],
+                  advance: Callable[[], None]) -> Callable[[tuple[UnitResult, Caught]], None]:
+    def handle(outcome: tuple[UnitResult, Caught]) -> None:
+        res, warned = outcome
+        reissue(warned)
         write(res)
         advance()
 
@@ -425,9 +430,11 @@ def _ensemble_handler(write: Callable[[UnitResult], None], advance: Callable[[],
     return handle
 
 
-def _run_checked(unit: Unit, job: Job) -> UnitResult:
+def _run_checked(unit: Unit, job: Job) -> tuple[UnitResult, Caught]:
+    """:func:`run_unit` (the task), with the warnings it raised (carried back to the build's process, which
+    shows each once: :mod:`rvdiag.library.worker_warnings`)."""
     try:
-        return run_unit(unit, job)
+        return caught(run_unit, unit, job)
     except RvdiagError as exc:
         raise type(exc)(f"simulation {unit.index} ({unit.state} #{unit.sim_index}): {exc}") from None
 

@@ -12,7 +12,7 @@ TunedKELM                 KELM with (C, sigma) tuned by MPA, GA or PSO
 CompoundFaultClassifier   three binary classifiers (broken, worn, cracked) decoded to T1..T6 (--multilabel)
 BaselineMonitor           health index, alarm at a stated false-alarm rate and state of a record against its
                           reducer's own baseline (docs/monitoring.md); save_monitor writes it
-CNNClassifier             1-D CNN classifier with the scikit-learn API (cnn1d, cnn1d-lean, mcsa-cnn)
+CNNClassifier             1-D CNN classifier with the scikit-learn API (cnn1d, cnn1d-lean, spectrum-cnn)
 CNNFeatures               the ``cnn`` feature set: a CNN's last hidden layer as features
 save_model, load_model    model directories (card.json + model.safetensors | model.skops)
 read_card                 the one reader of the model card

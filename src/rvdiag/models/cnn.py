@@ -22,8 +22,9 @@ Three architectures, all taking a batch of shape ``(n, 1, input_length)`` and re
     parameters, trains an order of magnitude faster on a CPU, and accepts any input length (the global
     pooling makes the head independent of the length).  See ``docs/models.md`` for the comparison.
 
-``mcsa-cnn`` — :class:`McsaCNN`, the motor-current study's network (Li, Zhao et al. 2024,
-    Table 5): input 4096 points; conv kernel 7 / 8 channels; max-pool 3 stride 2; conv 5 / 8; pool;
+``spectrum-cnn`` — :class:`SpectrumCNN` (``mcsa-cnn`` before), the motor-current study's network (Li, Zhao
+    et al. 2024, Table 5), named for what rvdiag uses it for by default: its flattened FC head keeps where a
+    feature lies, so on a log spectrum it knows the frequency of a line.  Table 5: input 4096 points; conv kernel 7 / 8 channels; max-pool 3 stride 2; conv 5 / 8; pool;
     conv 3 / 16; pool; FC 32; output.  The table gives no padding: we use "same" padding (k // 2),
     stride 1 in the convs, and ReLU after each conv and the FC layer.  The 32-unit FC output is the
     feature vector used by the CNN + SVM pipeline (:mod:`rvdiag.models.cnn_features`).
@@ -38,12 +39,18 @@ import torch
 from torch import nn
 
 from rvdiag.errors import ParameterError
-from rvdiag.registry import CNN_MODELS
+from rvdiag.registry import CNN_MODELS, OLD_MODEL_NAMES
 
 ARCHITECTURES = CNN_MODELS  # the names are registered below every layer (rvdiag.registry)
 
 #: Native input length of each architecture (points per window).  ``None``: any length.
-DEFAULT_INPUT_LENGTH = {"cnn1d": 6400, "cnn1d-lean": None, "mcsa-cnn": 4096}
+DEFAULT_INPUT_LENGTH = {"cnn1d": 6400, "cnn1d-lean": None, "spectrum-cnn": 4096}
+
+
+def architecture_name(name: str) -> str:
+    """The architecture's name now: an old spelling (:data:`rvdiag.registry.OLD_MODEL_NAMES`, e.g. ``mcsa-cnn`` in
+    the card of a model saved before the rename) maps to its new name; other names are returned as they are."""
+    return OLD_MODEL_NAMES.get(name, name)
 
 
 def conv_output_length(length: int, kernel: int, stride: int = 1, padding: int = 0) -> int:
@@ -151,7 +158,7 @@ class LeanCNN1D(nn.Module):
         return self.out(self.features(x))
 
 
-class McsaCNN(nn.Module):
+class SpectrumCNN(nn.Module):
     """The CNN of Li, Zhao et al. 2024 (motor current, Table 5); see the module docstring.
 
     Parameters
@@ -164,7 +171,7 @@ class McsaCNN(nn.Module):
     def __init__(self, n_classes: int, input_length: int = 4096):
         super().__init__()
         if input_length < 4:
-            raise ParameterError(f"mcsa-cnn needs windows of at least 4 points, got {input_length}")
+            raise ParameterError(f"spectrum-cnn needs windows of at least 4 points, got {input_length}")
         self.input_length = int(input_length)
         self.conv = nn.Sequential(
             nn.Conv1d(1, 8, 7, padding=3), nn.ReLU(), nn.MaxPool1d(3, 2, ceil_mode=True),
@@ -184,14 +191,19 @@ class McsaCNN(nn.Module):
         return self.out(self.features(x))
 
 
+#: the old name of :class:`SpectrumCNN`
+McsaCNN = SpectrumCNN
+
+
 def build_network(architecture: str, n_classes: int, input_length: int, **kw) -> nn.Module:
     """Instantiate one of :data:`ARCHITECTURES` for ``n_classes`` and windows of ``input_length`` points."""
     if architecture == "cnn1d":
         return PaperCNN1D(n_classes, input_length, **kw)
     if architecture == "cnn1d-lean":
         return LeanCNN1D(n_classes, input_length, **kw)
-    if architecture == "mcsa-cnn":
-        return McsaCNN(n_classes, input_length, **kw)
+    architecture = architecture_name(architecture)
+    if architecture == "spectrum-cnn":
+        return SpectrumCNN(n_classes, input_length, **kw)
     raise ParameterError(f"unknown architecture {architecture!r}; choose one of {', '.join(ARCHITECTURES)}")
 
 

@@ -1,7 +1,7 @@
 """Feature set ``cnn``: the CNN of Li, Zhao et al. 2024 as a feature extractor (CNN features + SVM).
 
 Li, Zhao et al. (2024, motor-current study) train the CNN of their Table 5 (see
-:class:`rvdiag.models.cnn.McsaCNN`) on the labelled windows and feed the 32 activations of its FC layer
+:class:`rvdiag.models.cnn.SpectrumCNN`) on the labelled windows and feed the 32 activations of its FC layer
 to an SVM; they report > 96 % on measured motor current against <= 83.75 % for time-domain features.
 
 :class:`CNNFeatures` is a supervised scikit-learn transformer: ``fit(X, y)`` trains the CNN (through
@@ -25,13 +25,13 @@ from rvdiag.features import as_signal_matrix
 
 
 class CNNFeatures(TransformerMixin, BaseEstimator):
-    """Learned features of a 1-D CNN (default: the motor-current paper's ``mcsa-cnn``).
+    """Learned features of a 1-D CNN (default: the motor-current paper's ``spectrum-cnn``).
 
     Parameters
     ----------
-    architecture : {"mcsa-cnn", "cnn1d-lean", "cnn1d"}
+    architecture : {"spectrum-cnn", "cnn1d-lean", "cnn1d"}
     input_length : int or None
-        Network input; None = the architecture's native length (4096 for mcsa-cnn), or the sample
+        Network input; None = the architecture's native length (4096 for spectrum-cnn), or the sample
         length when the samples are shorter (then the network is built for that length).
     max_epochs, batch_size, learning_rate, validation_fraction, n_iter_no_change, device, random_state :
         as :class:`rvdiag.models.torch_estimator.CNNClassifier`.
@@ -45,7 +45,7 @@ class CNNFeatures(TransformerMixin, BaseEstimator):
     window_starts_ : ndarray of int
     """
 
-    def __init__(self, architecture: str = "mcsa-cnn", input_length: int | None = None, max_epochs: int = 30,
+    def __init__(self, architecture: str = "spectrum-cnn", input_length: int | None = None, max_epochs: int = 30,
                  batch_size: int = 32, learning_rate: float = 1e-3, validation_fraction: float = 0.2,
                  n_iter_no_change: int = 5, device: str = "auto", random_state: int = 0):
         self.architecture = architecture
@@ -59,12 +59,13 @@ class CNNFeatures(TransformerMixin, BaseEstimator):
         self.random_state = random_state
 
     def _classifier(self, length: int):
-        from rvdiag.models.cnn import DEFAULT_INPUT_LENGTH
+        from rvdiag.models.cnn import DEFAULT_INPUT_LENGTH, architecture_name
         from rvdiag.models.torch_estimator import CNNClassifier
 
         W = self.input_length
-        if W is None and DEFAULT_INPUT_LENGTH.get(self.architecture) is not None:
-            W = min(DEFAULT_INPUT_LENGTH[self.architecture], length)
+        native = DEFAULT_INPUT_LENGTH.get(architecture_name(self.architecture))
+        if W is None and native is not None:
+            W = min(native, length)
         return CNNClassifier(architecture=self.architecture, input_length=W, max_epochs=self.max_epochs,
                              batch_size=self.batch_size, learning_rate=self.learning_rate,
                              validation_fraction=self.validation_fraction,

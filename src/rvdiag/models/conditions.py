@@ -26,6 +26,9 @@ LEVEL_FACTOR = 10.0
 WEAK_RECALL = 0.9
 #: a class b confused with a: at least this share of b's held-out samples diagnosed a
 CONFUSION_SHARE = 0.1
+#: sampling rates closer than this (relative) are the same rate: a rate read from a time column is off by far
+#: less (48000.768 Hz from 9-digit times), and 0.1 % moves a 4 kHz line by 4 Hz, less than a 4096-point bin
+FS_RTOL = 1e-3
 
 
 def signal_rms(X: np.ndarray) -> np.ndarray:
@@ -90,6 +93,12 @@ def condition_warnings(rng: Mapping | None, *, conditions: Mapping[str, float | 
                        f"training samples' {_fmt(lv['rms_p01'])}-{_fmt(lv['rms_p99'])}{unit} (another unit or "
                        f"sensor?); {lv.get('note', '')}")
     return out
+
+
+def fs_ratio(fs: float, train_fs: float) -> float | None:
+    """``fs / train_fs`` when the two rates differ by more than :data:`FS_RTOL`, else None (the same rate)."""
+    ratio = float(fs) / float(train_fs)
+    return None if abs(ratio - 1.0) <= FS_RTOL else ratio
 
 
 def class_limits(metrics: Mapping | None) -> dict:

@@ -73,7 +73,7 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from rvdiag.errors import ParameterError
 from rvdiag.io.windows import COVER_POLICIES, covering_starts
-from rvdiag.models.cnn import ARCHITECTURES, DEFAULT_INPUT_LENGTH, build_network
+from rvdiag.models.cnn import ARCHITECTURES, DEFAULT_INPUT_LENGTH, architecture_name, build_network
 
 NORMALIZATIONS = ("window", "global", "none")
 LONG_INPUT = COVER_POLICIES
@@ -147,11 +147,11 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
 
     Parameters
     ----------
-    architecture : {"cnn1d", "cnn1d-lean", "mcsa-cnn"}
+    architecture : {"cnn1d", "cnn1d-lean", "spectrum-cnn"}
         Network, see :mod:`rvdiag.models.cnn`.
     input_length : int or None
         Network input in points.  None: the architecture's native length (6400 for ``cnn1d``, 4096 for
-        ``mcsa-cnn``) or, for ``cnn1d-lean``, the sample length; it is capped at the sample length only
+        ``spectrum-cnn``) or, for ``cnn1d-lean``, the sample length; it is capped at the sample length only
         for ``cnn1d-lean``, the others raise if samples are shorter.
     long_input : {"window", "crop"}
         What to do with samples longer than the input (module docstring).
@@ -234,7 +234,7 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
 
     # ------------------------------------------------------------------ validation
     def _check_params(self, length: int) -> int:
-        if self.architecture not in ARCHITECTURES:
+        if architecture_name(self.architecture) not in ARCHITECTURES:
             raise ParameterError(f"unknown architecture {self.architecture!r}; choose one of {', '.join(ARCHITECTURES)}")
         if self.normalize not in NORMALIZATIONS:
             raise ParameterError(f"normalize must be one of {NORMALIZATIONS}, got {self.normalize!r}")
@@ -250,7 +250,7 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
             raise ParameterError(f"validation_fraction must be in [0, 1), got {self.validation_fraction}")
         if not float(self.learning_rate) > 0:
             raise ParameterError(f"learning_rate must be > 0, got {self.learning_rate}")
-        W = self.input_length if self.input_length is not None else DEFAULT_INPUT_LENGTH[self.architecture]
+        W = self.input_length if self.input_length is not None else DEFAULT_INPUT_LENGTH[architecture_name(self.architecture)]
         if W is None:
             W = length
         W = int(W)

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 from rvdiag.updating.objectives import OBJECTIVES, Objective, envelope_spectrum, log_spectrum, pcc
 from rvdiag.updating.space import TUNABLE_NAMES, TUNABLES, Tunable, apply_values, bounds_for
-from rvdiag.updating.tuner import UpdateResult, update_parameters
+from rvdiag.updating.tuner import MIN_PCC_GAIN, MOVED_RTOL, UpdateResult, update_parameters
 
 __all__ = [
-    "OBJECTIVES", "Objective", "TUNABLES", "TUNABLE_NAMES", "Tunable", "UpdateResult", "apply_values",
+    "MIN_PCC_GAIN", "MOVED_RTOL", "OBJECTIVES", "Objective", "TUNABLES", "TUNABLE_NAMES", "Tunable", "UpdateResult", "apply_values",
     "bounds_for", "envelope_spectrum", "log_spectrum", "pcc", "update_parameters",
 ]

@@ -17,6 +17,11 @@ simulated record they are fitted by a cheap inner search (a grid of resonance fr
 bounded scalar search of frequency and damping) on the record filtered by the candidate path.  The outer search
 therefore runs over the structural parameters only, and the budget counts simulations.  Identical parameter
 vectors are looked up in a cache, never simulated twice.  The result depends on the seed only.
+
+What counts as a change: the search works on the unit cube, and a base value mapped there and back comes out
+moved in its last bits (1e8 -> 100000000.00000018).  A value within :data:`MOVED_RTOL` of its base is therefore
+the base value, and the base set is kept whole unless the best set found raises the PCC by more than
+:data:`MIN_PCC_GAIN` (a change that does not improve the match by more is not supported by the record).
 """
 
 from __future__ import annotations
@@ -39,6 +44,11 @@ from rvdiag.updating.space import Bound, apply_values, bounds_for
 _STEP_RATE_HZ = 432000.0
 #: points of the inner grid of path-resonance frequencies (log-spaced over the bounds, besides "none")
 _PATH_GRID = 24
+#: a tuned value within this relative distance of its base value has not moved (the unit-cube round trip
+#: moves a base value by ~1e-15; the search's smallest steps, 1e-3 of the unit cube, by more than 1e-4)
+MOVED_RTOL = 1e-6
+#: the PCC gain the best set found must exceed to replace the base set
+MIN_PCC_GAIN = 1e-3
 
 
 @dataclass
@@ -50,8 +60,16 @@ class UpdateResult:
     params_before, params_after : ReducerParams
     objective : str
     pcc_before, pcc_after : float
-        Score of the base and of the updated set, each from a full :func:`rvdiag.dynamics.simulate` run.
+        Score of the base and of the updated set, each from a full :func:`rvdiag.dynamics.simulate` run
+        (equal when the base set is kept).
     values : dict of name -> (before, after)
+        ``after`` is exactly ``before`` for a value that did not move (see :data:`MOVED_RTOL`).
+    updated : tuple of str
+        Names of the values that moved; empty when the base set is kept.
+    best_gain : float
+        PCC of the best set found minus ``pcc_before`` (0 when no value moved).  The set replaces the base
+        only when this exceeds ``min_gain``.
+    min_gain : float
     evaluations : int
         Simulations run (search, base and the final check; cache hits not counted).
     seed : int
@@ -68,6 +86,9 @@ class UpdateResult:
     pcc_before: float
     pcc_after: float
     values: dict[str, tuple[float, float]]
+    updated: tuple[str, ...]
+    best_gain: float
+    min_gain: float
     evaluations: int
     seed: int
     fs: float
@@ -209,6 +230,7 @@ def update_parameters(
     channel: int = 0,
     max_evals: int = 150,
     seed: int = 0,
+    min_gain: float = MIN_PCC_GAIN,
     progress: Callable[[int, int, float], None] | None = None,
 ) -> UpdateResult:
     """Tune the parameters ``names`` (default all of :data:`rvdiag.updating.space.TUNABLES`) of ``base``.
@@ -234,6 +256,9 @@ def update_parameters(
         Simulations allowed in all (the base, the search and the final check).
     seed : int
         Seed of the differential evolution; the result depends on nothing else.
+    min_gain : float
+        PCC gain over the base set that the best set found must exceed to replace it (default
+        :data:`MIN_PCC_GAIN`); below it the base set is returned unchanged.
     progress : callable, optional
         ``progress(simulations_done, max_evals, best_pcc)``.
 
@@ -252,6 +277,8 @@ def update_parameters(
                              f"model updating needs at least {duration_s:g} s ({n_sim} samples)")
     if max_evals < 3:
         raise ParameterError(f"max_evals must be >= 3 (base, one search point, final check), got {max_evals}")
+    if not (math.isfinite(min_gain) and min_gain >= 0):
+        raise ParameterError(f"min_gain must be >= 0, got {min_gain}")
     obj = Objective(objective, measured, fs, n_sim)
     bounds = bounds_for(base, names, fs)
     settings = ModelSettings(transient_s=transient_s, substeps=max(2, math.ceil(_STEP_RATE_HZ / fs)))
@@ -295,19 +322,34 @@ def update_parameters(
                 pass
 
     _, u_best, path_best = ev.best
-    values = ev.struct_values(u_best)
-    values.update(path_best)
-    params_after = apply_values(base, values)
-    ev.n_sims += 1
-    res = simulate(params_after, None, **sim)
-    signal_after = np.asarray(res.signal[channel], dtype=np.float64)
-    pcc_after = obj.score(signal_after)
-    table = {b.name: (b.base, float(values.get(b.name, b.base))) for b in bounds}
+    found = ev.struct_values(u_best)
+    found.update(path_best)
+    after = {b.name: _unless_unmoved(b.base, float(found.get(b.name, b.base))) for b in bounds}
+    moved = tuple(b.name for b in bounds if after[b.name] != b.base)
+    params_after, signal_after, pcc_after, gain = base, signal_before, pcc_before, 0.0
+    if moved:
+        candidate = apply_values(base, {name: after[name] for name in moved})
+        ev.n_sims += 1
+        res = simulate(candidate, None, **sim)
+        signal = np.asarray(res.signal[channel], dtype=np.float64)
+        score = obj.score(signal)
+        gain = score - pcc_before
+        if gain > min_gain:
+            params_after, signal_after, pcc_after = candidate, signal, score
+        else:
+            moved = ()
+    table = {b.name: (b.base, after[b.name] if b.name in moved else b.base) for b in bounds}
     return UpdateResult(
         params_before=base, params_after=params_after, objective=objective, pcc_before=pcc_before,
-        pcc_after=pcc_after, values=table, evaluations=ev.n_sims, seed=seed, fs=fs, measured=measured,
-        signal_before=signal_before, signal_after=signal_after, history=ev.history,
+        pcc_after=pcc_after, values=table, updated=moved, best_gain=gain, min_gain=min_gain,
+        evaluations=ev.n_sims, seed=seed, fs=fs, measured=measured, signal_before=signal_before,
+        signal_after=signal_after, history=ev.history,
     )
+
+
+def _unless_unmoved(base: float, value: float) -> float:
+    """``value``, or exactly ``base`` when it lies within :data:`MOVED_RTOL` of it."""
+    return base if math.isclose(value, base, rel_tol=MOVED_RTOL, abs_tol=0.0) else value
 
 
 def _step(x0: np.ndarray, i: int, h: float) -> np.ndarray:
