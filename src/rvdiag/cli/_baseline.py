@@ -365,10 +365,7 @@ def diagnose_monitor(loaded, sig, baseline: Path | None, values: dict, *, output
     alpha = float((loaded.card.get("alarm") or {}).get("alpha", loaded.estimator.alpha))
     res = {"health_index": None, "alarm": None, "false_alarm_rate": alpha, "p_value": None, "state": None,
            "state_name": None, "probability": None, "changes": [], "n_windows": k, "window_length": L,
-           "fs": float(sig.fs), "windows": [], "warnings": []}
-    if x.size > k * L:
-        res["warnings"].append(f"WARNING: {x.size} points is not a multiple of the model's {L}-point window: the "
-                               f"last {x.size - k * L} points are not used")
+           "fs": float(sig.fs), "windows": [], "warnings": [], "unused_points": int(x.size - k * L)}
     if load is None:
         raise ParameterError("the record's load is needed to find its baseline: give --load N_M (output torque)")
     speed = record_speed(sig, values)
