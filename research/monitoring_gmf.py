@@ -20,7 +20,9 @@ Sigma_rr the Ledoit-Wolf-shrunk covariance of the simulated draws and sigma^2 th
 
 - oracle / nominal: Sigma_rr and delta from the reducer's own parameters or from the nominal ones;
 - "model mean": mu the mean of the simulated draws instead of the baseline (the bound's healthy signal known);
-- "unwhitened": the correlator delta^T (y - mu) (white-noise matched filter) for comparison.
+- "unwhitened": the correlator delta^T (y - mu) (white-noise matched filter) for comparison;
+- crossed: the oracle template with the nominal Sigma_rr, and the nominal template with the oracle Sigma_rr;
+- "no shrinkage": the sample covariance of the draws (rank K - 1) plus sigma^2 I only.
 
 Thresholds: leave-3-reducers-out (4 folds); the split-conformal quantile of the other 9 reducers' 108 healthy
 monitored records at 1 % and 5 %.  ``--extra-db`` adds white noise so that the floor lies that many dB lower
@@ -100,7 +102,8 @@ def evaluate(X, meta, ops, a) -> None:
 
     nominal = {o: load(f"nominal_op{o}") for o, _, _ in ops}
     names = ["GMF oracle", "GMF nominal", "GMF oracle, model mean", "GMF nominal, model mean",
-             "unwhitened oracle", "unwhitened nominal", "GMF oracle, no shrinkage", "GMF nominal, no shrinkage"]
+             "unwhitened oracle", "unwhitened nominal", "GMF oracle, no shrinkage", "GMF nominal, no shrinkage",
+             "GMF oracle template, nominal Sigma", "GMF nominal template, oracle Sigma"]
     stat = {k: np.full(len(meta), np.nan) for k in names}
     defl = {k: [] for k in names}
     for r in np.unique(red):
@@ -127,6 +130,12 @@ def evaluate(X, meta, ops, a) -> None:
                 sd = np.sqrt((1 + 1 / b.size) * (np.sum((D @ t) ** 2) + s2 * t @ t))
                 stat[f"unwhitened {src}"][mon] = (Y[mon] - mu_b) @ t / sd
                 defl[f"unwhitened {src}"].append(float(t @ t) / sd)
+            if own is not None:       # which half of the model must be the reducer's own: the template or Sigma_rr
+                for name, tpl, H in (("GMF oracle template, nominal Sigma", own["template"], nominal[o]["draws"]),
+                                     ("GMF nominal template, oracle Sigma", nominal[o]["template"], own["draws"])):
+                    g = GeneralisedMatchedFilter(tpl, H.astype(float), noise_var[r], b.size).fit()
+                    stat[name][mon] = g.statistic(Y[mon], mu_b)
+                    defl[name].append(g.deflection_)
     report(stat, defl, red, role, state, meta, a)
 
 
@@ -178,11 +187,13 @@ def main() -> None:
     ap.add_argument("--draws", type=int, default=16)
     ap.add_argument("--extra-db", type=float, default=0.0)
     ap.add_argument("--simulate-only", action="store_true")
+    ap.add_argument("--no-simulate", action="store_true", help="evaluate with the references already simulated")
     a = ap.parse_args()
     z = np.load(a.pairs)
     X, meta = z["X"], json.loads(str(z["meta"]))
     ops = sorted({(m["op"], m["nominal_speed"], m["nominal_load"]) for m in meta})
-    references(meta, ops, a.refs, a.draws)
+    if not a.no_simulate:
+        references(meta, ops, a.refs, a.draws)
     if a.simulate_only:
         return
     evaluate(X, meta, ops, a)
