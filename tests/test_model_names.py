@@ -1,4 +1,4 @@
-"""The default network's name (issue 28 #6): ``spectrum-cnn``, once ``mcsa-cnn`` (which read as motor-current
+"""The default network's name: ``spectrum-cnn``, once ``mcsa-cnn`` (which read as motor-current
 analysis).  The old name still trains, with one ``warning:`` line, and model directories saved under it load."""
 
 from __future__ import annotations

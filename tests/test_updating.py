@@ -253,7 +253,7 @@ def base_csv(tmp_path_factory):
 
 def test_a_base_set_that_fits_best_is_returned_exactly(base_csv):
     """The base values mapped onto the unit cube and back come out moved in the last bits (1e8 ->
-    100000000.00000018): those are the base values, not an update (issue 28 #6)."""
+    100000000.00000018): those are the base values, not an update."""
     x = np.loadtxt(base_csv, delimiter=",", skiprows=1)[:, 1]
     base = ReducerParams.default()
     res = update_parameters(base, x, FS, output_speed_deg_s=SPEED, load_Nm=LOAD,

@@ -1,4 +1,4 @@
-"""Warnings as a user reads them (issue 28 #6): one ``warning: ...`` line on stderr each, every distinct message
+"""Warnings as a user reads them: one ``warning: ...`` line on stderr each, every distinct message
 once per command, no source paths, also for warnings raised in Dask worker processes; the built-in RV-20E's
 documented extrapolation is not repeated by every command; sampling rates within 0.1 % are the same rate."""
 

@@ -272,6 +272,46 @@ def simulate_varied_pairs(pair: Sequence[str], *, ranges: Mapping[str, float], d
     return {"a": a, "b": b, "A": np.array(A), "B": np.array(B), "factors": factors, "lags": lags}
 
 
+def gmf_reference(state: str = "T4", *, ranges: Mapping[str, float], draws: int, params=None,
+                  output_speed_deg_s: float, load_Nm: float, duration_s: float, fs: float, transient_s: float,
+                  model: Mapping | None = None, channel: int = 0, severities: Mapping[str, float] | None = None,
+                  seed: int = 0) -> dict:
+    """What the generalised matched filter (:class:`rvdiag.features.gmf.GeneralisedMatchedFilter`) needs at one
+    operating point, simulated: the fault's change and ``draws`` healthy records with run-to-run variation.
+
+    The nominal pair T1 / ``state`` (:func:`simulate_pair`) gives the template ``b - a``; draw ``k`` takes factors from
+    :func:`draw_run_to_run` (``np.random.default_rng(seed)``), simulates the healthy state at ``output_speed_deg_s *
+    speed`` and ``load_Nm * load`` with :func:`apply_run_to_run` parameters, times ``gain``, and is put on the nominal
+    axis by :func:`rvdiag.features.gmf.on_angle_axis` (every record starts at the same angle, as a robot's repeated
+    motion does: no lag is searched, unlike :func:`simulate_varied_pairs`).  Everything is cut to the ``n`` points
+    that every speed within ``ranges["speed"]`` covers.  Returns ``{"healthy", "template"}`` (n,), ``"draws"`` (K, n)
+    and ``"factors"`` (list of dicts).  ``draws + 2`` simulations."""
+    from rvdiag.dynamics import ModelSettings, simulate
+    from rvdiag.features.gmf import on_angle_axis
+    from rvdiag.params import ReducerParams
+
+    if isinstance(draws, bool) or not isinstance(draws, (int, np.integer)) or draws < 2:
+        raise ParameterError(f"the generalised matched filter needs at least 2 run-to-run draws, got {draws!r}")
+    p = params if params is not None else ReducerParams.default()
+    a, b = simulate_pair(["T1", state], params=p, output_speed_deg_s=output_speed_deg_s, load_Nm=load_Nm,
+                         duration_s=duration_s, fs=fs, transient_s=transient_s, model=model, channel=channel,
+                         severities=severities, seed=seed)
+    n = int((a.size - 3) * (1.0 - float(ranges.get("speed", 0.0))))
+    settings = ModelSettings(**dict(model or {}), transient_s=float(transient_s))
+    rng = np.random.default_rng(seed)
+    H, factors = [], []
+    for k in range(int(draws)):
+        report("run-to-run draws", k, int(draws))
+        f = draw_run_to_run(rng, ranges)
+        res = simulate(apply_run_to_run(p, f), None, output_speed_deg_s=output_speed_deg_s * f["speed"],
+                       load_Nm=load_Nm * f["load"], duration_s=duration_s, fs=fs, noise_snr_db=None, seed=seed,
+                       settings=settings)
+        H.append(on_angle_axis(f["gain"] * np.asarray(res.signal[channel], dtype=float), f["speed"], n))
+        factors.append(f)
+    report("run-to-run draws", int(draws), int(draws))
+    return {"healthy": a[:n], "template": (b - a)[:n], "draws": np.array(H), "factors": factors}
+
+
 def _woodbury_deflection(delta: np.ndarray, Z: np.ndarray, sigma2: float) -> float:
     """``delta^T (Z^T Z + sigma2 I)^-1 delta`` for ``Z`` (r, n) by the Woodbury identity:
     ``(||delta||^2 - (Z delta)^T (sigma2 I_r + Z Z^T)^-1 (Z delta)) / sigma2``."""
@@ -352,5 +392,5 @@ def varied_bound(sim: Mapping, window: int, snr_db: Sequence[float]) -> dict:
 
 
 __all__ = ["RUN_TO_RUN_DEFAULT", "aligned_windows", "apply_run_to_run", "bound_from_windows", "draw_run_to_run",
-           "on_nominal_axis", "parse_run_to_run", "separability_bound", "simulate_pair", "simulate_varied_pairs",
-           "varied_bound", "varied_bound_from_windows"]
+           "gmf_reference", "on_nominal_axis", "parse_run_to_run", "separability_bound", "simulate_pair",
+           "simulate_varied_pairs", "varied_bound", "varied_bound_from_windows"]
