@@ -130,3 +130,23 @@ def test_the_defaults_on_a_current_store_are_the_log_spectrum():
     assert features_kw("cnn", signal="current", **kw)["representation"] == "logspec"
     # vibration keeps the waveform the CNN features always took there
     assert features_kw("cnn", **kw)["representation"] == "waveform" == CNNFeatures().representation
+
+
+@pytest.mark.parametrize("signal, representation", [("current", "logspec"), ("vibration", "waveform")])
+def test_train_cnn_features_on_a_current_store_take_the_log_spectrum(tmp_path, capsys, signal, representation):
+    from conftest import run_cli
+    from rvdiag.datasets import write_store
+    from rvdiag.models.cnn_features import CNNFeatures
+    from rvdiag.models.persistence import load_model
+
+    X, y = _tiny_current_set(n_per_class=8, length=256)
+    split = ["train" if k % 4 else "test" for k in range(len(y))]
+    store = write_store(tmp_path / "s.zarr", X, y.tolist(), meta={"split": split, "unit": list(range(len(y)))},
+                        kind="simulated", fs=1000.0,
+                        config={"name": "tiny", "channel": "i_a", "model": {"signal": signal}})
+    code, _, err = run_cli(["train", store, "-o", tmp_path / "m", "--model", "svm", "--features", "cnn",
+                            "--epochs", "1", "--device", "cpu", "-q"], capsys)
+    assert code == 0, err
+    est = load_model(tmp_path / "m").estimator
+    found = [v for v in est.get_params(deep=True).values() if isinstance(v, CNNFeatures)]
+    assert found and {f.representation for f in found} == {representation}

@@ -24,6 +24,9 @@ Feature sets (:data:`FEATURE_SETS`):
           (:class:`rvdiag.features.wavelet.WaveletPacketEnergy`, ``db4``, frequency order);
 ``cnn``   the 32 FC activations of the study's CNN (``mcsa-cnn``, Table 5, 1 x 4096 input;
           :class:`rvdiag.models.cnn_features.CNNFeatures`), trained on the training side of each split only.
+          What the network sees of each window is ``cnn_representation``: by default its log spectrum
+          (the study's z-scored waveform stays at chance on unseen simulations, where the log spectrum finds
+          the broken tooth: docs/results.md, "Motor current"), or ``waveform`` / ``residual``.
 
 ``time`` and ``wpt`` learn nothing from the data, so their features are computed once per speed and split
 afterwards (the same figures as a pipeline refitted per split, in a fraction of the time).

@@ -9,7 +9,8 @@ fitted supply line leaves them on top:
 
 :func:`fundamental_residual` fits, per window, the supply line at the window's own electrical frequency (the
 highest peak of its spectrum, :func:`rvdiag.spectral.peak_frequency`, refined by Grandke's interpolation) by
-linear least squares and returns the residual.  The fit is the three-parameter sine fit of IEEE Std 1057
+linear least squares, with the inverter's dead-time lines ``5 f_e`` and ``7 f_e`` (:data:`SUPPLY_HARMONICS`), and
+returns the residual.  The fit is the three-parameter sine fit of IEEE Std 1057
 (known frequency: in-phase amplitude, quadrature amplitude, offset; IEEE Std 1057-2017, Annex B.1), with each of
 the three an algebraic polynomial of degree ``degree`` in time (a Legendre basis over the window), so that the
 load's slow amplitude modulation and the small error of the estimated frequency are fitted with the line
@@ -31,6 +32,11 @@ import numpy as np
 from rvdiag.errors import ParameterError
 from rvdiag.features._base import SignalTransformer
 from rvdiag.spectral import amplitude_spectrum, peak_frequency
+
+#: the lines fitted and removed by default: the supply line and the dead-time lines 5 f_e and 7 f_e that a
+#: voltage-source inverter adds (docs/model.md section 10); in the simulated current of configs/mcsa.toml
+#: these two are the largest lines left once the supply line is gone (20-30 mA against 1-2 mA sidebands)
+SUPPLY_HARMONICS = (1, 5, 7)
 
 #: the lowest supply frequency searched, in Hann bins of the window (clear of the DC line's main lobe)
 MIN_PEAK_BINS = 3
@@ -54,15 +60,16 @@ def _legendre_basis(n: int, degree: int) -> np.ndarray:
     return np.polynomial.legendre.legvander(tau, degree)
 
 
-def fundamental_residual(X, *, harmonics: Sequence[int] = (1,), degree: int = 3,
+def fundamental_residual(X, *, harmonics: Sequence[int] = SUPPLY_HARMONICS, degree: int = 3,
                          min_frequency: float | None = None, return_frequency: bool = False):
     """Each window of ``X`` (n, N) minus its least-squares supply line (module docstring).
 
     Parameters
     ----------
     X : array-like (n, N), one window per row
-    harmonics : multiples of the window's electrical frequency fitted and removed (``(1,)``: the supply line;
-        ``(1, 5, 7)`` also the dead-time lines of docs/model.md section 10)
+    harmonics : multiples of the window's electrical frequency fitted and removed (default
+        :data:`SUPPLY_HARMONICS`: the supply line and the dead-time lines; ``(1,)``: the supply line alone).
+        A multiple at or above the Nyquist frequency is skipped.
     degree : degree of the polynomials in time of the offset and of each line's in-phase and quadrature
         amplitudes (0: the plain IEEE 1057 three-parameter fit)
     min_frequency : the lowest supply frequency searched, cycles/sample (default :data:`MIN_PEAK_BINS` bins)
@@ -91,6 +98,8 @@ def fundamental_residual(X, *, harmonics: Sequence[int] = (1,), degree: int = 3,
         fe = electrical_frequency(A[i], min_frequency)
         cols = [P]
         for h in hs:
+            if h * fe >= 0.5:
+                continue
             phase = 2.0 * np.pi * h * fe * t
             cols += [P * np.cos(phase)[:, None], P * np.sin(phase)[:, None]]
         B = np.hstack(cols)
@@ -110,7 +119,8 @@ class FundamentalResidual(SignalTransformer):
 
     _min_points = 8
 
-    def __init__(self, harmonics: Sequence[int] = (1,), degree: int = 3, min_frequency: float | None = None):
+    def __init__(self, harmonics: Sequence[int] = SUPPLY_HARMONICS, degree: int = 3,
+                 min_frequency: float | None = None):
         self.harmonics = harmonics
         self.degree = degree
         self.min_frequency = min_frequency
@@ -123,4 +133,4 @@ class FundamentalResidual(SignalTransformer):
         return [f"residual{k}" for k in range(self.n_features_in_)]
 
 
-__all__ = ["FundamentalResidual", "MIN_PEAK_BINS", "electrical_frequency", "fundamental_residual"]
+__all__ = ["FundamentalResidual", "MIN_PEAK_BINS", "SUPPLY_HARMONICS", "electrical_frequency", "fundamental_residual"]
