@@ -1,4 +1,4 @@
-"""The baseline flow of the CLI (issue 27): ``train`` on a paired store, ``evaluate`` with the store's own baseline
+"""The baseline flow of the CLI: ``train`` on a paired store, ``evaluate`` with the store's own baseline
 or ``--baseline``, ``diagnose --baseline``, and their one-line errors, on a small synthetic paired store.
 
 Each synthetic reducer has its own fingerprint: the amplitudes and phases of three mesh harmonics (order 11 of the

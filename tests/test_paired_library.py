@@ -1,4 +1,4 @@
-"""Paired libraries (``[baseline]``, issue 27): each simulated reducer recorded healthy at commissioning, then in
+"""Paired libraries (``[baseline]``): each simulated reducer recorded healthy at commissioning, then in
 its states, with run-to-run variation between any two records; split by reducer; one store for both roles."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """The baseline flow of the CLI: train, evaluate and diagnose a monitor that compares a reducer with its own healthy
-baseline (issue 27; docs/monitoring.md).  ``rvdiag train`` / ``evaluate`` / ``diagnose`` branch into this module
+baseline (docs/monitoring.md).  ``rvdiag train`` / ``evaluate`` / ``diagnose`` branch into this module
 when the store is paired (:func:`rvdiag.datasets.store.is_paired`) or the model's card says ``needs_baseline``.
 
 - :func:`train_monitor`: :class:`rvdiag.models.monitoring.BaselineMonitor` on
@@ -29,7 +29,7 @@ MONITOR_FEATURES = {"tsa-change": ("none", True), "orders": (None, False), "orde
 #: the TSA change alone: the best six-state accuracy of the routes measured in docs/monitoring.md (59.5 %, false
 #: alarms 4.2 % at alpha 5 %, leave-3-reducers-out)
 DEFAULT_MONITOR_FEATURES = "tsa-change"
-#: the alarm's false-alarm rate per record (issue 27)
+#: the alarm's false-alarm rate per record
 DEFAULT_ALPHA = 0.01
 OPERATING_COLUMNS = ("output_speed_deg_s", "load_Nm")
 #: the metadata column naming a window's record (every store has it): a library's simulation, a file of
