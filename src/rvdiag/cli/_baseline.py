@@ -447,9 +447,9 @@ def diagnose_monitor(loaded, sig, baseline: Path | None, values: dict, *, output
            "fs": float(sig.fs), "windows": [], "warnings": [], "unused_points": int(x.size - k * L)}
     n_cal = (loaded.card.get("alarm") or {}).get("record_windows")
     if n_cal and int(n_cal) != k:
-        res["warnings"].append(f"warning: the alarm's rate is calibrated on records of {int(n_cal)} window(s) of {L} points, "
-                               f"decided on their mean change; this record has {k}: the stated rate holds for "
-                               f"records of {int(n_cal)}")
+        res["warnings"].append(f"warning: the alarm's rate is calibrated on records of {int(n_cal)} window(s) of "
+                               f"{L} points, decided on their mean change; this record has {k}: the stated rate "
+                               f"holds for records of {int(n_cal)}")
     if load is None:
         raise ParameterError("the record's load is needed to find its baseline: give --load N_M (output torque)")
     speed = record_speed(sig, values)
