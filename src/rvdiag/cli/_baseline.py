@@ -455,6 +455,8 @@ def diagnose_monitor(loaded, sig, baseline: Path | None, values: dict, *, output
     speed = record_speed(sig, values)
     rec = recognition(loaded, x, sig.fs, {"novelty": None}, speed, False) if flat_reason(x, L) is None else \
         {"recognised": False, "reason": flat_reason(x, L), "checks": {}}
+    rec = mesh_check_against_baseline(rec, x, base, float(sig.fs), speed, L)
+    rec = level_check_against_baseline(rec, x, base)
     res.update({"recognised": rec["recognised"], "reason": rec["reason"], "checks": rec["checks"]})
     res["operating_point"] = {"output_speed_deg_s": speed.get("output_speed_deg_s"),
                               "speed_source": speed.get("detail") or speed.get("error"), "load_Nm": load}
@@ -483,6 +485,54 @@ def diagnose_monitor(loaded, sig, baseline: Path | None, values: dict, *, output
                              "output_speed_deg_s": float(np.mean(base.meta[OPERATING_COLUMNS[0]][groups[0]])),
                              "load_Nm": float(np.mean(base.meta[OPERATING_COLUMNS[1]][groups[0]]))}})
     return res
+
+
+def mesh_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float, speed: dict, L: int) -> dict:
+    """The mesh-line check of :func:`rvdiag.cli._record.recognition`, judged against the machine's own baseline: a
+    record without the reducer's mesh lines is "not recognised" only when the baseline shows them at the nearest
+    operating point.  Both are read on windows of the model's ``L`` points (the same resolution): the record's
+    first window against the baseline window nearest its speed.  Where the baseline shows no line either (a quiet
+    mesh behind a noisy path or a sensor floor, as on a machine whose baseline is what it is), the lines say
+    nothing about this machine and the record goes on to its health index (``checks["mesh_lines"]["baseline"]``
+    says so)."""
+    from rvdiag.features.mesh_lines import mesh_lines
+    from rvdiag.params import ReducerParams
+
+    lines = rec.get("checks", {}).get("mesh_lines")
+    if rec["recognised"] or lines is None or lines["present"]:
+        return rec
+    v = float(speed["output_speed_deg_s"])
+    near = int(np.argmin(np.abs(np.asarray(base.meta[OPERATING_COLUMNS[0]], dtype=float) - v)))
+    p = ReducerParams.default()
+    in_base = mesh_lines(np.asarray(base.X[near], dtype=np.float64), fs, p, v)["present"]
+    in_record = mesh_lines(x[:L], fs, p, v)["present"]
+    checks = {**rec["checks"], "mesh_lines": {**lines, "baseline": in_base, "record_window": in_record}}
+    if in_base and not in_record:
+        return {**rec, "checks": checks, "reason": rec["reason"] + f"; the machine's baseline shows {', '.join(in_base)}"}
+    return {"recognised": True, "reason": None, "checks": checks}
+
+
+#: a record whose RMS lies more than this factor above or below every baseline window's is "not recognised"
+LEVEL_FACTOR = 10.0
+
+
+def level_check_against_baseline(rec: dict, x: np.ndarray, base) -> dict:
+    """A record whose level (RMS) lies more than :data:`LEVEL_FACTOR` outside the range of the baseline windows'
+    is not this machine's signal as the baseline records it (another sensor, gain or unit, a loose mount): "not
+    recognised", with the factor.  The alarm judges smaller changes."""
+    if not rec["recognised"]:
+        return rec
+    rms = float(np.sqrt(np.mean(np.square(x))))
+    b = np.sqrt(np.mean(np.square(np.asarray(base.X, dtype=np.float64)), axis=1))
+    lo, hi = float(b.min()), float(b.max())
+    checks = {**rec.get("checks", {}), "level": {"rms": rms, "baseline_rms": [lo, hi], "factor": LEVEL_FACTOR}}
+    if lo > 0 and not (lo / LEVEL_FACTOR <= rms <= hi * LEVEL_FACTOR):
+        ratio = rms / hi if rms > hi else lo / rms if rms > 0 else math.inf
+        side = "above" if rms > hi else "below"
+        return {"recognised": False, "checks": checks,
+                "reason": f"its level (RMS {rms:.4g}) lies {ratio:.3g}x {side} the baseline's range ({lo:.4g}-"
+                          f"{hi:.4g}): another sensor, gain or unit than the baseline's?"}
+    return {**rec, "checks": checks}
 
 
 def print_diagnosis(res: dict) -> None:
