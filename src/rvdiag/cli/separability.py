@@ -76,6 +76,9 @@ def register(app: typer.Typer) -> None:
         spall_length_fraction: Optional[float] = opt.surface_fault("spall_length_fraction"),
         spall_depth_mm: Optional[float] = opt.surface_fault("spall_depth_mm"),
         params: Optional[Path] = opt.params(),
+        params_b: Optional[Path] = typer.Option(None, "--params-b", help="Reducer parameter TOML of the pair's "
+                                                "second state (default: --params): another specimen, e.g. "
+                                                "[modification] error_seed = 7, to compare two reducers."),
         fs: Optional[float] = opt.fs("Sampling rate, Hz (default: the demo library's, 48000)."),
         substeps: Optional[int] = typer.Option(None, "--substeps", help="Integrator steps per output sample "
                                                "(default: the demo library's [model] substeps, 4)."),
@@ -87,8 +90,8 @@ def register(app: typer.Typer) -> None:
         """The separability bound: the best accuracy ANY classifier can reach in telling two states apart at
         each white-noise SNR, for the simulator (binary detection of known signals in white Gaussian noise,
         accuracy Phi(d / 2 sigma) per window; rvdiag.evaluation.separability).  Both states are simulated
-        noise-free with identical parameters, operating point and seeds; channel 0 (housing x), as the library.
-        Progress on stderr (-q: none)."""
+        noise-free with identical parameters (or the second on --params-b: two specimens), operating point and
+        seeds; channel 0 (housing x), as the library.  Progress on stderr (-q: none)."""
         from rvdiag.cli._progress import progress_bars
         from rvdiag.evaluation.separability import separability_bound, simulate_pair
         from rvdiag.library.config import LibraryConfig
@@ -124,15 +127,17 @@ def register(app: typer.Typer) -> None:
         if out is not None and (out.is_dir() or not out.parent.is_dir()):
             raise ParameterError(f"--out {out}: not a writable file path")
         p = ReducerParams.load(params)
+        p_b = p if params_b is None else ReducerParams.load(params_b)
         with opt.option_names(SEPARABILITY_OPTION_NAMES), progress_bars(quiet):
             a, b = simulate_pair(states, params=p, output_speed_deg_s=speed, load_Nm=load_nm,
                                  duration_s=duration_s, fs=fs_hz, transient_s=demo.transient_s, model=model,
                                  channel=int(demo.channel) if isinstance(demo.channel, int) else 0,
-                                 severities=severities)
+                                 severities=severities, params_b=p_b)
         res = separability_bound(a, b, win, levels)
         result = {"pair": states, **res, "output_speed_deg_s": speed, "load_Nm": load_nm, "duration_s": duration_s,
                   "fs": fs_hz, "substeps": model.get("substeps"), "severities_SI": severities,
-                  "params_file": str(params) if params is not None else None}
+                  "params_file": str(params) if params is not None else None,
+                  "params_file_b": str(params_b) if params_b is not None else None}
         text = json.dumps(result, indent=2)
         if out is not None:
             try:
