@@ -60,14 +60,23 @@ def _with_noise(samples, snr_db: float, seed: list[int]):
 
 
 def validation_groups(store, samples):
-    """Groups for the early-stopping validation split: the simulation (``unit``) of each sample when the
-    store's segments overlap (a split by segment would then leak: neighbours share points), else None
-    (split by segment).  A paper-mode library (one simulation per state, ``hop = segment_length``) so
-    gets a real validation set instead of none at all."""
+    """Groups for the early-stopping validation split: the simulation (``unit``) of each sample when a state has
+    several simulations (each is a reducer of its own: the validation set then holds reducers the network did not
+    train on, as the test split does; split by segment, it would hold windows of the training reducers and stop on
+    their fingerprints), or when the store's segments overlap (a split by segment would then leak: neighbours share
+    points); else None (split by segment).  A paper-mode library (one simulation per state, ``hop =
+    segment_length``) so gets a real validation set instead of none at all."""
     units = samples.meta.get("unit")
+    if units is None:
+        return None
+    y = getattr(samples, "y", None)
+    if y is not None and len(y) == len(units):
+        units_arr, y_arr = np.asarray(units), np.asarray(y)
+        if any(np.unique(units_arr[y_arr == c]).size > 1 for c in np.unique(y_arr)):
+            return units
     signal = (store.attrs.get("config") or {}).get("signal") or {}
     hop, seg = signal.get("hop"), signal.get("segment_length")
-    if units is None or (hop is not None and seg is not None and int(hop) >= int(seg)):
+    if hop is not None and seg is not None and int(hop) >= int(seg):
         return None
     return units
 
