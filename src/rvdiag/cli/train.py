@@ -306,7 +306,7 @@ def register(app: typer.Typer) -> None:
 
             resolve_device(device)  # 'cuda' without a GPU fails now, not after loading the data
         store = SampleStore.open(data)
-        new_estimator = functools.partial(new_estimator, signal=_signal_info(store)["signal"])  # cnn features
+        new_estimator = functools.partial(new_estimator, signal=signal_info(store)["signal"])  # cnn features
         if "train" not in store.splits():
             raise StoreError(f"{data} has no 'train' split (splits: {', '.join(store.splits())})")
         if multilabel:
