@@ -428,8 +428,8 @@ def recall_and_false_alarms(confusion: Sequence[Sequence[int]], labels: Sequence
     """Per-class recall and the false-alarm rate (healthy windows called faulty,
     :func:`rvdiag.evaluation.metrics.healthy_class`) of a confusion matrix (rows true, columns predicted).
 
-    >>> recall_and_false_alarms([[9, 1], [0, 10]], ["T1", "T2"])
-    {'recall': {'T1': 0.9, 'T2': 1.0}, 'false_alarm_rate': 0.1}
+    >>> recall_and_false_alarms([[3, 1], [0, 4]], ["T1", "T2"])
+    {'recall': {'T1': 0.75, 'T2': 1.0}, 'false_alarm_rate': 0.25}
     """
     from rvdiag.evaluation.metrics import healthy_class
 
