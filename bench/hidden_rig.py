@@ -10,7 +10,8 @@ by the workflow).  As a real rig's separately damaged reducers, each faulty stat
 ``[modification] error_seed``, drawn from ``--seed``); the healthy records (calibration and T1) are the healthy
 reducer's.  The sensor and its cabling are the rig's: every record gets the same pink noise floor, 18 dB below the
 healthy calibration record's power, and the same 50 Hz mains hum with two harmonics at 2 % of that record's RMS
-(a louder fault does not get louder noise).  Files, CSV with the columns ``time_s,acc`` at 48 kHz:
+(a louder fault does not get louder noise).  Files, CSV with the columns ``time_s,acc,angle_in`` at 48 kHz
+(``angle_in``: the input shaft's encoder angle in rad, 0 at the first sample; the simulation's ``theta_in``):
 
 - ``calib_T1_45dps_75Nm.csv``: the 8 s healthy calibration record (45 deg/s, 75 N m);
 - ``rig_<state>_<speed>dps_<load>Nm.csv``: the six states T1-T6 at 30, 45 and 60 deg/s and 60 and 120 N m, 2 s
@@ -90,9 +91,11 @@ def _disturb(x: np.ndarray, rng: np.random.Generator, healthy_power: float) -> n
     return y + 0.02 * np.sqrt(healthy_power) * hum / np.sqrt(np.mean(hum * hum))
 
 
-def _write_csv(path: Path, x: np.ndarray) -> None:
+def _write_csv(path: Path, x: np.ndarray, angle_in: np.ndarray) -> None:
+    """One rig file: ``time_s``, ``acc`` (m/s^2) and ``angle_in`` (the input shaft's encoder angle, rad)."""
     t = np.arange(x.size) / FS
-    np.savetxt(path, np.column_stack([t, x]), delimiter=",", header="time_s,acc", comments="", fmt="%.9g")
+    np.savetxt(path, np.column_stack([t, x, angle_in]), delimiter=",", header="time_s,acc,angle_in", comments="",
+               fmt=("%.9g", "%.9g", "%.12g"))
 
 
 def make_rig(out: Path, seed: int = 1, record_s: float = 2.0, calib_s: float = 8.0, states=STATES, speeds=SPEEDS,
@@ -107,17 +110,18 @@ def make_rig(out: Path, seed: int = 1, record_s: float = 2.0, calib_s: float = 8
     specimens = specimen_seeds(seed)
     rng = np.random.default_rng([seed, 2])
     healthy = params.replace(modification={"error_seed": specimens["T1"]})
-    x = simulate(healthy, None, output_speed_deg_s=45.0, load_Nm=75.0, duration_s=calib_s, fs=FS).signal[0]
+    res = simulate(healthy, None, output_speed_deg_s=45.0, load_Nm=75.0, duration_s=calib_s, fs=FS)
+    x = res.signal[0]
     power = float(np.mean(x * x))
-    _write_csv(out / "calib_T1_45dps_75Nm.csv", _disturb(x, rng, power))
+    _write_csv(out / "calib_T1_45dps_75Nm.csv", _disturb(x, rng, power), res.theta_in)
     for state in states:
         fault = None if state == "T1" else ToothFaults.for_state(state)
         reducer = params.replace(modification={"error_seed": specimens[state]})
         for speed in speeds:
             for load in loads:
-                x = simulate(reducer, fault, output_speed_deg_s=speed, load_Nm=load, duration_s=record_s,
-                             fs=FS).signal[0]
-                _write_csv(out / f"rig_{state}_{speed:.0f}dps_{load:.0f}Nm.csv", _disturb(x, rng, power))
+                res = simulate(reducer, fault, output_speed_deg_s=speed, load_Nm=load, duration_s=record_s, fs=FS)
+                _write_csv(out / f"rig_{state}_{speed:.0f}dps_{load:.0f}Nm.csv", _disturb(res.signal[0], rng, power),
+                           res.theta_in)
     secret = {"seed": seed, "params": params.to_dict(), "error_seed": specimens, "floor_db": FLOOR_DB,
               "noise_sigma": float(np.sqrt(power * 10.0 ** (-FLOOR_DB / 10.0)))}
     (out / "RIG_SECRET.json").write_text(json.dumps(secret, indent=1), encoding="utf-8")

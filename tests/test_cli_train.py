@@ -171,6 +171,12 @@ def test_validation_split_is_by_segment_without_overlap_and_by_simulation_with_i
     assert validation_groups(store(2048, 4096), samples) is units
     assert validation_groups(SimpleNamespace(attrs={}), samples) is units      # measured-data stores
     assert validation_groups(store(2048, 4096), SimpleNamespace(meta={})) is None
+    # several simulations (reducers) of a state: whole reducers move, whatever the hop (an independent-mode library
+    # with hop = segment length validated on its training reducers' windows and stopped on their fingerprints)
+    several = SimpleNamespace(meta={"unit": np.array([0, 0, 1, 1, 2, 2, 3, 3])}, y=np.array([0, 0, 0, 0, 1, 1, 1, 1]))
+    assert validation_groups(store(8000, 8000), several) is several.meta["unit"]
+    one_each = SimpleNamespace(meta={"unit": units}, y=np.array([0, 0, 1, 1]))
+    assert validation_groups(store(8000, 8000), one_each) is None
 
 
 def test_evaluate_accuracy_against_added_noise(cnn_model, store, capsys):

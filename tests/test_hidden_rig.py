@@ -36,10 +36,17 @@ def test_rig_files_are_measured_like_csv_and_the_secret_is_kept_apart(tmp_path):
     files = sorted(p.name for p in out.glob("*.csv"))
     assert len(files) == 1 + 6 * 3 * 2 and files[0] == "calib_T1_45dps_75Nm.csv"
     head = (out / "rig_T2_45dps_60Nm.csv").read_text(encoding="utf-8").splitlines()
-    assert head[0] == "time_s,acc"
+    assert head[0] == "time_s,acc,angle_in"
     data = np.loadtxt(out / "rig_T2_45dps_60Nm.csv", delimiter=",", skiprows=1)
-    assert data.shape == (int(0.02 * 48000), 2) and np.all(np.isfinite(data)) and data[:, 1].std() > 0
+    assert data.shape == (int(0.02 * 48000), 3) and np.all(np.isfinite(data)) and data[:, 1].std() > 0
     assert np.allclose(np.diff(data[:, 0]), 1 / 48000.0)
+    # angle_in: the input shaft's encoder angle (rad), 0 at the first sample, turning at the input speed
+    # (45 deg/s at the output times the reducer's ratio; constant speed, so its slope is constant)
+    omega_in = np.deg2rad(45.0) * ReducerParams.default().ratio
+    assert data[0, 2] == 0.0
+    np.testing.assert_allclose(np.diff(data[:, 2]) * 48000.0, omega_in, rtol=1e-6)
+    calib = np.loadtxt(out / "calib_T1_45dps_75Nm.csv", delimiter=",", skiprows=1)
+    np.testing.assert_allclose(calib[-1, 2], omega_in * (calib.shape[0] - 1) / 48000.0, rtol=1e-6)
     secret = json.loads((out / "RIG_SECRET.json").read_text(encoding="utf-8"))
     assert ReducerParams.from_dict(secret["params"]) == rig.rig_parameters(3)
     # the shipped transfer library knows nothing of the rig

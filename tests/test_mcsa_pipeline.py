@@ -134,9 +134,35 @@ def test_cnn_features_run_tiny(stores, tmp_path, capsys):
     assert code == 0, err
     rep = json.loads((out / "mcsa.json").read_text())
     assert list(rep["feature_sets"]) == ["cnn"] and rep["settings"]["cnn_epochs"] == 2
+    # the default representation: the log spectrum, which finds what the spectrum finds (docs/results.md)
+    assert rep["settings"]["cnn_representation"] == "logspec"
+    assert "The CNN sees each window as `logspec`" in (out / "mcsa.md").read_text()
     for _, _, split in _figures(rep):
         assert 0.0 <= split["accuracy"]["mean"] <= 1.0 and split["repeats"][0]["n_test"] == 11
+        assert set(split["recall_per_class"]) == {"T1", "T2", "T3"}
     assert (out / "tsne_cnn.png").is_file()
+
+
+def test_cnn_representation_is_chosen_and_recorded(stores, tmp_path, capsys, monkeypatch):
+    from rvdiag.models import cnn_features
+
+    seen = []
+    fit = cnn_features.CNNFeatures.fit
+    monkeypatch.setattr(cnn_features.CNNFeatures, "fit",
+                        lambda self, X, y=None: (seen.append(self.representation), fit(self, X, y))[1])
+    out = tmp_path / "out"
+    code, _, err = run(["mcsa", stores["a"], "-o", out, "-q", "--feature-sets", "cnn", "--repeats", "1",
+                        "--cnn-epochs", "1", "--device", "cpu", "--tsne-samples", "0",
+                        "--cnn-representation", "residual"], capsys)
+    assert code == 0, err
+    assert json.loads((out / "mcsa.json").read_text())["settings"]["cnn_representation"] == "residual"
+    assert seen and set(seen) == {"residual"}
+
+
+def test_class_recalls_read_the_confusion_rows():
+    from rvdiag.evaluation.motor_current_study import class_recalls
+
+    assert class_recalls([[3, 1], [0, 0]], ["T1", "T2"]) == {"T1": 0.75, "T2": None}
 
 
 def test_channel_default_and_choice():
@@ -178,6 +204,7 @@ def test_picks_the_rows_of_the_channel(stores):
     (["--feature-sets", "cnn", "--cnn-input-length", "4096"],
      "error: --cnn-input-length 4096 is longer than the samples of"),
     (["--cnn-epochs", "0"], "error: --cnn-epochs must be >= 1, got 0"),
+    (["--cnn-representation", "orders"], "error: --cnn-representation must be one of waveform, logspec, residual"),
 ])
 def test_bad_options_give_one_line_and_exit_2(stores, tmp_path, capsys, args, message):
     code, out, err = _mcsa(capsys, stores["a"], tmp_path / "out", *args)

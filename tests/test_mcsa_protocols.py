@@ -90,13 +90,14 @@ def test_study_learns_the_reducer_held_out_finds_chance(store):
             assert len(r["test_simulations"]) == 2 * len(CLASSES)
         for r in study["repeats"]:
             assert len(r["simulations"]) == len(CLASSES) and r["n_train"] + r["n_test"] == len(CLASSES) * WINDOWS
-        assert set(study["recall"]) == set(CLASSES) and study["false_alarm_rate"] == 1 - study["recall"]["T1"]
+        assert set(study["recall_per_class"]) == set(CLASSES)
+        assert study["false_alarm_rate"] == 1 - study["recall_per_class"]["T1"]
     assert "split" not in res.report["results"]["45"]["time"]
 
 
 def test_recall_and_false_alarms_of_a_confusion():
     got = recall_and_false_alarms([[8, 2, 0], [0, 5, 5], [0, 0, 0]], ["T1", "T2", "T7"])
-    assert got == {"recall": {"T1": 0.8, "T2": 0.5, "T7": None}, "false_alarm_rate": pytest.approx(0.2)}
+    assert got == {"recall_per_class": {"T1": 0.8, "T2": 0.5, "T7": None}, "false_alarm_rate": pytest.approx(0.2)}
     assert recall_and_false_alarms([[1, 0], [0, 1]], ["a", "b"])["false_alarm_rate"] is None
 
 

@@ -95,6 +95,51 @@ def test_alarm_rate_on_held_out_healthy_pairs_is_alpha():
     assert np.all((p > 0) & (p <= 1)) and abs((p <= alpha).mean() - rate) < 0.01
 
 
+def _windows_of_records(rng, n_records: int, k: int, windows: int, noise: float):
+    """Window rows of ``n_records`` healthy records: the record's own change (its run-to-run variation, N(0, I))
+    shared by its ``windows`` windows, plus each window's own noise (N(0, noise^2 I))."""
+    rec = rng.standard_normal((n_records, k))
+    W = np.repeat(rec, windows, axis=0) + noise * rng.standard_normal((n_records * windows, k))
+    return W, np.repeat(np.arange(n_records), windows)
+
+
+def test_per_record_calibration_keeps_the_stated_rate_per_record():
+    """A designed case: records of 4 windows that share their record's change, and a window noise twice its
+    spread.  A record is decided on its windows' mean change (as ``diagnose`` decides a file).  Calibrated on record
+    means (``rvdiag train``), the alarm keeps its stated rate on new records, within the binomial interval;
+    calibrated on windows, as before, the same records raise it about 70 times less often than stated."""
+    from rvdiag.cli._baseline import binomial_interval, record_means
+
+    rng = np.random.default_rng(3)
+    k, windows, alpha = 3, 4, 0.10
+    W, unit = _windows_of_records(rng, 2000, k, windows, noise=2.0)
+    groups_w = unit // 10  # 10 records per reducer, 200 reducers
+    D, first, counts = record_means(W, {"unit": unit})
+    assert D.shape == (2000, k) and np.all(counts == windows) and np.array_equal(first, np.arange(0, 8000, 4))
+    y = np.array(["T1"] * D.shape[0])
+    per_record = BaselineMonitor(alpha=alpha).fit(D, y, groups=groups_w[first])
+    per_window = BaselineMonitor(alpha=alpha).fit(W, np.array(["T1"] * W.shape[0]), groups=groups_w)
+    assert per_record.n_calibration_ == 1000 and per_window.n_calibration_ == 4000
+    Wn, un = _windows_of_records(rng, 4000, k, windows, noise=2.0)
+    new, _, _ = record_means(Wn, {"unit": un})
+    hits = int(per_record.alarm(new).sum())
+    lo, hi = binomial_interval(hits, new.shape[0], 0.999)
+    spread = 4 * math.sqrt(alpha * (1 - alpha) / per_record.n_calibration_)  # the threshold's own draw
+    assert lo - spread <= alpha <= hi + spread, (hits, lo, hi)
+    assert per_window.alarm(new).mean() < alpha / 10  # the window threshold on a record's mean: far too few
+
+
+def test_record_means_keep_the_order_records_first_appear():
+    from rvdiag.cli._baseline import record_means
+
+    D = np.arange(10.0).reshape(5, 2)
+    m, first, n = record_means(D, {"unit": np.array([9, 4, 9, 4, 1])})
+    assert m.tolist() == [[2.0, 3.0], [4.0, 5.0], [8.0, 9.0]] and first.tolist() == [0, 1, 4]
+    assert n.tolist() == [2, 2, 1]
+    m, first, n = record_means(D, {})  # no record column: every window its own record
+    assert np.array_equal(m, D) and n.tolist() == [1] * 5
+
+
 def test_monitor_refuses_too_few_healthy_groups_and_bad_alpha():
     D = np.zeros((6, 2))
     y = np.array(["T1"] * 6)

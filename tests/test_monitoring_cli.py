@@ -178,7 +178,8 @@ def test_evaluate_on_a_paired_store_needs_no_baseline(paired, model, capsys):
     assert m["alarm"]["alpha"] == 0.04
     code, out, err = run_cli(["evaluate", model, paired["store"]], capsys)
     assert code == 0
-    for word in ("accuracy", "false-alarm rate", "(stated 4 %)", "detection rate", "T2 100.0 %", "healthy recall"):
+    for word in ("accuracy", "false-alarm rate", "stated 4 %)", "of 18 healthy records, 95 % interval",
+                 "detection rate", "T2 100.0 %", "healthy recall"):
         assert word in out
 
 
@@ -202,6 +203,34 @@ def test_evaluate_with_a_baseline_store_matches_the_paired_store(paired, model, 
     # without --baseline, a store without roles is refused
     code, out, err = run_cli(["evaluate", model, tmp_path / "mon.zarr"], capsys)
     assert code == 2 and "give --baseline BASE.zarr" in err and err.count("\n") == 1
+
+
+def test_a_record_of_several_windows_is_one_row_of_training_calibration_and_evaluation(paired, tmp_path, capsys):
+    """Each record cut into two windows (metadata unit shared): the monitor calibrates and scores records, each
+    decided on its windows' mean change, as diagnose decides a file; the card says how many windows."""
+    X, y, meta = paired["X"], paired["y"], paired["meta"]
+    half = L // 2
+    X2 = np.concatenate([X[:, :half], X[:, half:]], axis=1).reshape(-1, half)  # window 0, window 1 of each record
+    meta2 = {k: np.repeat(v, 2) for k, v in meta.items()}
+    write_store(tmp_path / "p2.zarr", X2, np.repeat(y, 2), meta2, kind="simulated", fs=FS, config={"w": 2},
+                extra_attrs=params_attrs())
+    code, out, err = run_cli(["train", tmp_path / "p2.zarr", "-o", tmp_path / "m", "--alpha", "0.05"], capsys)
+    assert code == 0, err
+    assert "on 84 monitored records (168 windows) of 7 reducers" in err
+    assert "5 % per record (of 2 window(s), decided on their mean change), calibrated on 24 healthy records" in err
+    card = json.loads((tmp_path / "m" / "card.json").read_text())
+    assert card["alarm"]["n_calibration"] == 24  # 4 calibration reducers x 6 healthy records, not their 48 windows
+    assert card["alarm"]["record_windows"] == 2 and card["input_length"] == half
+    code, out, err = run_cli(["evaluate", tmp_path / "m", tmp_path / "p2.zarr", "--json", "--merge", "T3=T1"],
+                             capsys)
+    assert code == 0, err
+    m = json.loads(out)
+    assert m["n_records"] == m["n_samples"] == 36 and m["windows_per_record"] == [2, 2]
+    assert m["n_healthy_records"] == 18 and 0 <= m["n_false_alarms"] <= 18
+    lo, hi = m["false_alarm_ci95"]
+    assert lo <= m["false_alarm_rate"] <= hi
+    assert m["merged"]["merge"] == {"T3": "T1"} and set(m["merged"]["per_class"]) == {"T1", "T2"}
+    assert m["merged"]["per_class"]["T1"]["support"] == 27  # 18 healthy + 9 worn records
 
 
 def test_evaluate_refuses_options_of_the_other_models(paired, model, capsys):

@@ -214,7 +214,7 @@ def test_resume_is_bit_identical(store, tmp_path):
 
     part = tmp_path / "part.zarr"
     calls = []
-    real = build.run_unit
+    real = build._run_checked  # the task: the unit's result with its warnings
 
     def dies_on_the_tenth(unit, job):
         calls.append(unit.index)

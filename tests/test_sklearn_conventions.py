@@ -22,6 +22,7 @@ from rvdiag.features import (
 )
 from rvdiag.features.baseline import HealthyBaselineFeatures
 from rvdiag.features.bearing import BearingEnvelopeFeatures
+from rvdiag.features.current import FundamentalResidual
 from rvdiag.features.tsa import TSAIndicatorFeatures
 from rvdiag.models.cnn_features import CNNFeatures
 from rvdiag.models.kelm import KELMClassifier
@@ -41,7 +42,8 @@ def _estimators():
     ests += [CharacteristicBandEnergy(), EnvelopeSpectrumFeatures(centers=(0.1,)), BearingEnvelopeFeatures(),
              BearingEnvelopeFeatures(speed_column="rpm"),
              CombinedFeatures([("time", TimeDomainFeatures()), ("spectrum", SpectrumFeatures(n_bands=2))]),
-             HealthyBaselineFeatures(TimeDomainFeatures(), columns=("c",), healthy="0", min_count=2)]
+             HealthyBaselineFeatures(TimeDomainFeatures(), columns=("c",), healthy="0", min_count=2),
+             FundamentalResidual()]
     ests += [KELMClassifier(), TunedKELM(epoch=1, pop_size=10, cv=2),
              CNNClassifier(max_epochs=1, batch_size=64, validation_fraction=0.0, device="cpu")]
     return ests
@@ -64,9 +66,11 @@ _MIN_POINTS = {"EEMDFeatures": "EEMD needs windows of >= 8 points",
                "WaveletPacketEnergy": "a level-4 wavelet packet needs windows of >= 16 points",
                "BearingEnvelopeFeatures": "the kurtogram bands need windows of >= 64 points",
                "TSAIndicatorFeatures": "a TSA needs windows of at least one shaft revolution",
-               "OrderSpectrumFeatures": "an order spectrum needs windows of at least one shaft revolution"}
+               "OrderSpectrumFeatures": "an order spectrum needs windows of at least one shaft revolution",
+               "FundamentalResidual": "the supply-line fit (3 lines of degree 3) needs windows of >= 84 points"}
 #: short-data checks that pass all the same (they use >= 8 columns, or only test the error)
-_PASS_ANYWAY = {("EEMDFeatures", "check_dtype_object"), ("EEMDFeatures", "check_fit2d_1sample")}
+_PASS_ANYWAY = {("EEMDFeatures", "check_dtype_object"), ("EEMDFeatures", "check_fit2d_1sample"),
+                ("FundamentalResidual", "check_fit2d_1sample")}
 EXPECTED: dict[str, dict[str, str]] = {
     name: {check: f"{why}; sklearn's check data have 1-10 points per sample" for check in SHORT_DATA_CHECKS
            if (name, check) not in _PASS_ANYWAY}

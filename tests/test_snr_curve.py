@@ -88,6 +88,32 @@ def test_separability_of_a_state_with_itself_is_chance(capsys):
     assert res["distance_over_rms"] == 0.0 and res["n_windows"] == 3 and res["window"] == 4096
 
 
+def test_separability_params_b_compares_two_specimens(tmp_path, capsys):
+    """--params-b simulates the pair's second state on another reducer: the healthy state against itself on
+    another specimen ([modification] error_seed) is no longer chance, while a file of the same specimen (the
+    default error_seed, 0) gives the self-pair's zero distance."""
+    from importlib import resources
+
+    from rvdiag.params.schema import DEFAULT_PARAMS_NAME
+
+    builtin = resources.files("rvdiag.params").joinpath(DEFAULT_PARAMS_NAME).read_text("utf-8")
+    same = tmp_path / "same.toml"
+    same.write_text(builtin + "\n[modification]\nerror_seed = 0\n")
+    other = tmp_path / "other.toml"
+    other.write_text(builtin + "\n[modification]\nerror_seed = 7\n")
+    code, out, err = run(["separability", "--pair", "T1,T1", "--snr-db=60", "--json", "--params-b", str(same),
+                          *FAST], capsys)
+    assert code == 0, err
+    res = json.loads(out)
+    assert res["distance_over_rms"] == 0.0 and res["accuracy_bound"] == [0.5]
+    assert res["params_file"] is None and res["params_file_b"] == str(same)
+    code, out, err = run(["separability", "--pair", "T1,T1", "--snr-db=60", "--json", "--params-b", str(other),
+                          *FAST], capsys)
+    assert code == 0, err
+    res = json.loads(out)
+    assert res["distance_over_rms"] > 1e-3 and res["accuracy_bound"][0] > 0.99, res
+
+
 def test_separability_of_a_broken_tooth_rises_with_snr_towards_one(capsys):
     code, out, err = run(["separability", "--pair", "T1,T2", "--snr-db=-50,-40,-30,-20,0", "--json", *FAST], capsys)
     assert code == 0, err
@@ -240,6 +266,7 @@ def test_figures_leave_the_users_matplotlib_backend_alone():
     (["separability", "--window", "20000", "--duration", "0.3"], "longer than the record"),
     (["separability", "--pair", "T1,T2", "--crack-depth", "1"], "--crack-depth does not apply"),
     (["separability", "--out", "{tmp}/no/b.json"], "--out"),
+    (["separability", "--params-b", "{tmp}/missing.toml"], "missing.toml"),
 ])
 def test_bad_input_is_one_error_line_and_exit_2(args, needle, model, store, tmp_path, capsys):
     (tmp_path / "bad.json").write_text("{not json")

@@ -144,7 +144,7 @@ def test_resume_is_bit_identical(spec_store, tmp_path):
     import rvdiag.library.build as build
 
     calls = []
-    real = build.run_unit
+    real = build._run_checked  # the task: the unit's result with its warnings
 
     def dies_on_the_fourth(unit, job):
         calls.append(unit.index)

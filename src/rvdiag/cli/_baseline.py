@@ -32,6 +32,11 @@ DEFAULT_MONITOR_FEATURES = "tsa-change"
 #: the alarm's false-alarm rate per record
 DEFAULT_ALPHA = 0.01
 OPERATING_COLUMNS = ("output_speed_deg_s", "load_Nm")
+#: the metadata column naming a window's record (every store has it): a library's simulation, a file of
+#: ``rvdiag dataset from-files``.  A monitor decides a record on the mean change of its windows, as ``diagnose``
+#: decides a file, and its alarm is calibrated and scored per record: the windows of one record share its run-to-run
+#: variation and are not exchangeable with each other's records
+RECORD_COLUMN = "unit"
 #: the reducer-type fields of a parameter set that a baseline must share with the model
 TYPE_FIELDS = {"stage1": ("sun_teeth", "planet_teeth", "n_planets"), "stage2": ("cycloid_lobes", "pins")}
 
@@ -117,6 +122,42 @@ def paired_features(fx, mon, base, *, fs, baseline_fs, card_tolerances=None, whe
     return D, groups
 
 
+def record_means(D, meta, column: str = RECORD_COLUMN):
+    """Each record's mean row of ``D`` (the windows' changes), in the order records first appear.
+
+    Returns ``(means, first, counts)``: ``first`` indexes each record's first window (its label, reducer and
+    operating point), ``counts`` its number of windows.  Without ``column`` every window is its own record.
+
+    >>> m, first, n = record_means(np.array([[1.0], [3.0], [5.0]]), {"unit": np.array([7, 7, 2])})
+    >>> m.ravel().tolist(), first.tolist(), n.tolist()
+    ([2.0, 5.0], [0, 2], [2, 1])
+    """
+    D = np.asarray(D, dtype=np.float64)
+    ids = np.asarray(meta[column]) if column in meta else np.arange(D.shape[0])
+    _, first, inv = np.unique(ids, return_index=True, return_inverse=True)
+    order = np.argsort(first, kind="stable")  # records in the order they first appear
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    inv = rank[inv.ravel()]
+    counts = np.bincount(inv, minlength=order.size)
+    means = np.zeros((order.size, D.shape[1]))
+    np.add.at(means, inv, D)
+    return means / counts[:, None], first[order], counts
+
+
+def _per_record(D, s, where):
+    """``(means, labels, reducers or None, counts)`` of the records of samples ``s`` (:func:`record_means`); a
+    record whose windows carry different labels is refused."""
+    means, first, counts = record_means(D, s.meta)
+    y = np.asarray(s.y).astype(str)
+    ids = np.asarray(s.meta[RECORD_COLUMN]) if RECORD_COLUMN in s.meta else np.arange(y.size)
+    mixed = [i for i in np.unique(ids) if np.unique(y[ids == i]).size > 1] if counts.max() > 1 else []
+    if mixed:
+        raise StoreError(f"{where}: the windows of record {RECORD_COLUMN}={mixed[0]} carry different labels")
+    red = np.asarray(s.meta["reducer"])[first] if "reducer" in s.meta else None
+    return means, y[first], red, counts
+
+
 # ------------------------------------------------------------------------------------------------------- train
 def wants_monitor(data, model: str | None, alpha: float | None, **others) -> bool:
     """Whether ``rvdiag train`` trains a baseline monitor: ``--model baseline-monitor``, or no ``--model`` on a
@@ -187,15 +228,17 @@ def train_monitor(store, data, out: Path, *, features: str | None, alpha: float 
     _check_reducer_split(tr, te, data)
     if len(set(tr.y.tolist())) < 2:
         raise StoreError(f"{data}: the monitored records of the train split hold fewer than 2 states")
+    n_rec = (lambda s: len(np.unique(s.meta[RECORD_COLUMN])) if RECORD_COLUMN in s.meta else len(s.y))
     echo(f"{data}: paired store: training a baseline-referenced monitor ({name} features, each record against its "
-         f"reducer's baseline at the nearest operating point) on {len(tr.y)} monitored records of "
-         f"{len(np.unique(tr.meta['reducer']))} reducers" + (f", scoring {len(te.y)} of "
-                                                            f"{len(np.unique(te.meta['reducer']))} held-out reducers"
-                                                            if te is not None else ", no test split"))
+         f"reducer's baseline at the nearest operating point) on {n_rec(tr)} monitored records ({len(tr.y)} windows) "
+         f"of {len(np.unique(tr.meta['reducer']))} reducers" + (f", scoring {n_rec(te)} of "
+                                                               f"{len(np.unique(te.meta['reducer']))} held-out "
+                                                               "reducers" if te is not None else ", no test split"))
     fx.fit(_first_row(tr, fx))
     D, _ = paired_features(fx, tr, base, fs=store.fs, baseline_fs=store.fs, where=f"the store {data}")
-    y = np.asarray(tr.y).astype(str)
-    m = BaselineMonitor(alpha=alpha, features=fx, random_state=seed).fit(D, y, groups=tr.meta["reducer"])
+    D, y, reducers, counts = _per_record(D, tr, f"the store {data}")  # one row per record: its windows' mean
+    record_windows = int(np.median(counts))
+    m = BaselineMonitor(alpha=alpha, features=fx, random_state=seed).fit(D, y, groups=reducers)
     n = int(m.n_calibration_)
     achieved = alpha
     if math.isinf(m.threshold_):
@@ -203,16 +246,17 @@ def train_monitor(store, data, out: Path, *, features: str | None, alpha: float 
         (warn or echo)(f"warning: {n} healthy calibration records are too few for a false-alarm rate of {100 * alpha:g} % "
              f"(it needs >= {math.ceil(1 / alpha) - 1}); the alarm is set at {100 * achieved:.2f} %, the lowest "
              "rate they can guarantee: simulate more healthy records or reducers for a lower one")
-        m.set_params(alpha=achieved).fit(D, y, groups=tr.meta["reducer"])
+        m.set_params(alpha=achieved).fit(D, y, groups=reducers)
     metrics = None
     if te is not None and len(te.y):
         metrics = _score(m, te, base, store.fs, store.fs, None, f"the test split of {data}")
         echo("test (held-out reducers): " + headline(metrics))
     store_info = training_store_info(store, data, len(tr.y))
-    save_monitor(m, out, fs=store.fs, training_store=store_info, metrics=metrics or {}, seed=seed,
-                 extra={"reducer": kind, "monitor_features": name})
+    save_monitor(m, out, record_windows=record_windows, fs=store.fs, training_store=store_info,
+                 metrics=metrics or {}, seed=seed, extra={"reducer": kind, "monitor_features": name})
     echo(f"saved model to {out}: it needs a baseline (card needs_baseline); the alarm's false-alarm rate is "
-         f"{100 * m.alpha:g} % per record, calibrated on {n} healthy records")
+         f"{100 * m.alpha:g} % per record (of {record_windows} window(s), decided on their mean change), calibrated "
+         f"on {n} healthy records of held-out calibration reducers")
     return {"model_dir": str(out), "metrics": metrics, "alpha": float(m.alpha), "n_calibration": n,
             "features": name, "needs_baseline": True}
 
@@ -225,25 +269,48 @@ def _first_row(s, fx):
 
 
 # ---------------------------------------------------------------------------------------------------- evaluate
-def _score(m, mon, base, fs, baseline_fs, tolerances, where) -> dict:
-    """The state's classification metrics beside the alarm's rates on the monitored records ``mon``."""
+def binomial_interval(k: int, n: int, level: float = 0.95) -> list[float]:
+    """The Clopper-Pearson interval of a rate of ``k`` events in ``n`` trials (Clopper & Pearson, Biometrika 26
+    (1934) 404-413; :meth:`scipy.stats.binomtest`'s ``proportion_ci(method="exact")``)."""
+    from scipy.stats import binomtest
+
+    ci = binomtest(int(k), int(n)).proportion_ci(confidence_level=level, method="exact")
+    return [float(ci.low), float(ci.high)]
+
+
+def _score(m, mon, base, fs, baseline_fs, tolerances, where, merge=None) -> dict:
+    """The state's classification metrics beside the alarm's rates on the monitored records ``mon``, each record
+    decided on the mean change of its windows (:func:`record_means`); with ``merge`` (``{"T4": "T1"}``) also the
+    state's metrics with classes merged (key ``merged``)."""
     from rvdiag.evaluation.metrics import classification_metrics, healthy_class
 
     D, _ = paired_features(m.features, mon, base, fs=fs, baseline_fs=baseline_fs, card_tolerances=tolerances,
                            where=where)
-    y = np.asarray(mon.y).astype(str)
+    D, y, reducers, counts = _per_record(D, mon, where)
     pred = m.predict(D).astype(str)
     alarm = m.alarm(D)
-    out = classification_metrics(y, pred, labels=[str(c) for c in m.classes_])
-    h = healthy_class([str(c) for c in m.classes_]) or str(m.healthy)
+    labels = [str(c) for c in m.classes_]
+    out = classification_metrics(y, pred, labels=labels)
+    out["n_records"] = int(y.size)
+    out["windows_per_record"] = [int(counts.min()), int(counts.max())]
+    h = healthy_class(labels) or str(m.healthy)
     faulty = y != h
     out["state_false_alarm_rate"] = out.pop("false_alarm_rate")
     out["false_alarm_rate"] = float(alarm[~faulty].mean()) if (~faulty).any() else None
+    out["n_healthy_records"] = int((~faulty).sum())
+    out["n_false_alarms"] = int(alarm[~faulty].sum())
+    out["false_alarm_ci95"] = binomial_interval(out["n_false_alarms"], out["n_healthy_records"]) \
+        if (~faulty).any() else None
     out["detection_rate"] = float(alarm[faulty].mean()) if faulty.any() else None
     out["detection_rate_per_state"] = {c: float(alarm[y == c].mean()) for c in sorted(set(y[faulty].tolist()))}
     out["alarm"] = {"alpha": float(m.alpha), "threshold": float(m.threshold_),
                     "n_calibration": int(m.n_calibration_)}
-    out["n_reducers"] = int(len(np.unique(mon.meta["reducer"]))) if "reducer" in mon.meta else None
+    out["n_reducers"] = int(len(np.unique(reducers))) if reducers is not None else None
+    if merge:
+        def merged(a):
+            return np.asarray([merge.get(c, c) for c in a])
+        kept = list(dict.fromkeys(merge.get(c, c) for c in labels))
+        out["merged"] = {"merge": dict(merge), **classification_metrics(merged(y), merged(pred), labels=kept)}
     return out
 
 
@@ -251,7 +318,10 @@ def headline(m: dict) -> str:
     """Accuracy, the false-alarm and detection rates and the healthy recall together (never an accuracy alone)."""
     pct = (lambda v: "-" if v is None else f"{100 * v:.1f} %")
     per = ", ".join(f"{c} {pct(v)}" for c, v in m["detection_rate_per_state"].items())
-    return (f"accuracy {100 * m['accuracy']:.2f} %, false-alarm rate {pct(m['false_alarm_rate'])} (stated "
+    ci = m.get("false_alarm_ci95")
+    ci = f", 95 % interval {100 * ci[0]:.1f}-{100 * ci[1]:.1f} %" if ci else ""
+    return (f"accuracy {100 * m['accuracy']:.2f} %, false-alarm rate {pct(m['false_alarm_rate'])} "
+            f"({m.get('n_false_alarms', '?')} of {m.get('n_healthy_records', '?')} healthy records{ci}; stated "
             f"{100 * m['alarm']['alpha']:g} %), detection rate {pct(m['detection_rate'])}"
             + (f" ({per})" if per else "") + f", healthy recall {pct(m['healthy_recall'])}")
 
@@ -287,9 +357,11 @@ def open_baseline(path: Path, loaded, fs: float | None):
     return s, store
 
 
-def evaluate_monitor(loaded, store, data, split: str, where=(), baseline: Path | None = None) -> dict:
+def evaluate_monitor(loaded, store, data, split: str, where=(), baseline: Path | None = None,
+                     merge: dict | None = None) -> dict:
     """``rvdiag evaluate`` of a baseline-referenced model: the monitored records of ``split`` (all its records on a
-    store without roles) against the store's own baseline records (a paired store) or ``baseline``'s."""
+    store without roles) against the store's own baseline records (a paired store) or ``baseline``'s; each record
+    (metadata ``unit``) decided on its windows' mean change; ``merge`` as :func:`_score`."""
     from rvdiag.datasets.store import is_paired
 
     m = loaded.estimator
@@ -312,7 +384,7 @@ def evaluate_monitor(loaded, store, data, split: str, where=(), baseline: Path |
                          + (f" where {' and '.join(where)}" if where else ""))
     if loaded.fs and store.fs and abs(store.fs - loaded.fs) > 1e-9 * loaded.fs:
         raise ParameterError(f"{data} is sampled at {store.fs:g} Hz, the model at {loaded.fs:g} Hz")
-    out = _score(m, s, base, store.fs, bfs, loaded.card.get("baseline"), f"the store {data}")
+    out = _score(m, s, base, store.fs, bfs, loaded.card.get("baseline"), f"the store {data}", merge)
     out["split"] = split
     return out
 
@@ -323,7 +395,9 @@ def print_evaluation(res: dict, loaded, data) -> None:
 
     con = Console()
     reds = "" if res.get("n_reducers") is None else f" of {res['n_reducers']} reducers"
-    con.print(f"{loaded.card.get('model')} on {data} [{res['split']}], {res['n_samples']} monitored records{reds}: "
+    lo, hi = res["windows_per_record"]
+    con.print(f"{loaded.card.get('model')} on {data} [{res['split']}], {res['n_records']} monitored records"
+              f"{reds} ({lo if lo == hi else f'{lo}-{hi}'} window(s) each, decided on their mean change): "
               + headline(res), soft_wrap=True)
     t = Table()
     for col in ("state", "recall", "alarm raised", "support"):
@@ -334,6 +408,11 @@ def print_evaluation(res: dict, loaded, data) -> None:
             det = res["false_alarm_rate"]
         t.add_row(c, f"{100 * v['recall']:.1f} %", "-" if det is None else f"{100 * det:.1f} %", str(v["support"]))
     con.print(t)
+    if "merged" in res:
+        mg = res["merged"]
+        con.print(f"merged {','.join(f'{a}={b}' for a, b in mg['merge'].items())}: accuracy "
+                  f"{100 * mg['accuracy']:.2f} %; " + ", ".join(f"{c} recall {100 * v['recall']:.1f} %"
+                                                              for c, v in mg["per_class"].items()), soft_wrap=True)
 
 
 # ---------------------------------------------------------------------------------------------------- diagnose
@@ -366,11 +445,18 @@ def diagnose_monitor(loaded, sig, baseline: Path | None, values: dict, *, output
     res = {"health_index": None, "alarm": None, "false_alarm_rate": alpha, "p_value": None, "state": None,
            "state_name": None, "probability": None, "changes": [], "n_windows": k, "window_length": L,
            "fs": float(sig.fs), "windows": [], "warnings": [], "unused_points": int(x.size - k * L)}
+    n_cal = (loaded.card.get("alarm") or {}).get("record_windows")
+    if n_cal and int(n_cal) != k:
+        res["warnings"].append(f"warning: the alarm's rate is calibrated on records of {int(n_cal)} window(s) of "
+                               f"{L} points, decided on their mean change; this record has {k}: the stated rate "
+                               f"holds for records of {int(n_cal)}")
     if load is None:
         raise ParameterError("the record's load is needed to find its baseline: give --load N_M (output torque)")
     speed = record_speed(sig, values)
     rec = recognition(loaded, x, sig.fs, {"novelty": None}, speed, False) if flat_reason(x, L) is None else \
         {"recognised": False, "reason": flat_reason(x, L), "checks": {}}
+    rec = mesh_check_against_baseline(rec, x, base, float(sig.fs), speed, L)
+    rec = level_check_against_baseline(rec, x, base)
     res.update({"recognised": rec["recognised"], "reason": rec["reason"], "checks": rec["checks"]})
     res["operating_point"] = {"output_speed_deg_s": speed.get("output_speed_deg_s"),
                               "speed_source": speed.get("detail") or speed.get("error"), "load_Nm": load}
@@ -399,6 +485,54 @@ def diagnose_monitor(loaded, sig, baseline: Path | None, values: dict, *, output
                              "output_speed_deg_s": float(np.mean(base.meta[OPERATING_COLUMNS[0]][groups[0]])),
                              "load_Nm": float(np.mean(base.meta[OPERATING_COLUMNS[1]][groups[0]]))}})
     return res
+
+
+def mesh_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float, speed: dict, L: int) -> dict:
+    """The mesh-line check of :func:`rvdiag.cli._record.recognition`, judged against the machine's own baseline: a
+    record without the reducer's mesh lines is "not recognised" only when the baseline shows them at the nearest
+    operating point.  Both are read on windows of the model's ``L`` points (the same resolution): the record's
+    first window against the baseline window nearest its speed.  Where the baseline shows no line either (a quiet
+    mesh behind a noisy path or a sensor floor, as on a machine whose baseline is what it is), the lines say
+    nothing about this machine and the record goes on to its health index (``checks["mesh_lines"]["baseline"]``
+    says so)."""
+    from rvdiag.features.mesh_lines import mesh_lines
+    from rvdiag.params import ReducerParams
+
+    lines = rec.get("checks", {}).get("mesh_lines")
+    if rec["recognised"] or lines is None or lines["present"]:
+        return rec
+    v = float(speed["output_speed_deg_s"])
+    near = int(np.argmin(np.abs(np.asarray(base.meta[OPERATING_COLUMNS[0]], dtype=float) - v)))
+    p = ReducerParams.default()
+    in_base = mesh_lines(np.asarray(base.X[near], dtype=np.float64), fs, p, v)["present"]
+    in_record = mesh_lines(x[:L], fs, p, v)["present"]
+    checks = {**rec["checks"], "mesh_lines": {**lines, "baseline": in_base, "record_window": in_record}}
+    if in_base and not in_record:
+        return {**rec, "checks": checks, "reason": rec["reason"] + f"; the machine's baseline shows {', '.join(in_base)}"}
+    return {"recognised": True, "reason": None, "checks": checks}
+
+
+#: a record whose RMS lies more than this factor above or below every baseline window's is "not recognised"
+LEVEL_FACTOR = 10.0
+
+
+def level_check_against_baseline(rec: dict, x: np.ndarray, base) -> dict:
+    """A record whose level (RMS) lies more than :data:`LEVEL_FACTOR` outside the range of the baseline windows'
+    is not this machine's signal as the baseline records it (another sensor, gain or unit, a loose mount): "not
+    recognised", with the factor.  The alarm judges smaller changes."""
+    if not rec["recognised"]:
+        return rec
+    rms = float(np.sqrt(np.mean(np.square(x))))
+    b = np.sqrt(np.mean(np.square(np.asarray(base.X, dtype=np.float64)), axis=1))
+    lo, hi = float(b.min()), float(b.max())
+    checks = {**rec.get("checks", {}), "level": {"rms": rms, "baseline_rms": [lo, hi], "factor": LEVEL_FACTOR}}
+    if lo > 0 and not (lo / LEVEL_FACTOR <= rms <= hi * LEVEL_FACTOR):
+        ratio = rms / hi if rms > hi else lo / rms if rms > 0 else math.inf
+        side = "above" if rms > hi else "below"
+        return {"recognised": False, "checks": checks,
+                "reason": f"its level (RMS {rms:.4g}) lies {ratio:.3g}x {side} the baseline's range ({lo:.4g}-"
+                          f"{hi:.4g}): another sensor, gain or unit than the baseline's?"}
+    return {**rec, "checks": checks}
 
 
 def print_diagnosis(res: dict) -> None:

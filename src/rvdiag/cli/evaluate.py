@@ -76,8 +76,8 @@ def register(app: typer.Typer) -> None:
         for w in where or ():
             parse_condition(w)  # a malformed condition fails before the model is loaded
         loaded = load_model(model_dir)
-        if _monitor(loaded, data, split, where, baseline, json_out,
-                    {"--report": report, "--by": by, "--snr-db": snr_db, "--merge": merge, "--records": records}):
+        if _monitor(loaded, data, split, where, baseline, json_out, merge,
+                    {"--report": report, "--by": by, "--snr-db": snr_db, "--records": records}):
             return
         merge_map = parse_merge(merge, loaded.card["classes"]) if merge is not None else None
         store = SampleStore.open(data)
@@ -123,8 +123,9 @@ def register(app: typer.Typer) -> None:
             typer.echo(f"plot: {plot.resolve()}", err=json_out)
 
 
-def _monitor(loaded, data, split, where, baseline, json_out, others: dict) -> bool:
-    """Score a baseline-referenced model (:mod:`rvdiag.cli._baseline`) and say True; False for any other model."""
+def _monitor(loaded, data, split, where, baseline, json_out, merge, others: dict) -> bool:
+    """Score a baseline-referenced model (:mod:`rvdiag.cli._baseline`; always per record, ``--merge`` as for any
+    model) and say True; False for any other model."""
     from rvdiag.cli import _baseline
 
     if not _baseline.needs_baseline(loaded):
@@ -136,7 +137,8 @@ def _monitor(loaded, data, split, where, baseline, json_out, others: dict) -> bo
             raise ParameterError(f"{flag} does not apply to a baseline-referenced model")
     from rvdiag.datasets import SampleStore
 
-    res = _baseline.evaluate_monitor(loaded, SampleStore.open(data), data, split, where or (), baseline)
+    merge_map = parse_merge(merge, loaded.card["classes"]) if merge is not None else None
+    res = _baseline.evaluate_monitor(loaded, SampleStore.open(data), data, split, where or (), baseline, merge_map)
     if json_out:
         typer.echo(json.dumps(res, indent=2))
     else:

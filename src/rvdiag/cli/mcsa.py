@@ -4,7 +4,8 @@
                 [-c/--channel NAME] [--speed-column COLUMN]
                 [--feature-sets time,wpt,cnn] [--repeats 10] [--test-size 0.3] [--seed N] [--svm-c C]
                 [--wavelet db4] [--wpt-level 4] [--cnn-epochs N] [--cnn-batch-size N] [--cnn-lr LR]
-                [--cnn-patience N] [--cnn-input-length N] [--device auto|cpu|cuda] [--tsne-samples N]
+                [--cnn-patience N] [--cnn-input-length N]
+                [--cnn-representation logspec|residual|waveform] [--device auto|cpu|cuda] [--tsne-samples N]
                 [--overwrite] [--json] [-q]
 
 At each speed of the store and for each feature set: ``--repeats`` splits (``--protocol``: random window
@@ -29,6 +30,7 @@ OPTION_NAMES = {"feature_sets": "--feature-sets", "seed": "--seed", "repeats": "
                 "test_size": "--test-size", "svm_c": "--svm-c", "wpt_level": "--wpt-level",
                 "cnn_epochs": "--cnn-epochs", "cnn_batch_size": "--cnn-batch-size", "cnn_lr": "--cnn-lr",
                 "cnn_patience": "--cnn-patience", "cnn_input_length": "--cnn-input-length",
+                "cnn_representation": "--cnn-representation",
                 "tsne_samples": "--tsne-samples", "protocol": "--protocol"}
 
 
@@ -67,6 +69,12 @@ def register(app: typer.Typer) -> None:
         cnn_input_length: int = typer.Option(None, "--cnn-input-length",
                                              help="cnn: network input in points (default 4096, or the sample "
                                                   "length when shorter)."),
+        cnn_representation: str = typer.Option(None, "--cnn-representation",
+                                               help="cnn: what the network sees of each window: logspec (its "
+                                                    "log spectrum; the default) | residual (the window minus its "
+                                                    "fitted supply line) | waveform (the z-scored window, the "
+                                                    "study's input; at chance on unseen simulations, "
+                                                    "docs/results.md)."),
         device: str = typer.Option("auto", "--device", help="cnn: auto | cpu | cuda"),
         tsne_samples: int = typer.Option(600, "--tsne-samples",
                                          help="At most this many test samples per speed in each t-SNE panel "
@@ -86,7 +94,8 @@ def register(app: typer.Typer) -> None:
         if (out / "mcsa.json").exists() and not overwrite:
             raise ParameterError(f"{out} already holds the results of a run; use --overwrite to replace them")
         with opt.option_names(OPTION_NAMES):
-            settings = McsaSettings(feature_sets=parse_feature_sets(feature_sets), repeats=repeats,
+            chosen = {} if cnn_representation is None else {"cnn_representation": cnn_representation}
+            settings = McsaSettings(**chosen, feature_sets=parse_feature_sets(feature_sets), repeats=repeats,
                                     test_size=test_size, seed=seed, speed_column=speed_column, channel=channel,
                                     svm_c=svm_c, wavelet=wavelet, wpt_level=wpt_level, cnn_epochs=cnn_epochs,
                                     cnn_batch_size=cnn_batch_size, cnn_lr=cnn_lr, cnn_patience=cnn_patience,

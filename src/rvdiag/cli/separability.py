@@ -76,6 +76,9 @@ def register(app: typer.Typer) -> None:
         spall_length_fraction: Optional[float] = opt.surface_fault("spall_length_fraction"),
         spall_depth_mm: Optional[float] = opt.surface_fault("spall_depth_mm"),
         params: Optional[Path] = opt.params(),
+        params_b: Optional[Path] = typer.Option(None, "--params-b", help="Reducer parameter TOML of the pair's "
+                                                "second state (default: --params): another specimen, e.g. "
+                                                "[modification] error_seed = 7, to compare two reducers."),
         fs: Optional[float] = opt.fs("Sampling rate, Hz (default: the demo library's, 48000)."),
         substeps: Optional[int] = typer.Option(None, "--substeps", help="Integrator steps per output sample "
                                                "(default: the demo library's [model] substeps, 4)."),
@@ -95,7 +98,8 @@ def register(app: typer.Typer) -> None:
         """The separability bound: the best accuracy ANY classifier can reach in telling two states apart at
         each white-noise SNR, for the simulator (binary detection of known signals in white Gaussian noise,
         accuracy Phi(d / 2 sigma) per window; rvdiag.evaluation.separability).  Both states are simulated
-        noise-free with identical parameters, operating point and seeds; channel 0 (housing x), as the library.
+        noise-free with identical parameters (or the second on --params-b: two specimens), operating point and
+        seeds; channel 0 (housing x), as the library.
         With --run-to-run, also the bound when every record varies from run to run: the detector that knows
         each record's draw (an upper bound) and the best detector that does not (Gaussian approximation of the
         draws' spread, Phi(d/2) with d^2 = delta^T (Sigma_rr + sigma^2 I)^-1 delta).  Progress on stderr
@@ -139,19 +143,24 @@ def register(app: typer.Typer) -> None:
         if out is not None and (out.is_dir() or not out.parent.is_dir()):
             raise ParameterError(f"--out {out}: not a writable file path")
         p = ReducerParams.load(params)
+        p_b = p if params_b is None else ReducerParams.load(params_b)
+        if params_b is not None and ranges is not None:
+            raise ParameterError("--params-b and --run-to-run: give one (two specimens, or one specimen's run-to-run "
+                                 "variation)")
         kw = dict(params=p, output_speed_deg_s=speed, load_Nm=load_nm, duration_s=duration_s, fs=fs_hz,
                   transient_s=demo.transient_s, model=model,
                   channel=int(demo.channel) if isinstance(demo.channel, int) else 0, severities=severities)
         with opt.option_names(SEPARABILITY_OPTION_NAMES), progress_bars(quiet):
             if ranges is None:
-                a, b = simulate_pair(states, **kw)
+                a, b = simulate_pair(states, params_b=p_b, **kw)
             else:
                 sim = simulate_varied_pairs(states, ranges=ranges, draws=draws, seed=seed, **kw)
                 a, b = sim["a"], sim["b"]
         res = separability_bound(a, b, win, levels)
         result = {"pair": states, **res, "output_speed_deg_s": speed, "load_Nm": load_nm, "duration_s": duration_s,
                   "fs": fs_hz, "substeps": model.get("substeps"), "severities_SI": severities,
-                  "params_file": str(params) if params is not None else None}
+                  "params_file": str(params) if params is not None else None,
+                  "params_file_b": str(params_b) if params_b is not None else None}
         if ranges is not None:
             var = varied_bound(sim, win, levels)
             result["run_to_run"] = {"ranges_pct": {k: 100 * v for k, v in ranges.items()}, "seed": seed,

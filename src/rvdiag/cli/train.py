@@ -60,22 +60,32 @@ def _with_noise(samples, snr_db: float, seed: list[int]):
 
 
 def validation_groups(store, samples):
-    """Groups for the early-stopping validation split: the simulation (``unit``) of each sample when the
-    store's segments overlap (a split by segment would then leak: neighbours share points), else None
-    (split by segment).  A paper-mode library (one simulation per state, ``hop = segment_length``) so
-    gets a real validation set instead of none at all."""
+    """Groups for the early-stopping validation split: the simulation (``unit``) of each sample when a state has
+    several simulations (each is a reducer of its own: the validation set then holds reducers the network did not
+    train on, as the test split does; split by segment, it would hold windows of the training reducers and stop on
+    their fingerprints), or when the store's segments overlap (a split by segment would then leak: neighbours share
+    points); else None (split by segment).  A paper-mode library (one simulation per state, ``hop =
+    segment_length``) so gets a real validation set instead of none at all."""
     units = samples.meta.get("unit")
+    if units is None:
+        return None
+    y = getattr(samples, "y", None)
+    if y is not None and len(y) == len(units):
+        units_arr, y_arr = np.asarray(units), np.asarray(y)
+        if any(np.unique(units_arr[y_arr == c]).size > 1 for c in np.unique(y_arr)):
+            return units
     signal = (store.attrs.get("config") or {}).get("signal") or {}
     hop, seg = signal.get("hop"), signal.get("segment_length")
-    if units is None or (hop is not None and seg is not None and int(hop) >= int(seg)):
+    if hop is not None and seg is not None and int(hop) >= int(seg):
         return None
     return units
 
 
 def features_kw(features: str, *, epochs: int, device: str, seed: int, lr: float, batch_size: int,
                 bearing_geometry: str | None, rpm_column: str, fs: float | None,
-                speed_column: str = "output_speed_deg_s") -> dict:
-    """Arguments of each part of a ``--features`` value (a dict per part name for names joined by '+')."""
+                speed_column: str = "output_speed_deg_s", signal: str = "vibration") -> dict:
+    """Arguments of each part of a ``--features`` value (a dict per part name for names joined by '+');
+    ``signal`` (the store's: vibration or current) picks the CNN features' input representation."""
     from rvdiag.features.bearing import geometry_from_mm
     from rvdiag.models.pipelines import feature_names
 
@@ -89,8 +99,10 @@ def features_kw(features: str, *, epochs: int, device: str, seed: int, lr: float
     kw: dict[str, dict] = {}
     for name in parts:
         if name == "cnn":
+            from rvdiag.models.cnn_features import default_representation
+
             kw[name] = {"max_epochs": epochs, "device": device, "random_state": seed, "learning_rate": lr,
-                        "batch_size": batch_size}
+                        "batch_size": batch_size, "representation": default_representation(signal)}
         elif name == "bearing-envelope":
             if bearing_geometry is None:
                 raise ParameterError("--features bearing-envelope needs --bearing-geometry "
@@ -105,8 +117,9 @@ def build_estimator(model: str, features: str | None, *, epochs: int, device: st
                     batch_size: int, lr: float, input_length: int | None, patience: int,
                     validation_fraction: float, normalize: str = "window", representation: str = "waveform",
                     bearing_geometry: str | None = None, rpm_column: str = "rpm", fs: float | None = None,
-                    speed_column: str = "output_speed_deg_s", multilabel: bool = False):
-    """A fresh, unfitted estimator for a ``--model`` name (``fs``: the store's, for bearing-envelope)."""
+                    speed_column: str = "output_speed_deg_s", multilabel: bool = False, signal: str = "vibration"):
+    """A fresh, unfitted estimator for a ``--model`` name (``fs``: the store's, for bearing-envelope;
+    ``signal``: the store's, vibration or current, for the cnn features' representation)."""
     if multilabel and model not in CLASSICAL_MODELS:
         raise ParameterError(f"--multilabel applies to the classical models ({'|'.join(CLASSICAL_MODELS)}), "
                              f"not {model!r}")
@@ -127,7 +140,7 @@ def build_estimator(model: str, features: str | None, *, epochs: int, device: st
         feats = features or "wpd"
         kw = features_kw(feats, epochs=epochs, device=device, seed=seed, lr=lr, batch_size=batch_size,
                          bearing_geometry=bearing_geometry, rpm_column=rpm_column, fs=fs,
-                         speed_column=speed_column)
+                         speed_column=speed_column, signal=signal)
         return make_classical_model(model, feats, seed=seed, features_kw=kw, multilabel=multilabel)
     raise ParameterError(f"unknown model {model!r}; use one of {'|'.join(CNN_MODELS + CLASSICAL_MODELS)}")
 
@@ -293,6 +306,7 @@ def register(app: typer.Typer) -> None:
 
             resolve_device(device)  # 'cuda' without a GPU fails now, not after loading the data
         store = SampleStore.open(data)
+        new_estimator = functools.partial(new_estimator, signal=signal_info(store)["signal"])  # cnn features
         if "train" not in store.splits():
             raise StoreError(f"{data} has no 'train' split (splits: {', '.join(store.splits())})")
         if multilabel:

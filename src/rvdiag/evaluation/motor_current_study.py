@@ -24,6 +24,9 @@ Feature sets (:data:`FEATURE_SETS`):
           (:class:`rvdiag.features.wavelet.WaveletPacketEnergy`, ``db4``, frequency order);
 ``cnn``   the 32 FC activations of the study's CNN (``spectrum-cnn``, Table 5, 1 x 4096 input;
           :class:`rvdiag.models.cnn_features.CNNFeatures`), trained on the training side of each split only.
+          What the network sees of each window is ``cnn_representation``: by default its log spectrum
+          (the study's z-scored waveform stays at chance on unseen simulations, where the log spectrum finds
+          the broken tooth: docs/results.md, "Motor current"), or ``waveform`` / ``residual``.
 
 ``time`` and ``wpt`` learn nothing from the data, so their features are computed once per speed and split
 afterwards (the same figures as a pipeline refitted per split, in a fraction of the time).
@@ -52,6 +55,7 @@ from rvdiag import __version__
 from rvdiag.errors import ParameterError, SplitLeakWarning, StoreError
 from rvdiag.evaluation.metrics import classification_metrics
 from rvdiag.features.timedomain import TIME_FEATURE_NAMES
+from rvdiag.models.cnn_features import CNN_FEATURE_REPRESENTATIONS, default_representation
 from rvdiag.progress import report
 
 FORMAT = "rvdiag-mcsa/1"
@@ -88,6 +92,16 @@ _PROTOCOL_SPLITS = {
 #: The result key of each protocol that :func:`protocol_splits` runs.
 PROTOCOL_KEYS = {"windows": "split", "study": "study", "held-out": "held_out_reducers"}
 
+#: What the CNN of the ``cnn`` set may see of each window (:class:`rvdiag.models.cnn_features.CNNFeatures`):
+#: ``waveform`` the z-scored window (the study's input), ``logspec`` its log spectrum, ``residual`` the window
+#: minus its fitted supply line (:func:`rvdiag.features.current.fundamental_residual`).
+CNN_REPRESENTATIONS = CNN_FEATURE_REPRESENTATIONS
+
+#: The default: the feature CNN's on motor current (:data:`rvdiag.models.cnn_features.DEFAULT_REPRESENTATION`),
+#: the one that finds what the spectrum finds on unseen simulations (docs/results.md, "Motor current"); the
+#: study's raw waveform stays at chance there.
+DEFAULT_CNN_REPRESENTATION = default_representation("current")
+
 #: The channel the command picks when the store has it: the motor's phase current.
 DEFAULT_CHANNEL = "i_a"
 
@@ -108,6 +122,8 @@ class McsaSettings:
     wavelet, wpt_level : the wavelet-packet decomposition
     cnn_epochs, cnn_batch_size, cnn_lr, cnn_patience, cnn_validation_fraction, cnn_input_length, device :
         the CNN's training (:class:`rvdiag.models.cnn_features.CNNFeatures`)
+    cnn_representation : what the CNN sees of each window (:data:`CNN_REPRESENTATIONS`; default
+        :data:`DEFAULT_CNN_REPRESENTATION`)
     tsne_samples : at most this many test samples per speed in each t-SNE panel
     protocol : how the windows are split (:data:`PROTOCOLS`): ``windows`` (random splits over all windows),
         ``study`` (one reducer per state, its windows split at random), ``held-out`` (unseen reducers tested)
@@ -130,6 +146,7 @@ class McsaSettings:
     cnn_patience: int = 5
     cnn_validation_fraction: float = 0.2
     cnn_input_length: int | None = None
+    cnn_representation: str = DEFAULT_CNN_REPRESENTATION
     device: str = "auto"
     tsne_samples: int = 600
     protocol: str = "windows"
@@ -160,6 +177,9 @@ class McsaSettings:
             raise ParameterError(f"cnn_patience must be >= 1, got {self.cnn_patience}")
         if not 0.0 <= self.cnn_validation_fraction < 1.0:
             raise ParameterError(f"cnn_validation_fraction must be in [0, 1), got {self.cnn_validation_fraction}")
+        if self.cnn_representation not in CNN_REPRESENTATIONS:
+            raise ParameterError(f"cnn_representation must be one of {', '.join(CNN_REPRESENTATIONS)}, "
+                                 f"got {self.cnn_representation!r}")
         if self.cnn_input_length is not None and self.cnn_input_length < 4:
             raise ParameterError(f"cnn_input_length must be >= 4, got {self.cnn_input_length}")
         if self.protocol not in PROTOCOLS:
@@ -425,20 +445,18 @@ def _check_protocol(groups: dict[str, _Group], settings: McsaSettings, where: An
 
 
 def recall_and_false_alarms(confusion: Sequence[Sequence[int]], labels: Sequence[str]) -> dict:
-    """Per-class recall and the false-alarm rate (healthy windows called faulty,
-    :func:`rvdiag.evaluation.metrics.healthy_class`) of a confusion matrix (rows true, columns predicted).
+    """Per-class recall (:func:`class_recalls`) and the false-alarm rate (healthy windows called faulty, the
+    healthy class of :func:`rvdiag.evaluation.metrics.healthy_class`) of a confusion matrix (rows true).
 
     >>> recall_and_false_alarms([[3, 1], [0, 4]], ["T1", "T2"])
-    {'recall': {'T1': 0.75, 'T2': 1.0}, 'false_alarm_rate': 0.25}
+    {'recall_per_class': {'T1': 0.75, 'T2': 1.0}, 'false_alarm_rate': 0.25}
     """
     from rvdiag.evaluation.metrics import healthy_class
 
-    cm = np.asarray(confusion, dtype=float)
-    rows = cm.sum(axis=1)
-    recall = {c: (float(cm[i, i] / rows[i]) if rows[i] else None) for i, c in enumerate(labels)}
+    recall = class_recalls(confusion, labels)
     healthy = healthy_class(labels)
     fa = None if healthy is None or recall[healthy] is None else 1.0 - recall[healthy]
-    return {"recall": recall, "false_alarm_rate": fa}
+    return {"recall_per_class": recall, "false_alarm_rate": fa}
 
 
 # ---------------------------------------------------------------------- models
@@ -470,7 +488,7 @@ def _cnn(settings: McsaSettings, seed: int):
                        max_epochs=int(settings.cnn_epochs), batch_size=int(settings.cnn_batch_size),
                        learning_rate=float(settings.cnn_lr), n_iter_no_change=int(settings.cnn_patience),
                        validation_fraction=float(settings.cnn_validation_fraction), device=settings.device,
-                       random_state=int(seed))
+                       random_state=int(seed), representation=settings.cnn_representation)
 
 
 def _fit_score(name: str, settings: McsaSettings, seed: int, Xtr, ytr, Xte, yte, Ftr=None, Fte=None):
@@ -483,8 +501,21 @@ def _fit_score(name: str, settings: McsaSettings, seed: int, Xtr, ytr, Xte, yte,
     labels = sorted(set(ytr.tolist()) | set(yte.tolist()))
     m = classification_metrics(yte, pred, labels=labels)
     keep = {k: m[k] for k in METRICS}
-    keep.update(confusion=m["confusion"], labels=m["labels"], n_train=int(len(ytr)), n_test=int(len(yte)))
+    keep.update(confusion=m["confusion"], labels=m["labels"], n_train=int(len(ytr)), n_test=int(len(yte)),
+                recall_per_class=class_recalls(m["confusion"], m["labels"]))
     return keep, svm.named_steps["scale"].transform(Fte)
+
+
+def class_recalls(confusion, labels) -> dict[str, float | None]:
+    """Recall of each class (its diagonal over its row of the confusion matrix; None for a class without
+    test samples)."""
+    C = np.asarray(confusion, dtype=np.float64)
+    rows = C.sum(axis=1)
+    return {str(c): (float(C[i, i] / rows[i]) if rows[i] > 0 else None) for i, c in enumerate(labels)}
+
+
+def _recall_text(recalls: dict) -> str:
+    return " / ".join(f"{c} {'-' if r is None else f'{100 * r:.0f}'}" for c, r in recalls.items())
 
 
 def _summary(runs: list[dict]) -> dict:
@@ -678,8 +709,9 @@ def markdown(report_: dict) -> str:
         "feature set.  Accuracy as mean ± std over the splits (%); precision, recall and F1 are macro averages "
         "(%), kappa is Cohen's; all means over the splits.",
         "",
-        f"| speed ({unit or report_['speed_column']}) | features | accuracy | precision | recall | F1 | kappa |",
-        "|---|---|---|---|---|---|---|",
+        f"| speed ({unit or report_['speed_column']}) | features | accuracy | precision | recall | F1 | kappa | "
+        "recall per class (all splits) |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for speed, sets in report_["results"].items():
         for name, e in sets.items():
@@ -687,7 +719,7 @@ def markdown(report_: dict) -> str:
             lines.append(f"| {speed} | {FEATURE_SETS[name]} | {_pct(s['accuracy']['mean'])} ± "
                          f"{_pct(s['accuracy']['std'])} | {_pct(s['precision_macro']['mean'])} | "
                          f"{_pct(s['recall_macro']['mean'])} | {_pct(s['f1_macro']['mean'])} | "
-                         f"{s['kappa']['mean']:.3f} |")
+                         f"{s['kappa']['mean']:.3f} | {_recall_text(s['recall_per_class'])} |")
     return _markdown_tail(report_, lines + _test_store_lines(report_))
 
 
@@ -699,8 +731,8 @@ def _test_store_lines(report_: dict) -> list[str]:
         lines += ["", f"Held out: fitted on every sample of the store at each speed, scored on "
                       f"`{report_['test_store']['path']}` (channel `{report_['test_store']['channel']}`).", "",
                   f"| speed ({unit or report_['speed_column']}) | features | accuracy | precision | recall | F1 | "
-                  "kappa | test samples |",
-                  "|---|---|---|---|---|---|---|---|"]
+                  "kappa | test samples | recall per class |",
+                  "|---|---|---|---|---|---|---|---|---|"]
         for speed, sets in report_["results"].items():
             for name, e in sets.items():
                 h = e["held_out"]
@@ -708,11 +740,16 @@ def _test_store_lines(report_: dict) -> list[str]:
                     continue
                 lines.append(f"| {speed} | {FEATURE_SETS[name]} | {_pct(h['accuracy'])} | "
                              f"{_pct(h['precision_macro'])} | {_pct(h['recall_macro'])} | {_pct(h['f1_macro'])} | "
-                             f"{h['kappa']:.3f} | {h['n_test']} |")
+                             f"{h['kappa']:.3f} | {h['n_test']} | {_recall_text(h['recall_per_class'])} |")
     return lines
 
 
 def _markdown_tail(report_: dict, lines: list[str]) -> str:
+    st = report_["settings"]
+    if "cnn" in report_["feature_sets"]:
+        lines += ["", f"The CNN sees each window as `{st.get('cnn_representation', 'waveform')}` "
+                      "(waveform: the z-scored window, the study's input; logspec: its log spectrum; residual: the "
+                      "window minus its fitted supply line)."]
     study = "; ".join(f"{FEATURE_SETS[k]} {v}" for k, v in report_["study"].items())
     lines += ["", f"The study (Li, Zhao et al. 2024, measured motor current, 4 states) reports: {study}."]
     if report_["notes"]:
@@ -721,7 +758,7 @@ def _markdown_tail(report_: dict, lines: list[str]) -> str:
 
 
 def _recalls(e: dict) -> str:
-    return " / ".join("-" if v is None else f"{100 * v:.0f}" for v in e["recall"].values())
+    return " / ".join("-" if v is None else f"{100 * v:.0f}" for v in e["recall_per_class"].values())
 
 
 def _fa(e: dict) -> str:
@@ -818,7 +855,8 @@ def write_outputs(result: McsaResult, out_dir: str | Path) -> list[Path]:
     return written
 
 
-__all__ = ["DEFAULT_CHANNEL", "FEATURE_SETS", "METRICS", "PROTOCOLS", "McsaResult", "McsaSettings", "STUDY_FIGURES",
-           "held_out_split", "markdown", "parse_feature_sets", "pick_channel", "prepare", "protocol_markdown",
-           "protocol_splits", "protocols_run", "recall_and_false_alarms", "run_mcsa", "sample_channels",
-           "speed_labels", "split_seeds", "study_split", "write_outputs"]
+__all__ = ["CNN_REPRESENTATIONS", "DEFAULT_CHANNEL", "DEFAULT_CNN_REPRESENTATION", "FEATURE_SETS", "METRICS",
+           "PROTOCOLS", "McsaResult", "McsaSettings", "STUDY_FIGURES", "class_recalls", "held_out_split", "markdown",
+           "parse_feature_sets", "pick_channel", "prepare", "protocol_markdown", "protocol_splits", "protocols_run",
+           "recall_and_false_alarms", "run_mcsa", "sample_channels", "speed_labels", "split_seeds", "study_split",
+           "write_outputs"]

@@ -21,6 +21,12 @@ pair, ``(mean(s_a^2) + mean(s_b^2)) / 2`` over the window: one noise level for b
 needs.  ``add_awgn`` scales each sample to its own power, so the two hypotheses' noise differs by the power
 ratio of the pair (1.0x for a crack, docs/model.md section 9); the bound takes their mean.
 
+Across specimens (``params_b``: the second state simulated on another reducer, e.g. another ``[modification]
+error_seed``), the same bound says how far two reducers are apart: the bound of specimen A healthy against
+specimen B healthy, beside that of A healthy against A cracked, tells whether the difference between two reducers
+is larger than the fault's effect (then a classifier that does not know the reducer's healthy signal meets the
+crack inside the spread of healthy reducers).
+
 It is an upper bound: the ideal detector knows both signals, their phase in the window and the noise level,
 whereas a classifier trained on a library meets the state at any phase, any severity of its range and any
 draw of the other parameters.  A classifier near the bound has nothing left to learn; one far below it has.
@@ -119,26 +125,29 @@ def separability_bound(a: np.ndarray, b: np.ndarray, window: int, snr_db: Sequen
 
 def simulate_pair(pair: Sequence[str], *, params=None, output_speed_deg_s: float, load_Nm: float,
                   duration_s: float, fs: float, transient_s: float, model: Mapping | None = None, channel: int = 0,
-                  severities: Mapping[str, float] | None = None, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+                  severities: Mapping[str, float] | None = None, seed: int = 0,
+                  params_b=None) -> tuple[np.ndarray, np.ndarray]:
     """Noise-free records of the two states of ``pair`` (``rvdiag.gears.ToothFaults.for_state`` names), one channel.
 
     Both come from :func:`rvdiag.dynamics.simulate` with the same parameters, operating point, settings
     (``model``: :class:`rvdiag.dynamics.ModelSettings` keywords, as a library config's ``[model]`` table) and
     seed; ``severities`` (SI, keyed as ``for_state`` takes them) go to both, each state using those of its
-    faults.  Each simulation is reported to :mod:`rvdiag.progress` (stage ``simulating STATE``)."""
+    faults.  ``params_b`` (default: ``params``) are the second state's parameters: two specimens, e.g. two
+    ``[modification] error_seed``, so that the pair differs by the reducer (and the fault, if the states differ).
+    Each simulation is reported to :mod:`rvdiag.progress` (stage ``simulating STATE``)."""
     from rvdiag.dynamics import ModelSettings, simulate
     from rvdiag.gears import ToothFaults
 
     settings = ModelSettings(**dict(model or {}), transient_s=float(transient_s))
     out = []
-    for state in pair:
+    for state, p in zip(pair, (params, params if params_b is None else params_b)):
         fault = ToothFaults.for_state(state, **dict(severities or {}))
         stage = f"simulating {fault.label or str(state).upper()}"
 
         def progress(done: int, total: int, stage: str = stage) -> None:
             report(stage, done, total)
 
-        res = simulate(params, None if fault.is_healthy else fault, output_speed_deg_s=output_speed_deg_s,
+        res = simulate(p, None if fault.is_healthy else fault, output_speed_deg_s=output_speed_deg_s,
                        load_Nm=load_Nm, duration_s=duration_s, fs=fs, noise_snr_db=None, seed=seed,
                        settings=settings, progress=progress)
         if not 0 <= channel < res.signal.shape[0]:

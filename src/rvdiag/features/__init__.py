@@ -33,7 +33,9 @@ Names joined by ``+`` (``spectrum-abs+bearing-envelope``) put feature sets side 
 (:class:`~rvdiag.features.combine.CombinedFeatures`, built by :func:`rvdiag.models.pipelines.make_feature_set`).
 Also :class:`CharacteristicBandEnergy` (bands at the reducer's characteristic frequencies) and
 :class:`~rvdiag.features.relative.BaselineReferencedFeatures` (what changed in a window since its reducer's own
-baseline windows: docs/monitoring.md).  Extensions add
+baseline windows: docs/monitoring.md), and the input representations of a learned feature extractor:
+:class:`~rvdiag.features.current.FundamentalResidual` (a motor current with its fitted supply line removed) and
+:func:`~rvdiag.features.spectrum.log_spectrum` (the level-free log spectrum).  Extensions add
 names with :func:`register_features`.  The learned ``cnn`` feature set trains a network, so it lives in the models layer
 (:class:`rvdiag.models.cnn_features.CNNFeatures`, named by :func:`rvdiag.models.pipelines.feature_names`);
 this package never imports torch.
@@ -48,6 +50,7 @@ from rvdiag.features._base import SignalTransformer, as_signal_matrix
 from rvdiag.features.baseline import HealthyBaselineFeatures, healthy_modulation_features, healthy_tsa_features
 from rvdiag.features.bearing import BearingEnvelopeFeatures
 from rvdiag.features.combine import CombinedFeatures, input_metadata, with_metadata
+from rvdiag.features.current import FundamentalResidual, fundamental_residual
 from rvdiag.features.eemd import EEMDFeatures, eemd, emd
 from rvdiag.features.relative import BaselineReferencedFeatures, relative_features, tsa_change_features
 from rvdiag.features.spectrum import (
@@ -134,10 +137,10 @@ def make_features(name: str, **kw):
 __all__ = [
     "BaselineReferencedFeatures", "relative_features", "tsa_change_features",
     "BearingEnvelopeFeatures", "CharacteristicBandEnergy", "HealthyBaselineFeatures", "CombinedFeatures", "EEMDFeatures",
-    "EnvelopeSpectrumFeatures", "OrderSpectrumFeatures", "RawSignal", "SignalTransformer", "SpectrumFeatures", "TIME_FEATURE_NAMES",
+    "EnvelopeSpectrumFeatures", "FundamentalResidual", "OrderSpectrumFeatures", "RawSignal", "SignalTransformer", "SpectrumFeatures", "TIME_FEATURE_NAMES",
     "TSAIndicatorFeatures", "TimeDomainFeatures", "WaveletPacketEnergy", "absolute_spectrum_features", "as_signal_matrix",
     "modulation_indicator_features",
     "healthy_modulation_features", "healthy_tsa_features",
-    "bearing_defect_frequencies", "eemd", "emd", "feature_names", "input_metadata", "log_spectrum_features",
+    "bearing_defect_frequencies", "eemd", "emd", "feature_names", "fundamental_residual", "input_metadata", "log_spectrum_features",
     "make_features", "register_features", "time_features", "with_metadata",
 ]

@@ -60,6 +60,22 @@ def power_spectrum(X: np.ndarray, window: str | None = "hann") -> np.ndarray:
     return S
 
 
+#: added to the magnitude before the log of :func:`log_spectrum`
+LOGSPEC_EPS = 1e-12
+
+
+def log_spectrum(windows: np.ndarray) -> np.ndarray:
+    """Level-free log-magnitude spectrum of each row: ``log(|rfft(hann * (x - mean))| + eps)`` minus its
+    row mean, shape ``(n, W // 2 + 1)``, float32: the input of the ``logspec`` CNNs
+    (:class:`rvdiag.models.torch_estimator.CNNClassifier`).  A gain ``g`` adds ``log g`` to every bin, which the
+    row mean removes, so the result does not depend on the signal's level."""
+    x = np.asarray(windows, dtype=np.float64)
+    x = x - x.mean(axis=1, keepdims=True)
+    mag = np.abs(np.fft.rfft(x * np.hanning(x.shape[1]), axis=1))
+    out = np.log(mag + LOGSPEC_EPS)
+    return (out - out.mean(axis=1, keepdims=True)).astype(np.float32)
+
+
 def squared_envelope(X: np.ndarray, band: tuple[float, float] | None = None) -> np.ndarray:
     """Squared envelope |analytic signal|^2 of each row, band-passed to ``band`` (cycles/sample) first.
 

@@ -1,7 +1,9 @@
 """Monitoring a reducer against its own healthy baseline: a health index with an alarm at a stated false-alarm
 rate, the most probable state with its probability, and in words what changed (docs/monitoring.md).
 
-The input of every method is a matrix ``D`` of baseline-referenced features, one row per monitored record: what
+The input of every method is a matrix ``D`` of baseline-referenced features, one row per monitored record (the mean
+change of its windows, as ``rvdiag train``, ``evaluate`` and ``diagnose`` give it: the alarm's rate is per record,
+and the windows of one record, sharing its run-to-run variation, are not exchangeable records): what
 changed since the same reducer's baseline at the nearest operating point
 (:class:`rvdiag.features.relative.BaselineReferencedFeatures`; pairing by
 :func:`rvdiag.datasets.store.match_baseline`).  :meth:`BaselineMonitor.fit` takes the rows of a paired library,
@@ -260,13 +262,14 @@ class BaselineMonitor(ClassifierMixin, BaseEstimator):
 
 
 def save_monitor(monitor: BaselineMonitor, directory, *, model: str = "baseline-monitor",
-                 speed_tolerance: float | None = None, load_tolerance: float | None = None, **card_fields):
+                 speed_tolerance: float | None = None, load_tolerance: float | None = None,
+                 record_windows: int | None = None, **card_fields):
     """Save a fitted monitor as a classical model directory (``model.skops`` + ``card.json``,
     :func:`rvdiag.models.pipelines.save_classical`; loaded back by :func:`rvdiag.models.persistence.load_model`).
 
     The card says ``needs_baseline: true`` and holds the window length, the metadata columns and the matching
-    tolerances a baseline must meet (``baseline``), and the alarm's ``alpha``, threshold and calibration size
-    (``alarm``); ``card_fields`` go to :func:`rvdiag.models.persistence.base_card` (``fs``, ``training_store``...).
+    tolerances a baseline must meet (``baseline``), and the alarm's ``alpha``, threshold, calibration size and
+    ``record_windows`` (the windows of a calibration record, whose mean change is one row; ``alarm``); ``card_fields`` go to :func:`rvdiag.models.persistence.base_card` (``fs``, ``training_store``...).
     """
     from rvdiag.datasets.store import LOAD_TOLERANCE, SPEED_TOLERANCE
     from rvdiag.models.card import jsonable
@@ -287,7 +290,8 @@ def save_monitor(monitor: BaselineMonitor, directory, *, model: str = "baseline-
                      "speed_tolerance": SPEED_TOLERANCE if speed_tolerance is None else float(speed_tolerance),
                      "load_tolerance": LOAD_TOLERANCE if load_tolerance is None else float(load_tolerance)},
         "alarm": {"alpha": float(monitor.alpha), "threshold": float(monitor.threshold_),
-                  "n_calibration": int(monitor.n_calibration_), "detector": monitor.detector},
+                  "n_calibration": int(monitor.n_calibration_), "detector": monitor.detector,
+                  "record_windows": None if record_windows is None else int(record_windows)},
         "preprocessing": {"features": "baseline-referenced",
                           "feature_names": [str(f) for f in feats.get_feature_names_out()]},
     }))

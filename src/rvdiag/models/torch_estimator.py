@@ -32,7 +32,13 @@ mesh harmonics at the fault frequency, tens of dB above a floor that holds littl
 network weighs points by energy and misses them, the log spectrum puts them on an equal footing
 (docs/results.md, "Input representation").  The spectrum is the classic input of 1-D CNNs in gear
 diagnosis (e.g. Jing et al. 2017, Measurement 111, "A convolutional neural network based feature learning
-and fault diagnosis method for the condition monitoring of gearbox").
+and fault diagnosis method for the condition monitoring of gearbox").  :func:`log_spectrum` lives in
+:mod:`rvdiag.features.spectrum`.
+
+``"residual"`` (motor current): the time window minus its fitted supply line
+(:func:`rvdiag.features.current.fundamental_residual`), so the network sees the reducer's sidebands
+``f_e +- k f1`` instead of the sinusoid and the load that dominate the z-scored current (docs/results.md,
+"Motor current").
 
 ``"orders"`` and ``"orders-residual"`` (angle domain, docs/models.md): the network sees each sample
 resampled to ``samples_per_rev`` points per revolution of ``shaft`` (computed order tracking,
@@ -72,24 +78,14 @@ from sklearn.utils.multiclass import check_classification_targets
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from rvdiag.errors import ParameterError
+from rvdiag.features.spectrum import LOGSPEC_EPS, log_spectrum  # noqa: F401 (LOGSPEC_EPS: re-exported)
 from rvdiag.io.windows import COVER_POLICIES, covering_starts
 from rvdiag.models.cnn import ARCHITECTURES, DEFAULT_INPUT_LENGTH, architecture_name, build_network
 
 NORMALIZATIONS = ("window", "global", "none")
 LONG_INPUT = COVER_POLICIES
 ANGLE_REPRESENTATIONS = ("orders", "orders-residual")
-REPRESENTATIONS = ("waveform", "logspec") + ANGLE_REPRESENTATIONS
-LOGSPEC_EPS = 1e-12
-
-
-def log_spectrum(windows: np.ndarray) -> np.ndarray:
-    """Level-free log-magnitude spectrum of each row: ``log(|rfft(hann * (x - mean))| + eps)`` minus its
-    row mean, shape ``(n, W // 2 + 1)``, float32."""
-    x = np.asarray(windows, dtype=np.float64)
-    x = x - x.mean(axis=1, keepdims=True)
-    mag = np.abs(np.fft.rfft(x * np.hanning(x.shape[1]), axis=1))
-    out = np.log(mag + LOGSPEC_EPS)
-    return (out - out.mean(axis=1, keepdims=True)).astype(np.float32)
+REPRESENTATIONS = ("waveform", "logspec", "residual") + ANGLE_REPRESENTATIONS
 
 
 def network_length(window: int, representation: str) -> int:
@@ -157,7 +153,7 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         What to do with samples longer than the input (module docstring).
     normalize : {"window", "global", "none"}
         Input normalisation (module docstring).
-    representation : {"waveform", "logspec", "orders", "orders-residual"}
+    representation : {"waveform", "logspec", "residual", "orders", "orders-residual"}
         What the network sees of each window (module docstring).
     max_epochs : int
         Upper bound on epochs.
@@ -317,6 +313,10 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         Xw = self._windows(np.asarray(X, dtype=np.float32))
         if self.representation == "logspec":
             return log_spectrum(Xw)
+        if self.representation == "residual":
+            from rvdiag.features.current import fundamental_residual
+
+            return fundamental_residual(Xw).astype(np.float32)
         return Xw
 
     def _prepare(self, X: np.ndarray) -> np.ndarray:
