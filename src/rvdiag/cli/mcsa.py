@@ -1,14 +1,16 @@
 """``rvdiag mcsa STORE.zarr -o OUTDIR``: the motor-current study's evaluation protocol in one command.
 
-    rvdiag mcsa STORE.zarr -o OUTDIR [--test OTHER.zarr] [-c/--channel NAME] [--speed-column COLUMN]
+    rvdiag mcsa STORE.zarr -o OUTDIR [--protocol windows|study|held-out|both] [--test OTHER.zarr]
+                [-c/--channel NAME] [--speed-column COLUMN]
                 [--feature-sets time,wpt,cnn] [--repeats 10] [--test-size 0.3] [--seed N] [--svm-c C]
                 [--wavelet db4] [--wpt-level 4] [--cnn-epochs N] [--cnn-batch-size N] [--cnn-lr LR]
                 [--cnn-patience N] [--cnn-input-length N]
                 [--cnn-representation logspec|residual|waveform] [--device auto|cpu|cuda] [--tsne-samples N]
                 [--overwrite] [--json] [-q]
 
-At each speed of the store and for each feature set: ``--repeats`` stratified random splits, StandardScaler +
-RBF SVM, accuracy / macro precision / recall / F1 / Cohen's kappa as mean and std over the splits; with
+At each speed of the store and for each feature set: ``--repeats`` splits (``--protocol``: random window
+splits over the whole store; the study's one reducer per state with its windows split at random; unseen reducers
+on the test side; or the last two side by side), StandardScaler + RBF SVM, accuracy / macro precision / recall / F1 / Cohen's kappa as mean and std over the splits; with
 ``--test`` also fitted on all of STORE and scored on OTHER.  Writes OUTDIR/mcsa.json, OUTDIR/mcsa.md and
 OUTDIR/tsne_<set>.png.  The protocol lives in :mod:`rvdiag.evaluation.motor_current_study`; docs/models.md describes it.
 """
@@ -29,7 +31,7 @@ OPTION_NAMES = {"feature_sets": "--feature-sets", "seed": "--seed", "repeats": "
                 "cnn_epochs": "--cnn-epochs", "cnn_batch_size": "--cnn-batch-size", "cnn_lr": "--cnn-lr",
                 "cnn_patience": "--cnn-patience", "cnn_input_length": "--cnn-input-length",
                 "cnn_representation": "--cnn-representation",
-                "tsne_samples": "--tsne-samples"}
+                "tsne_samples": "--tsne-samples", "protocol": "--protocol"}
 
 
 def register(app: typer.Typer) -> None:
@@ -47,6 +49,12 @@ def register(app: typer.Typer) -> None:
         feature_sets: str = typer.Option("time,wpt,cnn", "--feature-sets",
                                          help="Comma-separated: time (10 time-domain statistics) | wpt (level-4 "
                                               "wavelet-packet energies) | cnn (features of the spectrum-cnn)."),
+        protocol: str = typer.Option("windows", "--protocol",
+                                     help="windows: random splits over every window of the store | study: one "
+                                          "simulated reducer per state, its windows split at random (the study's "
+                                          "protocol) | held-out: unseen reducers tested (needs >= 2 simulations "
+                                          "per state and speed) | both: study and held-out side by side, their "
+                                          "gap the protocol's leak."),
         repeats: int = typer.Option(10, "--repeats", help="Random splits per speed and feature set."),
         test_size: float = typer.Option(0.3, "--test-size", help="Share of each class on the test side of a split."),
         seed: int = opt.seed("Seed the split seeds (and CNN seeds) derive from; recorded in mcsa.json."),
@@ -91,7 +99,8 @@ def register(app: typer.Typer) -> None:
                                     test_size=test_size, seed=seed, speed_column=speed_column, channel=channel,
                                     svm_c=svm_c, wavelet=wavelet, wpt_level=wpt_level, cnn_epochs=cnn_epochs,
                                     cnn_batch_size=cnn_batch_size, cnn_lr=cnn_lr, cnn_patience=cnn_patience,
-                                    cnn_input_length=cnn_input_length, device=device, tsne_samples=tsne_samples)
+                                    cnn_input_length=cnn_input_length, device=device, tsne_samples=tsne_samples,
+                                    protocol=protocol)
             settings.check()
         if "cnn" in settings.feature_sets:
             from rvdiag.models.torch_estimator import resolve_device

@@ -73,6 +73,25 @@ STUDY_FIGURES = {"time": "<= 83.75 %", "wpt": "> 82.5 %", "cnn": "> 96 %"}
 #: The metrics averaged over repeats (keys of :func:`classification_metrics`).
 METRICS = ("accuracy", "precision_macro", "recall_macro", "f1_macro", "kappa")
 
+#: Protocol name -> how it splits the windows at each speed (:func:`protocol_splits`).
+PROTOCOLS = {
+    "windows": "random stratified window splits over every window of the store",
+    "study": "one simulated reducer per state (its own specimen), its windows split at random",
+    "held-out": "several reducers per state; the test side holds only reducers the fit never saw",
+    "both": "the study's protocol and the held-out one, side by side",
+}
+
+#: How each protocol that runs draws a split (recorded in mcsa.json).
+_PROTOCOL_SPLITS = {
+    "windows": "stratified random window splits over all windows",
+    "study": "per state one simulation drawn with default_rng(split seed), its windows split stratified at random",
+    "held-out": "per state round(test_size x its simulations) drawn with default_rng(split seed) to the test side "
+                "with all their windows",
+}
+
+#: The result key of each protocol that :func:`protocol_splits` runs.
+PROTOCOL_KEYS = {"windows": "split", "study": "study", "held-out": "held_out_reducers"}
+
 #: What the CNN of the ``cnn`` set may see of each window (:class:`rvdiag.models.cnn_features.CNNFeatures`):
 #: ``waveform`` the z-scored window (the study's input), ``logspec`` its log spectrum, ``residual`` the window
 #: minus its fitted supply line (:func:`rvdiag.features.current.fundamental_residual`).
@@ -106,6 +125,9 @@ class McsaSettings:
     cnn_representation : what the CNN sees of each window (:data:`CNN_REPRESENTATIONS`; default
         :data:`DEFAULT_CNN_REPRESENTATION`)
     tsne_samples : at most this many test samples per speed in each t-SNE panel
+    protocol : how the windows are split (:data:`PROTOCOLS`): ``windows`` (random splits over all windows),
+        ``study`` (one reducer per state, its windows split at random), ``held-out`` (unseen reducers tested)
+        or ``both`` (study and held-out side by side)
     """
 
     feature_sets: tuple[str, ...] = ("time", "wpt", "cnn")
@@ -127,6 +149,7 @@ class McsaSettings:
     cnn_representation: str = DEFAULT_CNN_REPRESENTATION
     device: str = "auto"
     tsne_samples: int = 600
+    protocol: str = "windows"
 
     def check(self) -> None:
         """Raise :class:`ParameterError` for a setting out of range (names as the Python fields)."""
@@ -159,6 +182,8 @@ class McsaSettings:
                                  f"got {self.cnn_representation!r}")
         if self.cnn_input_length is not None and self.cnn_input_length < 4:
             raise ParameterError(f"cnn_input_length must be >= 4, got {self.cnn_input_length}")
+        if self.protocol not in PROTOCOLS:
+            raise ParameterError(f"protocol must be one of {' | '.join(PROTOCOLS)}, got {self.protocol!r}")
         if self.tsne_samples < 0:
             raise ParameterError(f"tsne_samples must be >= 0, got {self.tsne_samples}")
         import pywt
@@ -310,6 +335,130 @@ def _check_splittable(groups: dict[str, _Group], test_size: float, where: Any, u
                              f"class and one per class on each side")
 
 
+# ---------------------------------------------------------------------- protocols
+def study_split(y: np.ndarray, units: np.ndarray, test_size: float, seed: int):
+    """One split of the study's protocol: one reducer per state, its windows split at random.
+
+    The study recorded each state on a different physical sun gear and split the windows of those recordings
+    70/30 at random.  Here each state keeps the windows of one simulation (``units``: the simulation of every
+    window; with ``[randomise] specimen = true`` each simulation is a reducer of its own), drawn with
+    ``numpy.random.default_rng(seed)``, and those windows are split stratified at random
+    (:func:`sklearn.model_selection.train_test_split`, ``random_state=seed``).
+
+    Returns (train indices, test indices, the simulations used, one per state in sorted class order).
+
+    >>> y = np.array(["a"] * 6 + ["b"] * 6); u = np.array([1, 1, 1, 2, 2, 2, 3, 3, 3, 4, 4, 4])
+    >>> tr, te, used = study_split(y, u, 0.5, 0)
+    >>> len(used), set(u[np.r_[tr, te]]) == set(used), len(te)
+    (2, True, 3)
+    """
+    from sklearn.model_selection import train_test_split
+
+    rng = np.random.default_rng(int(seed))
+    used = []
+    for c in sorted(set(y.tolist())):
+        candidates = np.unique(units[y == c])
+        used.append(candidates[rng.integers(len(candidates))])
+    idx = np.flatnonzero(np.isin(units, used))
+    tr, te = train_test_split(idx, test_size=float(test_size), stratify=y[idx], random_state=int(seed))
+    return np.sort(tr), np.sort(te), [u.item() if hasattr(u, "item") else u for u in used]
+
+
+def held_out_split(y: np.ndarray, units: np.ndarray, test_size: float, seed: int):
+    """One split of the held-out protocol: whole reducers on the test side, none of them seen in the fit.
+
+    For each state, ``round(test_size * n)`` of its ``n`` simulations (at least one, and at least one left to
+    train on), drawn with ``numpy.random.default_rng(seed)``, give all their windows to the test side; the other
+    simulations train.  A split by group (as :class:`sklearn.model_selection.GroupShuffleSplit`), stratified by
+    state so that every state is on both sides.
+
+    Returns (train indices, test indices, the test simulations).
+
+    >>> y = np.array(["a"] * 4 + ["b"] * 4); u = np.array([1, 1, 2, 2, 3, 3, 4, 4])
+    >>> tr, te, unseen = held_out_split(y, u, 0.5, 0)
+    >>> len(unseen), set(u[tr]) & set(u[te])
+    (2, set())
+    """
+    rng = np.random.default_rng(int(seed))
+    unseen = []
+    for c in sorted(set(y.tolist())):
+        candidates = np.unique(units[y == c])
+        k = min(max(1, round(float(test_size) * len(candidates))), len(candidates) - 1)
+        unseen.extend(rng.choice(candidates, k, replace=False).tolist())
+    test = np.isin(units, unseen)
+    return np.flatnonzero(~test), np.flatnonzero(test), sorted(unseen)
+
+
+def protocol_splits(protocol: str, y: np.ndarray, units: np.ndarray | None, test_size: float,
+                    seeds: Sequence[int]) -> list[tuple[np.ndarray, np.ndarray, dict]]:
+    """The (train, test, what the split used) of each repeat of one protocol (``windows``, ``study`` or
+    ``held-out``; :data:`PROTOCOLS`), repeat ``r`` seeded with ``seeds[r]``."""
+    from sklearn.model_selection import train_test_split
+
+    out = []
+    for s in seeds:
+        if protocol == "windows":
+            tr, te = train_test_split(np.arange(len(y)), test_size=float(test_size), stratify=y, random_state=s)
+            out.append((np.sort(tr), np.sort(te), {}))
+        elif protocol == "study":
+            tr, te, used = study_split(y, units, test_size, s)
+            out.append((tr, te, {"simulations": used}))
+        elif protocol == "held-out":
+            tr, te, unseen = held_out_split(y, units, test_size, s)
+            out.append((tr, te, {"test_simulations": unseen}))
+        else:
+            raise ParameterError(f"protocol_splits runs windows | study | held-out, got {protocol!r}")
+    return out
+
+
+def protocols_run(protocol: str) -> list[str]:
+    """The protocols a ``protocol`` setting runs (``both`` -> study and held-out)."""
+    return ["study", "held-out"] if protocol == "both" else [protocol]
+
+
+def _check_protocol(groups: dict[str, _Group], settings: McsaSettings, where: Any, unit: str) -> None:
+    """Refuse a store the study or held-out protocol cannot split (before any work)."""
+    runs = protocols_run(settings.protocol)
+    if runs == ["windows"]:
+        return
+    for speed, g in groups.items():
+        at = f"{where} at {speed} {unit}".rstrip()
+        if g.units is None:
+            raise StoreError(f"{where} has no 'unit' column (the simulation of each window): the {settings.protocol} "
+                             "protocol splits by simulated reducer")
+        for c in sorted(set(g.y.tolist())):
+            sims, windows = np.unique(g.units[g.y == c], return_counts=True)
+            if "held-out" in runs and len(sims) < 2:
+                raise StoreError(f"{at}: state {c} has {len(sims)} simulation; the held-out split needs at least "
+                                 "2 per state and speed (one to train on, one unseen)")
+            if "study" in runs and windows.min() < 2:
+                raise StoreError(f"{at}: a simulation of state {c} has {windows.min()} window; the study's split "
+                                 "takes the windows of one simulation to both sides and needs at least 2")
+        if "study" in runs:
+            n_classes = len(set(g.y.tolist()))
+            n = n_classes * min(int(np.min(np.unique(g.units[g.y == c], return_counts=True)[1]))
+                                for c in set(g.y.tolist()))
+            n_test = math.ceil(float(settings.test_size) * n)
+            if n_test < n_classes or n - n_test < n_classes:
+                raise StoreError(f"{at}: one simulation per state gives as few as {n} windows, too few for a "
+                                 f"stratified split with one per state on each side")
+
+
+def recall_and_false_alarms(confusion: Sequence[Sequence[int]], labels: Sequence[str]) -> dict:
+    """Per-class recall (:func:`class_recalls`) and the false-alarm rate (healthy windows called faulty, the
+    healthy class of :func:`rvdiag.evaluation.metrics.healthy_class`) of a confusion matrix (rows true).
+
+    >>> recall_and_false_alarms([[3, 1], [0, 4]], ["T1", "T2"])
+    {'recall_per_class': {'T1': 0.75, 'T2': 1.0}, 'false_alarm_rate': 0.25}
+    """
+    from rvdiag.evaluation.metrics import healthy_class
+
+    recall = class_recalls(confusion, labels)
+    healthy = healthy_class(labels)
+    fa = None if healthy is None or recall[healthy] is None else 1.0 - recall[healthy]
+    return {"recall_per_class": recall, "false_alarm_rate": fa}
+
+
 # ---------------------------------------------------------------------- models
 def _svm(settings: McsaSettings, seed: int):
     from sklearn.pipeline import Pipeline
@@ -407,6 +556,7 @@ def prepare(store, settings: McsaSettings, test_store=None):
                              f"{store.path} ({store.length} points)")
     groups = _load_groups(store, channel, settings.speed_column)
     _check_splittable(groups, float(settings.test_size), store.path, unit)
+    _check_protocol(groups, settings, store.path, unit)
     notes: list[str] = []
     leaks: list[str] = []
     other = None
@@ -443,11 +593,13 @@ def prepare(store, settings: McsaSettings, test_store=None):
             leaks.append(f"{shared} simulation(s) (class and seed) of {test_store.path} are also in {store.path}: "
                          "the held-out figure is optimistic")
         other = (other_channel, other_groups)
-    if any(g.units is not None and len(np.unique(g.units)) < len(g.units) for g in groups.values()):
+    if settings.protocol != "held-out" and any(g.units is not None and len(np.unique(g.units)) < len(g.units)
+                                                for g in groups.values()):
+        honest = ("the held-out protocol's figures are not" if settings.protocol == "both" else
+                  "the held-out figures are not" if other is not None else
+                  "--protocol held-out (unseen reducers) or a held-out store (--test) gives the honest figure")
         leaks.append("random window splits put windows of one simulation on both sides (the study's protocol): "
-                     "the split scores are optimistic" +
-                     ("; the held-out figures are not" if other is not None else
-                      "; a held-out store of other simulations (--test) gives the honest figure"))
+                     f"the split scores are optimistic; {honest}")
     return channel, groups, other, notes + leaks, leaks
 
 
@@ -465,41 +617,36 @@ def run_mcsa(store, settings: McsaSettings, test_store=None) -> McsaResult:
     results: dict[str, dict[str, Any]] = {}
     tsne: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = {name: {} for name in settings.feature_sets}
     n_held = 0 if other is None else sum(1 for s in groups if s in other[1])
-    from sklearn.model_selection import train_test_split
-
+    runs_of = protocols_run(settings.protocol)
     for name in settings.feature_sets:
         stage = f"{name}: fits"
-        total = len(groups) * settings.repeats + n_held
+        total = len(groups) * settings.repeats * len(runs_of) + n_held
         done = 0
         report(stage, done, total)
         for speed, g in groups.items():
             F = None if name == "cnn" else _fixed_features(name, settings, g.X)
-            runs = []
-            for r, s in enumerate(seeds):
-                try:
-                    tr, te = train_test_split(np.arange(len(g.y)), test_size=float(settings.test_size),
-                                              stratify=g.y, random_state=s)
-                except ValueError as exc:  # pragma: no cover - _check_splittable refuses these first
-                    raise StoreError(f"{store.path} at {speed} {unit}: {exc}") from None
-                tr, te = np.sort(tr), np.sort(te)
-                kw = {} if F is None else {"Ftr": F[tr], "Fte": F[te]}
-                m, Fz = _fit_score(name, settings, s, g.X[tr], g.y[tr], g.X[te], g.y[te], **kw)
-                m["seed"] = int(s)
-                runs.append(m)
-                if r == 0:
-                    tsne[name][speed] = (Fz, g.y[te])
-                done += 1
-                report(stage, done, total)
             entry: dict[str, Any] = {
                 "n_samples": int(len(g.y)),
                 "counts": {c: int(k) for c, k in zip(*np.unique(g.y, return_counts=True))},
-                "split": {"repeats": runs, **_summary(runs),
-                          "confusion_sum": np.sum([r["confusion"] for r in runs], axis=0).astype(int).tolist(),
-                          "labels": runs[0]["labels"]},
-                "held_out": None,
             }
-            entry["split"]["recall_per_class"] = class_recalls(entry["split"]["confusion_sum"],
-                                                               entry["split"]["labels"])
+            for proto in runs_of:
+                runs = []
+                for r, (s, (tr, te, used)) in enumerate(zip(seeds, protocol_splits(
+                        proto, g.y, g.units, float(settings.test_size), seeds))):
+                    kw = {} if F is None else {"Ftr": F[tr], "Fte": F[te]}
+                    m, Fz = _fit_score(name, settings, s, g.X[tr], g.y[tr], g.X[te], g.y[te], **kw)
+                    m["seed"] = int(s)
+                    m.update(used)
+                    runs.append(m)
+                    if r == 0 and proto == runs_of[0]:
+                        tsne[name][speed] = (Fz, g.y[te])
+                    done += 1
+                    report(stage, done, total)
+                confusion = np.sum([r["confusion"] for r in runs], axis=0).astype(int).tolist()
+                entry[PROTOCOL_KEYS[proto]] = {"repeats": runs, **_summary(runs), "confusion_sum": confusion,
+                                               "labels": runs[0]["labels"],
+                                               **recall_and_false_alarms(confusion, runs[0]["labels"])}
+            entry["held_out"] = None
             if other is not None and speed in other[1]:
                 h = other[1][speed]
                 kw = {} if F is None else {"Ftr": F, "Fte": _fixed_features(name, settings, h.X)}
@@ -512,8 +659,10 @@ def run_mcsa(store, settings: McsaSettings, test_store=None) -> McsaResult:
     out = {
         "format": FORMAT,
         "rvdiag_version": __version__,
-        "protocol": ("at each speed and for each feature set: stratified random splits (test_size of each class "
-                     "to the test side), StandardScaler + RBF SVC fitted on the training side; metrics on the test "
+        "protocol": (f"{settings.protocol}: {PROTOCOLS[settings.protocol]}; at each speed and for each feature "
+                     "set: repeated splits (test_size of each class to the test side; " +
+                     "; ".join(f"{PROTOCOL_KEYS[p]}: {_PROTOCOL_SPLITS[p]}" for p in runs_of) +
+                     "), StandardScaler + RBF SVC fitted on the training side; metrics on the test "
                      "side, mean and population std over the repeats" +
                      ("; held_out: fit on every sample of the store at that speed, score the test store's samples "
                       "at that speed" if other is not None else "")),
@@ -546,6 +695,10 @@ def markdown(report_: dict) -> str:
     figures when the run had a test store."""
     unit = report_["speed_unit"]
     st = report_["settings"]
+    protocol = st.get("protocol", "windows")
+    if protocol != "windows":
+        lines = ["# Motor-current study protocol (rvdiag mcsa)", ""] + protocol_markdown(report_)
+        return _markdown_tail(report_, lines + _test_store_lines(report_))
     lines = [
         "# Motor-current study protocol (rvdiag mcsa)",
         "",
@@ -567,6 +720,13 @@ def markdown(report_: dict) -> str:
                          f"{_pct(s['accuracy']['std'])} | {_pct(s['precision_macro']['mean'])} | "
                          f"{_pct(s['recall_macro']['mean'])} | {_pct(s['f1_macro']['mean'])} | "
                          f"{s['kappa']['mean']:.3f} | {_recall_text(s['recall_per_class'])} |")
+    return _markdown_tail(report_, lines + _test_store_lines(report_))
+
+
+def _test_store_lines(report_: dict) -> list[str]:
+    """The table of the figures on a held-out store (``--test``), or nothing without one."""
+    unit = report_["speed_unit"]
+    lines: list[str] = []
     if report_.get("test_store"):
         lines += ["", f"Held out: fitted on every sample of the store at each speed, scored on "
                       f"`{report_['test_store']['path']}` (channel `{report_['test_store']['channel']}`).", "",
@@ -581,6 +741,11 @@ def markdown(report_: dict) -> str:
                 lines.append(f"| {speed} | {FEATURE_SETS[name]} | {_pct(h['accuracy'])} | "
                              f"{_pct(h['precision_macro'])} | {_pct(h['recall_macro'])} | {_pct(h['f1_macro'])} | "
                              f"{h['kappa']:.3f} | {h['n_test']} | {_recall_text(h['recall_per_class'])} |")
+    return lines
+
+
+def _markdown_tail(report_: dict, lines: list[str]) -> str:
+    st = report_["settings"]
     if "cnn" in report_["feature_sets"]:
         lines += ["", f"The CNN sees each window as `{st.get('cnn_representation', 'waveform')}` "
                       "(waveform: the z-scored window, the study's input; logspec: its log spectrum; residual: the "
@@ -590,6 +755,60 @@ def markdown(report_: dict) -> str:
     if report_["notes"]:
         lines += [""] + [f"Note: {n}." for n in report_["notes"]]
     return "\n".join(lines) + "\n"
+
+
+def _recalls(e: dict) -> str:
+    return " / ".join("-" if v is None else f"{100 * v:.0f}" for v in e["recall_per_class"].values())
+
+
+def _fa(e: dict) -> str:
+    return "-" if e["false_alarm_rate"] is None else f"{100 * e['false_alarm_rate']:.1f}"
+
+
+def protocol_markdown(report_: dict) -> list[str]:
+    """The lines of the study / held-out tables (``--protocol study|held-out|both``): per speed and feature set
+    the accuracy (mean ± std over the splits), the per-class recall and the false-alarm rate (of the summed
+    confusion), and with ``both`` the two protocols side by side and their gap (the protocol's leak)."""
+    unit = report_["speed_unit"] or report_["speed_column"]
+    st = report_["settings"]
+    runs = protocols_run(st["protocol"])
+    split = f"{round(100 * (1 - st['test_size']))}/{round(100 * st['test_size'])}"
+    first = next(iter(next(iter(report_["results"].values())).values()))
+    labels = first[PROTOCOL_KEYS[runs[0]]]["labels"]
+    lines = [f"Store `{report_['store']['path']}`, channel `{report_['store']['channel']}`, speeds from "
+             f"`{report_['speed_column']}`; {st['repeats']} splits per speed, feature set and protocol, seed "
+             f"{st['seed']}; StandardScaler + RBF SVC (C = {st['svm_c']:g}, gamma = {st['svm_gamma']}).", ""]
+    if "study" in runs:
+        lines.append(f"- study: per state one simulated reducer (drawn per split), its windows split {split} at "
+                     "random (the study's protocol: each state a different physical gear);")
+    if "held-out" in runs:
+        lines.append(f"- held-out: per state about {round(100 * st['test_size'])} % of the simulated reducers, "
+                     "with all their windows, on the test side: every test reducer is unseen by the fit;")
+    lines += ["- accuracy: mean ± std over the splits (%); recall per class "
+              f"({' / '.join(labels)}) and false alarms (healthy windows called faulty) from the confusion summed "
+              "over the splits (%).", ""]
+    if len(runs) == 2:
+        lines += [f"| speed ({unit}) | features | study accuracy | held-out accuracy | leak (points) | "
+                  "study recall | held-out recall | study false alarms | held-out false alarms |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        for speed, sets in report_["results"].items():
+            for name, e in sets.items():
+                a, b = e[PROTOCOL_KEYS["study"]], e[PROTOCOL_KEYS["held-out"]]
+                gap = 100 * (a["accuracy"]["mean"] - b["accuracy"]["mean"])
+                lines.append(f"| {speed} | {FEATURE_SETS[name]} | {_pct(a['accuracy']['mean'])} ± "
+                             f"{_pct(a['accuracy']['std'])} | {_pct(b['accuracy']['mean'])} ± "
+                             f"{_pct(b['accuracy']['std'])} | {gap:+.1f} | {_recalls(a)} | {_recalls(b)} | "
+                             f"{_fa(a)} | {_fa(b)} |")
+    else:
+        key = PROTOCOL_KEYS[runs[0]]
+        lines += [f"| speed ({unit}) | features | {runs[0]} accuracy | kappa | recall | false alarms |",
+                  "|---|---|---|---|---|---|"]
+        for speed, sets in report_["results"].items():
+            for name, e in sets.items():
+                a = e[key]
+                lines.append(f"| {speed} | {FEATURE_SETS[name]} | {_pct(a['accuracy']['mean'])} ± "
+                             f"{_pct(a['accuracy']['std'])} | {a['kappa']['mean']:.3f} | {_recalls(a)} | {_fa(a)} |")
+    return lines
 
 
 def tsne_figure(name: str, panels: dict[str, tuple[np.ndarray, np.ndarray]], unit: str, seed: int,
@@ -636,6 +855,8 @@ def write_outputs(result: McsaResult, out_dir: str | Path) -> list[Path]:
     return written
 
 
-__all__ = ["CNN_REPRESENTATIONS", "DEFAULT_CHANNEL", "DEFAULT_CNN_REPRESENTATION", "FEATURE_SETS", "METRICS", "McsaResult", "McsaSettings", "STUDY_FIGURES", "class_recalls", "markdown",
-           "parse_feature_sets", "pick_channel", "prepare", "run_mcsa", "sample_channels", "speed_labels",
-           "split_seeds", "write_outputs"]
+__all__ = ["CNN_REPRESENTATIONS", "DEFAULT_CHANNEL", "DEFAULT_CNN_REPRESENTATION", "FEATURE_SETS", "METRICS",
+           "PROTOCOLS", "McsaResult", "McsaSettings", "STUDY_FIGURES", "class_recalls", "held_out_split", "markdown",
+           "parse_feature_sets", "pick_channel", "prepare", "protocol_markdown", "protocol_splits", "protocols_run",
+           "recall_and_false_alarms", "run_mcsa", "sample_channels", "speed_labels", "split_seeds", "study_split",
+           "write_outputs"]
