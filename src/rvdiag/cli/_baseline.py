@@ -538,10 +538,11 @@ def level_check_against_baseline(rec: dict, x: np.ndarray, base) -> dict:
 def print_diagnosis(res: dict) -> None:
     from rich.console import Console
 
+    from rvdiag.cli._record import not_recognised_line
+
     con = Console()
     if not res["recognised"]:
-        con.print(f"{res['file']} [{res['channel']}]: [bold]not recognised[/bold]: this record does not look like "
-                  f"the reducer the model knows: {res['reason']}", soft_wrap=True)
+        con.print(not_recognised_line(res), soft_wrap=True)
         return
     b = res["baseline"]
     op = res["operating_point"]

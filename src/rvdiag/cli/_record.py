@@ -116,3 +116,12 @@ def recognition(loaded, x: np.ndarray, fs: float | None, res: dict, speed: dict,
                               f"(Mahalanobis distance of the model's features above {ood['threshold']:.4g}, which "
                               f"{100 * ood['rate']:g} % of held-out training windows exceed)"}
     return {"recognised": True, "reason": None, "checks": checks}
+
+
+def not_recognised_line(res: dict) -> str | None:
+    """The line that says a record is not recognised, with its reason (rich markup), or None when it is: one
+    wording for ``diagnose`` and its baseline flow."""
+    if res["recognised"]:
+        return None
+    return (f"{res['file']} [{res['channel']}]: [bold]not recognised[/bold]: this record does not look like the "
+            f"reducer the model knows: {res['reason']}")

@@ -35,7 +35,7 @@ import numpy as np
 import typer
 
 from rvdiag.cli import _options as opt
-from rvdiag.cli._record import (SPEED_META, flat_reason, recognition,  # noqa: F401 (also imported from here)
+from rvdiag.cli._record import (SPEED_META, flat_reason, not_recognised_line, recognition,  # noqa: F401
                                  record_speed, state_name)
 from rvdiag.errors import DataFileError, ParameterError
 
@@ -328,8 +328,7 @@ def _print(res: dict) -> None:
 
     con = Console()
     if not res["recognised"]:
-        con.print(f"{res['file']} [{res['channel']}]: [bold]not recognised[/bold]: this record does not look like "
-                  f"the reducer the model knows: {res['reason']}", soft_wrap=True)
+        con.print(not_recognised_line(res), soft_wrap=True)
         return
     classes = list(res["probabilities"])
     t = Table(title=f"{res['file']} [{res['channel']}]: {res['n_windows']} window(s) of {res['window_length']} points")
