@@ -282,7 +282,7 @@ def _score(m, mon, base, fs, baseline_fs, tolerances, where, merge=None) -> dict
     """The state's classification metrics beside the alarm's rates on the monitored records ``mon``, each record
     decided on the mean change of its windows (:func:`record_means`); with ``merge`` (``{"T4": "T1"}``) also the
     state's metrics with classes merged (key ``merged``)."""
-    from rvdiag.evaluation.metrics import classification_metrics, healthy_class
+    from rvdiag.evaluation.metrics import classification_metrics, healthy_class, merged_classification_metrics
 
     D, _ = paired_features(m.features, mon, base, fs=fs, baseline_fs=baseline_fs, card_tolerances=tolerances,
                            where=where)
@@ -307,10 +307,7 @@ def _score(m, mon, base, fs, baseline_fs, tolerances, where, merge=None) -> dict
                     "n_calibration": int(m.n_calibration_)}
     out["n_reducers"] = int(len(np.unique(reducers))) if reducers is not None else None
     if merge:
-        def merged(a):
-            return np.asarray([merge.get(c, c) for c in a])
-        kept = list(dict.fromkeys(merge.get(c, c) for c in labels))
-        out["merged"] = {"merge": dict(merge), **classification_metrics(merged(y), merged(pred), labels=kept)}
+        out["merged"] = merged_classification_metrics(y, pred, merge, labels)
     return out
 
 

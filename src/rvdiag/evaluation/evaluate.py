@@ -213,13 +213,9 @@ def report_html(loaded, store, ev: Evaluation, max_tsne: int = 600, seed: int = 
 def merged_metrics(ev: Evaluation, merge: dict[str, str], labels) -> dict:
     """The metrics of ``ev`` with classes merged, true and predicted alike (``{"T4": "T1", "T6": "T5"}``: the
     crack-free decision, a crack counted as its state without the crack)."""
-    from rvdiag.evaluation.metrics import classification_metrics
+    from rvdiag.evaluation.metrics import merged_classification_metrics
 
-    def m(a):
-        return np.asarray([merge.get(str(c), str(c)) for c in a])
-
-    kept = list(dict.fromkeys(merge.get(str(c), str(c)) for c in labels))
-    return {"merge": dict(merge), **classification_metrics(m(ev.y_true), m(ev.y_pred), labels=kept)}
+    return merged_classification_metrics(ev.y_true, ev.y_pred, merge, labels)
 
 
 def record_metrics(loaded, ev: Evaluation, column: str = "unit", merge: dict[str, str] | None = None) -> dict:
@@ -231,7 +227,7 @@ def record_metrics(loaded, ev: Evaluation, column: str = "unit", merge: dict[str
     ``n_records``, ``windows_per_record`` (min, max) and ``decision``; with ``merge``, also ``merged``
     (:func:`merged_metrics` of the records' decisions)."""
     from rvdiag.errors import StoreError
-    from rvdiag.evaluation.metrics import classification_metrics
+    from rvdiag.evaluation.metrics import classification_metrics, merged_classification_metrics
 
     if column not in ev.meta:
         raise StoreError(f"no metadata column {column!r} to group windows into records "
@@ -263,7 +259,7 @@ def record_metrics(loaded, ev: Evaluation, column: str = "unit", merge: dict[str
     out = {"column": column, "n_records": int(keys.size), "windows_per_record": [int(counts.min()), int(counts.max())],
            "decision": decision, **classification_metrics(truth, decided, labels=labels)}
     if merge:
-        out["merged"] = merged_metrics(Evaluation({}, truth, decided, None, {}, ev.split), merge, labels)
+        out["merged"] = merged_classification_metrics(truth, decided, merge, labels)
     return out
 
 

@@ -134,6 +134,16 @@ def classification_metrics(y_true, y_pred, labels: Sequence[str] | None = None) 
     }
 
 
+def merged_classification_metrics(y_true, y_pred, merge: dict[str, str], labels: Sequence[str]) -> dict:
+    """:func:`classification_metrics` with classes merged, true and predicted alike (``{"T4": "T1", "T6": "T5"}``:
+    the crack-free decision, a crack counted as its state without the crack), plus the ``merge`` itself."""
+    def m(a):
+        return np.asarray([merge.get(str(c), str(c)) for c in a])
+
+    kept = list(dict.fromkeys(merge.get(str(c), str(c)) for c in labels))
+    return {"merge": dict(merge), **classification_metrics(m(y_true), m(y_pred), labels=kept)}
+
+
 def repeat_summary(runs: Sequence[dict]) -> dict:
     """Best and mean accuracy per class over repeated runs (the dynamics paper's per-state table).
 
