@@ -229,6 +229,14 @@ def _bounded_sweeps(raw: Mapping[str, Any], bounds: Mapping[str, tuple[float, fl
     return out
 
 
+def _positive_sweep(raw: Any, where: str) -> Sweep:
+    """A sweep whose every value is > 0."""
+    sweep = Sweep.parse(raw, where)
+    if sweep.lo <= 0:
+        raise ConfigError(f"{where}: must be > 0, got {sweep.lo:g}")
+    return sweep
+
+
 def _positive(raw: Any, where: str) -> float:
     value = _number(raw, where)
     if value <= 0:
@@ -299,14 +307,10 @@ def _parse_profile(raw: Mapping[str, Any], w: str, *, speed_key: str, speed: Swe
                           f"got {sfrac:g}")
     accel = None
     if "accel_deg_s2" in raw:
-        accel = Sweep.parse(raw["accel_deg_s2"], f"{w} accel_deg_s2")
-        if accel.lo <= 0:
-            raise ConfigError(f"{w} accel_deg_s2: must be > 0, got {accel.lo:g}")
+        accel = _positive_sweep(raw["accel_deg_s2"], f"{w} accel_deg_s2")
     jerk = None
     if "jerk_deg_s3" in raw:
-        jerk = Sweep.parse(raw["jerk_deg_s3"], f"{w} jerk_deg_s3")
-        if jerk.lo <= 0:
-            raise ConfigError(f"{w} jerk_deg_s3: must be > 0, got {jerk.lo:g}")
+        jerk = _positive_sweep(raw["jerk_deg_s3"], f"{w} jerk_deg_s3")
     if sfrac > 0 and jerk is None:
         raise ConfigError(f"{w} jerk_deg_s3: missing (scurve_fraction = {sfrac:g} needs a jerk limit)")
     for key, f_ in (("trapezoid_fraction", frac), ("scurve_fraction", sfrac)):
@@ -617,9 +621,7 @@ class LibraryConfig:
         if len(speeds) != 1:
             raise ConfigError(f"{w}: give exactly one of input_speed_rpm or output_speed_deg_s")
         speed_key = speeds[0]
-        speed = Sweep.parse(op[speed_key], f"{w} {speed_key}")
-        if speed.lo <= 0:
-            raise ConfigError(f"{w} {speed_key}: must be > 0, got {speed.lo:g}")
+        speed = _positive_sweep(op[speed_key], f"{w} {speed_key}")
         if "load_Nm" not in op:
             raise ConfigError(f"{w} load_Nm: missing (output load torque in N m)")
         load = Sweep.parse(op["load_Nm"], f"{w} load_Nm")
@@ -635,9 +637,7 @@ class LibraryConfig:
             raise ConfigError(f"{w} noise_mode: must be one of {', '.join(NOISE_MODES)}, got {noise_mode!r}")
         density = None
         if "noise_density_ug_per_rthz" in op:
-            density = Sweep.parse(op["noise_density_ug_per_rthz"], f"{w} noise_density_ug_per_rthz")
-            if density.lo <= 0:
-                raise ConfigError(f"{w} noise_density_ug_per_rthz: must be > 0, got {density.lo:g}")
+            density = _positive_sweep(op["noise_density_ug_per_rthz"], f"{w} noise_density_ug_per_rthz")
             if noise_mode != "floor":
                 raise ConfigError(f"{w} noise_density_ug_per_rthz: a noise density is a floor; set noise_mode = "
                                   "\"floor\"")
