@@ -209,6 +209,21 @@ def features(paths) -> dict:
             "broken_fraction": np.array([meta[i].get("broken_fraction", np.nan) for i in mon])}
 
 
+def absolute_route(paths):
+    """tsa-ci with the median-tooth indicators (columns 9, 10) and the orders set of every monitored record, as
+    research/monitoring_features.py computes its absolute features."""
+    from rvdiag.features.tsa import OrderSpectrumFeatures, TSAIndicatorFeatures
+
+    X, meta, fs = load_pairs(paths)
+    speed = np.array([m["output_speed_deg_s"] for m in meta])
+    mon = np.array([m["role"] == "monitored" for m in meta])
+    Xs = np.column_stack([X[mon], speed[mon]])
+    ci = TSAIndicatorFeatures(fs=fs, speed_column="output_speed_deg_s", median_tooth=True).fit(Xs)
+    od = OrderSpectrumFeatures(fs=fs, speed_column="output_speed_deg_s").fit(Xs)
+    return (np.column_stack([ci.transform(Xs), od.transform(Xs)]),
+            list(ci.get_feature_names_out()) + list(od.get_feature_names_out()))
+
+
 def auc(a, b) -> float:
     from sklearn.metrics import roc_auc_score
 
@@ -245,6 +260,9 @@ def main() -> None:
     ap.add_argument("pairs", nargs="+", help="output(s) of research/monitoring_pairs.py")
     ap.add_argument("--out", default="out/tooth_median.npz")
     ap.add_argument("--reuse", action="store_true", help="read the features of --out instead of computing them")
+    ap.add_argument("--absolute", action="store_true",
+                    help="also the absolute route: tsa-ci (median_tooth=True) + orders of each monitored record, "
+                         "leave-3-reducers-out with and without the two median-tooth indicators (a few minutes)")
     a = ap.parse_args()
     if a.reuse and os.path.exists(a.out):
         d = dict(np.load(a.out, allow_pickle=False))
@@ -282,6 +300,15 @@ def main() -> None:
                                              list(TSA_CHANGE_NAMES) + [CHG_NAMES[j] for j in sel]),
             "tsa_change + median tooth (all)": (np.column_stack([d["tsa_change"], d["change"]]),
                                                 list(TSA_CHANGE_NAMES) + CHG_NAMES)}
+    if a.absolute:
+        F, names = absolute_route(a.pairs)
+        n = len(names)
+        sets["absolute tsa-ci + orders"] = (F[:, [j for j in range(n) if j not in (9, 10)]],
+                                            [names[j] for j in range(n) if j not in (9, 10)])
+        sets["absolute + median tooth (2)"] = (F, names)
+        for j in (9, 10):
+            print(f"  absolute {names[j]}: " + " ".join(f"{p}v{q} {auc(F[y == q, j], F[y == p, j]):.3f}"
+                                                       for p, q in PAIRS))
     for cls, label in ((None, "six-state"), (["T1", "T2", "T3", "T5"], "crack-free (T1 T2 T3 T5)")):
         for name, (F, names) in sets.items():
             print(f"  {label:26s} {name:38s} {cross_validate(F, y, d['reducer'], names, classes=cls)}")

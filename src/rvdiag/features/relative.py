@@ -5,7 +5,7 @@ A reducer is compared with itself.  The classical gear indicators do this: NA4 d
 residual signal by the variance of the machine's own earlier records (Zakrajsek, Townsend & Decker 1993, NASA
 TM-105950), NA4* by the variance of the healthy machine at the same load (Decker, Handschuh & Zakrajsek 1994,
 NASA TM-106553; Dempsey & Zakrajsek 2001, NASA/TM-2001-210671), and ISO 13373-1/-2 and ISO 17359 monitor a
-machine by the trend of its own indicators against its commissioning baseline.  Two families here:
+machine by the trend of its own indicators against its commissioning baseline.  Three families here:
 
 - :func:`relative_features`: any feature vector (log band powers, log condition indicators) minus the mean of the
   baseline windows' vectors, so a log10 power becomes a change in decades (x 10 = dB).  What the reducer's
