@@ -78,6 +78,9 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=1.0)
     ap.add_argument("--floor-db", type=float, default=20.0)
     ap.add_argument("--out", default="out/monitoring_pairs.npz")
+    ap.add_argument("--only", type=int, nargs="+", default=None,
+                    help="simulate only these reducers (indices into the --reducers seeds: the same records as the "
+                         "whole run gives them; concatenate the outputs with research/tooth_median.py --merge)")
     a = ap.parse_args()
     fs = 48000.0
     settings = ModelSettings(transient_s=0.2, substeps=4)
@@ -86,6 +89,8 @@ def main() -> None:
     X, meta = [], []
     t0 = time.perf_counter()
     for r, ss in enumerate(np.random.SeedSequence(a.seed).spawn(a.reducers)):
+        if a.only is not None and r not in a.only:
+            continue
         rng = np.random.default_rng(ss)
         p, spec = specimen(rng, base)
         plan = [("baseline", "T1", i) for i in range(len(ops)) for _ in range(a.baseline_records)]

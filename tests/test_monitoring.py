@@ -224,10 +224,43 @@ def test_tsa_change_alone_has_only_the_tsa_change_features():
     rng = np.random.default_rng(4)
     base = np.array([np.r_[_gear(45.0, rng), 45.0] for _ in range(3)])
     X = np.array([np.r_[_gear(45.0, rng, fault=0.5), 45.0]])
-    fx = BaselineReferencedFeatures(features="none", fs=48000.0).fit(X)
+    fx = BaselineReferencedFeatures(features="none", fs=48000.0, median_tooth=False).fit(X)
     assert fx.input_metadata() == ("output_speed_deg_s",)
     assert list(fx.get_feature_names_out()) == list(TSA_CHANGE_NAMES)
     D = fx.transform(X, base, [np.arange(3)])
     np.testing.assert_allclose(D[0], tsa_change_features(X[0, :-1], 45.0, list(base[:, :-1]), [45.0] * 3, 48000.0))
     with pytest.raises(ParameterError, match="needs tsa_change=True"):
         BaselineReferencedFeatures(features="none", tsa_change=False).fit(X)
+
+
+def test_median_tooth_change_sees_a_uniform_mesh_change_not_the_tooth_pulse():
+    from rvdiag.features.relative import MEDIAN_TOOTH_NAMES
+
+    rng = np.random.default_rng(5)
+    base = [_gear(45.0, rng) for _ in range(3)]
+    pulse = tsa_change_features(_gear(45.0, rng, fault=0.5), 45.0, base, [45.0] * 3, 48000.0, median_tooth=True)
+    worn = tsa_change_features(_gear(45.0, rng, gain=1.5), 45.0, base, [45.0] * 3, 48000.0, median_tooth=True)
+    plain = tsa_change_features(_gear(45.0, rng, fault=0.5), 45.0, base, [45.0] * 3, 48000.0)
+    assert pulse.size == plain.size + len(MEDIAN_TOOTH_NAMES) == 9
+    # the pulse is seen by the tooth peak but leaves the median tooth's RMS (index 8) within 5 %; a 1.5 x mesh
+    # on every tooth moves it by log10(1.5)
+    assert pulse[3] > math.log10(3)
+    assert abs(pulse[8]) < math.log10(1.05)
+    assert abs(worn[8] - math.log10(1.5)) < 0.03
+    assert worn[7] > pulse[7] + 0.5  # the median tooth's change, in decades
+
+
+def test_baseline_features_append_the_median_tooth_unless_pickled_before_it():
+    from rvdiag.features.relative import MEDIAN_TOOTH_NAMES, TSA_CHANGE_NAMES
+
+    rng = np.random.default_rng(6)
+    base = np.array([np.r_[_gear(45.0, rng), 45.0] for _ in range(3)])
+    X = np.array([np.r_[_gear(45.0, rng, fault=0.5), 45.0]])
+    fx = BaselineReferencedFeatures(features="none", fs=48000.0).fit(X)
+    assert list(fx.get_feature_names_out()) == list(TSA_CHANGE_NAMES) + list(MEDIAN_TOOTH_NAMES)
+    D = fx.transform(X, base, [np.arange(3)])
+    np.testing.assert_allclose(D[0], tsa_change_features(X[0, :-1], 45.0, list(base[:, :-1]), [45.0] * 3,
+                                                         48000.0, median_tooth=True))
+    del fx.median_tooth  # as a model pickled before the option existed
+    assert list(fx.get_feature_names_out()) == list(TSA_CHANGE_NAMES)
+    np.testing.assert_allclose(fx.transform(X, base, [np.arange(3)])[0], D[0, : len(TSA_CHANGE_NAMES)])

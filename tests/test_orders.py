@@ -258,3 +258,58 @@ def test_spectraquest_in_the_angle_domain(capsys):
         h, b = ci["h30hz" + load], ci["b30hz" + load]
         assert b["sideband_index"] > 1.3 * h["sideband_index"]
         assert b["fm4"] < h["fm4"]
+
+
+def _toothed_tsa(n=2048, teeth=11, gain=1.0, impulse=0.0, seed=0):
+    """One revolution: a tooth waveform of mesh harmonics 1..3 (x ``gain``, the same on every tooth), per-tooth
+    noise, and with ``impulse`` a narrow pulse in tooth 3 (one tooth, once per revolution)."""
+    th = np.arange(n) / n
+    t = gain * (np.cos(2 * np.pi * teeth * th) + 0.5 * np.sin(2 * np.pi * 2 * teeth * th)
+                + 0.2 * np.cos(2 * np.pi * 3 * teeth * th + 0.3))
+    t = t + 0.05 * np.random.default_rng(seed).standard_normal(n)
+    return t + impulse * np.exp(-0.5 * ((th - 3.4 / teeth) / 0.003) ** 2)
+
+
+def test_tooth_segments_mean_is_the_mesh_harmonics_of_the_tsa():
+    t = _toothed_tsa(impulse=2.0)
+    S = o.tooth_segments(t, 11)
+    # the other code path: keep only the orders k * 11 of the TSA's spectrum, sampled at the segments' points
+    T = np.fft.rfft(t)
+    keep = np.zeros(T.size, bool)
+    keep[::11] = True
+    L = S.size
+    mesh = np.fft.irfft(np.where(keep, T, 0), L) * (L / t.size)
+    np.testing.assert_allclose(S.mean(axis=0), mesh[: S.shape[1]], atol=1e-9 * np.abs(t).max())
+    with pytest.raises(ParameterError, match="teeth must be"):
+        o.tooth_segments(t, 1)
+
+
+def test_median_tooth_follows_a_uniform_change_not_one_impulsive_tooth():
+    ref = o.median_tooth(_toothed_tsa(), 11)["median"]
+    imp = o.median_tooth(_toothed_tsa(impulse=3.0), 11, trim=1)
+    worn = o.median_tooth(_toothed_tsa(gain=1.5), 11)["median"]
+    rel = lambda a: np.linalg.norm(a - ref) / np.linalg.norm(ref)  # noqa: E731
+    assert rel(imp["median"]) < 0.03  # the impulse moves the median tooth by less than 3 %
+    assert abs(rel(worn) - 0.5) < 0.05  # a 1.5 x change of every tooth moves it by 50 %
+    assert rel(imp["segments"].mean(axis=0)) > 0.05  # the mean tooth (mesh harmonics) does take the impulse
+    e = imp["deviation"]
+    assert int(np.argmax(e)) == 3 and e[3] > 20 * np.median(e)  # the impulsive part sits on tooth 3
+    assert imp["trimmed_deviation"] < 2 * np.median(e) < e.mean() / 10  # leaving out the worst tooth removes it
+    with pytest.raises(ParameterError, match="trim must be"):
+        o.median_tooth(_toothed_tsa(), 11, trim=11)
+
+
+def test_tsa_ci_median_tooth_option_appends_two_indicators():
+    from rvdiag.features.tsa import TSAIndicatorFeatures
+
+    rng = np.random.default_rng(1)
+    X = rng.standard_normal((2, 9600))
+    base = TSAIndicatorFeatures(fs=48000.0).fit(X)
+    tooth = TSAIndicatorFeatures(fs=48000.0, median_tooth=True).fit(X)
+    A, B = base.transform(X), tooth.transform(X)
+    assert B.shape == (2, A.shape[1] + 2)
+    np.testing.assert_allclose(B[:, : A.shape[1]], A)
+    assert list(tooth.get_feature_names_out()[-2:]) == ["log10_median_tooth_rms_ratio",
+                                                         "log10_tooth_deviation_trimmed"]
+    del tooth.median_tooth  # as a model pickled before the option existed
+    np.testing.assert_allclose(tooth.transform(X), A)

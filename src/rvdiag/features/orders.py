@@ -32,7 +32,9 @@ points per revolution, starting at the first whole revolution.
 TSA and its family (:func:`gear_signals`), per shaft, from the order spectrum of the TSA of one revolution
 (bin k = order k): the *regular* signal is the shaft orders 1..``shaft_orders``, the mesh harmonics and their
 first-order sidebands; the *residual* signal is the TSA minus the shaft orders and the mesh harmonics; the
-*difference* signal is the TSA minus the regular signal (Lebold, McClintic, Campbell et al. 2000; Decker 2002).
+*difference* signal is the TSA minus the regular signal (Lebold, McClintic, Campbell et al. 2000; Decker 2002);
+the *median tooth* (:func:`median_tooth`) is the point-by-point median of the TSA's tooth-mesh periods, the part
+every tooth shares, which one faulty tooth does not move.
 The indicators (:func:`condition_indicators`) follow the reviews of Decker ("Crack detection for aerospace
 quality spur gears", NASA/TM-2002-211491) and Lebold et al. ("Review of vibration analysis methods for gearbox
 diagnostics and prognostics", Proc. 54th MFPT, 2000), Zakrajsek, Townsend & Decker 1993 (NA4, NB4; NASA TM-105950)
@@ -266,6 +268,49 @@ def gear_signals(t, mesh: int, shaft_orders: int = 2, mesh_harmonics: int | None
     amp = np.abs(T) * 2.0 / n
     return {"tsa": t - t.mean(), "regular": regular, "residual": residual, "difference": (t - t.mean()) - regular,
             "amplitude": amp, "mesh_harmonics": mh, "sidebands": sb}
+
+
+def tooth_segments(t, teeth: int) -> np.ndarray:
+    """The TSA ``t`` of one revolution cut into its ``teeth`` tooth-mesh periods: rows of ``m = ceil(n / teeth)``
+    points, after Fourier resampling of the periodic ``t`` (its ``n`` points) to ``teeth * m`` (zero padding of its
+    spectrum, exact for a TSA band-limited below its Nyquist order).  The mean of the rows is the TSA's mesh
+    harmonics alone (orders k ``teeth``): the average tooth."""
+    t = np.asarray(t, dtype=np.float64).ravel()
+    n = t.size
+    if not (isinstance(teeth, (int, np.integer)) and 2 <= teeth <= n // 4):
+        raise ParameterError(f"teeth must be an integer in 2..{n // 4} (the TSA has {n} points), got {teeth!r}")
+    m = -(-n // int(teeth))
+    L = int(teeth) * m
+    T = np.fft.rfft(t)
+    if n % 2 == 0 and L > n:
+        T[-1] *= 0.5  # the Nyquist bin becomes an interior bin: irfft adds its conjugate half
+    return (np.fft.irfft(T, L) * (L / n)).reshape(int(teeth), m)
+
+
+def median_tooth(t, teeth: int, trim: int = 0) -> dict:
+    """The typical tooth of the TSA ``t``: the point-by-point median of its tooth-mesh periods
+    (:func:`tooth_segments`), and what each period deviates from it.
+
+    A localised tooth fault (a broken or cracked tooth) acts on the few periods in which the faulty tooth meshes
+    (on the sun relative to the carrier, once per planet pass: N impacts per revolution, each falling into one or
+    two periods), a distributed one (wear of every flank, Archard) on all of them.  The mean over the periods is the
+    TSA's mesh-harmonic part, the "regular" signal less its sidebands and shaft orders (Stewart 1977, Lebold et al.
+    2000; :func:`gear_signals`), and takes 1 / teeth of each impact; the median, the robust location estimate
+    (Huber, *Robust Statistics*, Wiley 1981), ignores up to ``(teeth - 1) // 2`` outlying periods, so the
+    median tooth follows a change of every tooth and not the impacts of one.
+
+    Returns ``segments`` (teeth, m), ``median`` (m,) and ``deviation`` (teeth,): the mean square of each period
+    minus the median tooth, and ``trimmed_deviation``: the mean of ``deviation`` over its ``teeth - trim``
+    smallest (the periods of the localised fault left out).  The TSA's mean is removed first.
+    """
+    t = np.asarray(t, dtype=np.float64).ravel()
+    S = tooth_segments(t - t.mean(), teeth)
+    if not (isinstance(trim, (int, np.integer)) and 0 <= trim < S.shape[0]):
+        raise ParameterError(f"trim must be an integer in 0..{S.shape[0] - 1}, got {trim!r}")
+    M = np.median(S, axis=0)
+    e = ((S - M) ** 2).mean(axis=1)
+    return {"segments": S, "median": M, "deviation": e,
+            "trimmed_deviation": float(np.sort(e)[: S.shape[0] - int(trim)].mean())}
 
 
 def normalised_moment(d, k: int) -> float:

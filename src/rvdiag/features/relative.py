@@ -5,7 +5,7 @@ A reducer is compared with itself.  The classical gear indicators do this: NA4 d
 residual signal by the variance of the machine's own earlier records (Zakrajsek, Townsend & Decker 1993, NASA
 TM-105950), NA4* by the variance of the healthy machine at the same load (Decker, Handschuh & Zakrajsek 1994,
 NASA TM-106553; Dempsey & Zakrajsek 2001, NASA/TM-2001-210671), and ISO 13373-1/-2 and ISO 17359 monitor a
-machine by the trend of its own indicators against its commissioning baseline.  Two families here:
+machine by the trend of its own indicators against its commissioning baseline.  Three families here:
 
 - :func:`relative_features`: any feature vector (log band powers, log condition indicators) minus the mean of the
   baseline windows' vectors, so a log10 power becomes a change in decades (x 10 = dB).  What the reducer's
@@ -19,6 +19,10 @@ machine by the trend of its own indicators against its commissioning baseline.  
   their median: a tooth fault acts on one tooth once per planet pass, a load or temperature change on every
   tooth).  Each change is also given relative to the baseline's own spread (the leave-one-out change of each
   baseline window against the others), the reducer's run-to-run variation.
+- :func:`median_tooth_change`: the change of the *median tooth* (:func:`rvdiag.features.orders.median_tooth`, the
+  point-by-point median of the TSA's Z1 tooth-mesh periods) since the baseline's median tooth.  Wear of every
+  sun tooth moves it; a broken tooth, which acts on the periods of one tooth, barely does.  So it sees wear under a
+  broken tooth (T5 against T2), which the changes above, dominated by the broken tooth's impacts, do not.
 
 This module knows nothing of stores or models: it takes arrays.  Matching a sample with its baseline windows is
 :func:`rvdiag.datasets.store.match_baseline`; the health index and the alarm are in :mod:`rvdiag.models.monitoring`.
@@ -40,6 +44,8 @@ from rvdiag.features.combine import input_metadata, points_before_metadata
 #: names of :func:`tsa_change_features`, in order
 TSA_CHANGE_NAMES = ("log10_tsa_change", "log10_residual_change", "log10_na4_star", "log10_tooth_peak",
                     "log10_tsa_change_z", "log10_residual_change_z", "log10_tooth_peak_z")
+#: names of :func:`median_tooth_change`, in order
+MEDIAN_TOOTH_NAMES = ("log10_median_tooth_change", "log10_median_tooth_rms_ratio")
 
 
 def relative_features(F, B) -> np.ndarray:
@@ -90,9 +96,27 @@ def _change(t, ref, mesh: int, slots: int, peaks: int):
             dr, float(np.var(rr)), _tooth_peak(dr, slots, peaks))
 
 
+def median_tooth_change(t, ref, teeth: int) -> np.ndarray:
+    """:data:`MEDIAN_TOOTH_NAMES` of the TSA ``t`` against the reference TSA ``ref`` (the same reducer's baseline,
+    the same angular sampling): log10 of ||M - M_b|| / ||M_b|| and of rms(M) / rms(M_b), with M and M_b the median
+    teeth (:func:`rvdiag.features.orders.median_tooth`, ``teeth`` periods per revolution) and M aligned to M_b
+    within one pitch (:func:`align`; every tooth is alike, so no whole-revolution alignment is needed).
+
+    The mean over the periods would be the TSA's mesh harmonics, the regular signal of Stewart 1977 / Lebold et
+    al. 2000 less its sidebands; a broken tooth adds 1 / teeth of each of its impacts to that mean and nothing to
+    the median while it acts on fewer than half the periods.  Measured on the paired simulations of
+    research/tooth_median.py (docs/monitoring.md)."""
+    M = _o.median_tooth(t, teeth)["median"]
+    Mb = _o.median_tooth(ref, teeth)["median"]
+    M = align(M, Mb)
+    v = np.array([np.linalg.norm(M - Mb) / max(np.linalg.norm(Mb), 1e-300),
+                  np.std(M) / max(float(np.std(Mb)), 1e-300)])
+    return np.log10(np.maximum(v, 1e-12))
+
+
 def tsa_change_features(x, output_speed_deg_s: float, baseline: Sequence[np.ndarray],
                         baseline_speeds: Sequence[float], fs: float, params=None,
-                        samples_per_rev: int | None = None) -> np.ndarray:
+                        samples_per_rev: int | None = None, median_tooth: bool = False) -> np.ndarray:
     """The TSA-change features (:data:`TSA_CHANGE_NAMES`) of the window ``x`` against its baseline windows.
 
     Parameters
@@ -108,10 +132,13 @@ def tsa_change_features(x, output_speed_deg_s: float, baseline: Sequence[np.ndar
     samples_per_rev : int, optional
         Angular samples per sun revolution (default from the window's speed,
         :func:`rvdiag.features.orders.default_samples_per_rev`).
+    median_tooth : bool
+        Append :func:`median_tooth_change` of the window's TSA against the baseline's mean TSA
+        (:data:`MEDIAN_TOOTH_NAMES`, 2 more values).
 
     Returns
     -------
-    array (7,)
+    array (7,) or (9,)
         log10 of (ratios spanning decades, as the indicators of ``tsa-ci``): ``tsa_change`` ||T - T_b|| / ||T_b||, ``residual_change`` the same of their residuals, ``na4_star``
         mean(r^4) / var(r_b)^2 of the residual r of the change (Decker, Handschuh & Zakrajsek 1994, NA4* with the
         healthy baseline's variance), ``tooth_peak`` the mean of the N largest half-pitch energies of r over their
@@ -140,7 +167,8 @@ def tsa_change_features(x, output_speed_deg_s: float, baseline: Sequence[np.ndar
             loo.append((cj, crj, pj))
         own = np.median(loo, axis=0)
     v = np.array([c, cr, na4, peak, c / own[0], cr / own[1], peak / own[2]])
-    return np.log10(np.maximum(v, 1e-12), where=np.isfinite(v), out=np.full(v.size, np.nan))
+    out = np.log10(np.maximum(v, 1e-12), where=np.isfinite(v), out=np.full(v.size, np.nan))
+    return np.r_[out, median_tooth_change(t, ref, mesh)] if median_tooth else out
 
 
 class BaselineReferencedFeatures(TransformerMixin, BaseEstimator):
@@ -161,6 +189,10 @@ class BaselineReferencedFeatures(TransformerMixin, BaseEstimator):
         with ``tsa_change=False``).
     tsa_change : bool
         Append :func:`tsa_change_features` (needs the output speed in ``speed_column``).
+    median_tooth : bool
+        With ``tsa_change``, append :func:`median_tooth_change` too (:data:`MEDIAN_TOOTH_NAMES`; wear under a
+        broken tooth, docs/monitoring.md).  A model saved before this option existed unpickles without it and
+        keeps its 7 TSA-change features.
     fs : float
         Sampling rate, Hz.
     speed_column : str
@@ -169,9 +201,10 @@ class BaselineReferencedFeatures(TransformerMixin, BaseEstimator):
     """
 
     def __init__(self, features=None, tsa_change: bool = True, fs: float = 48000.0,
-                 speed_column: str = "output_speed_deg_s", params=None):
+                 speed_column: str = "output_speed_deg_s", params=None, median_tooth: bool = True):
         self.features = features
         self.tsa_change = tsa_change
+        self.median_tooth = median_tooth
         self.fs = fs
         self.speed_column = speed_column
         self.params = params
@@ -237,14 +270,20 @@ class BaselineReferencedFeatures(TransformerMixin, BaseEstimator):
                 raise ParameterError(f"window {i}: its baseline group must index 1..{B.shape[0]} baseline rows")
             row = relative_features(Fa[i:i + 1], Fb[g])[0]
             if self.tsa_change:
-                row = np.r_[row, tsa_change_features(wa[i], va[i], list(wb[g]), vb[g], self.fs, self.params)]
+                row = np.r_[row, tsa_change_features(wa[i], va[i], list(wb[g]), vb[g], self.fs, self.params,
+                                                     median_tooth=self._median_tooth())]
             out.append(row)
         return np.array(out)
 
+    def _median_tooth(self) -> bool:
+        # a model pickled before the option existed has no such attribute: its 7 TSA-change features
+        return bool(self.tsa_change and getattr(self, "median_tooth", False))
+
     def get_feature_names_out(self, input_features=None):
         names = [] if self.features_ is None else [f"d_{f}" for f in self.features_.get_feature_names_out()]
-        return np.asarray(names + (list(TSA_CHANGE_NAMES) if self.tsa_change else []), dtype=object)
+        tsa = list(TSA_CHANGE_NAMES) if self.tsa_change else []
+        return np.asarray(names + tsa + (list(MEDIAN_TOOTH_NAMES) if self._median_tooth() else []), dtype=object)
 
 
-__all__ = ["TSA_CHANGE_NAMES", "BaselineReferencedFeatures", "align", "relative_features", "sun_tsa",
-           "tsa_change_features"]
+__all__ = ["MEDIAN_TOOTH_NAMES", "TSA_CHANGE_NAMES", "BaselineReferencedFeatures", "align", "median_tooth_change",
+           "relative_features", "sun_tsa", "tsa_change_features"]

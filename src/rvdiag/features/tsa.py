@@ -17,6 +17,8 @@ from rvdiag.features._base import SignalTransformer
 from rvdiag.features import orders as _o
 
 _CI = tuple(_o.INDICATORS)
+#: the median-tooth indicators of :func:`tooth_indicators` (``TSAIndicatorFeatures(median_tooth=True)``)
+_TOOTH = ("median_tooth_rms_ratio", "tooth_deviation_trimmed")
 #: indicators that may be negative: never log10
 _SIGNED = ("sideband_asymmetry", "sideband_asymmetry_db")
 
@@ -35,6 +37,18 @@ def check_speed_column(column) -> str:
         raise ParameterError(f"speed_column must name a metadata column ending in _deg_s (output speed) "
                              f"or _rpm (input speed), got {column!r}")
     return column
+
+
+def tooth_indicators(t, mesh: int, trim: int) -> dict:
+    """``median_tooth_rms_ratio`` rms(M) / rms(t) and ``tooth_deviation_trimmed`` (the mean square deviation of
+    the ``mesh - trim`` closest periods from M) / mean(M^2), with M the median tooth of the TSA ``t``
+    (:func:`rvdiag.features.orders.median_tooth`, ``mesh`` periods per revolution)."""
+    mt = _o.median_tooth(t, mesh, trim)
+    M = mt["median"]
+    pm = float(np.mean(M**2))
+    rt = float(np.std(t))
+    return {"median_tooth_rms_ratio": float(np.std(M)) / rt if rt > 0 else 0.0,
+            "tooth_deviation_trimmed": mt["trimmed_deviation"] / pm if pm > 0 else 0.0}
 
 
 class _AngleFeatures(SignalTransformer):
@@ -118,11 +132,19 @@ class TSAIndicatorFeatures(_AngleFeatures):
         Append the modulation indicators of :mod:`rvdiag.features.planetary` (sideband asymmetry about the mesh,
         also in dB clipped to +-60 dB, and the peak-to-peak and kurtosis of the mesh's phase modulation;
         Randall 1982, McFadden & Smith 1985, McFadden 1986): feature set ``tsa-mod``.
+    median_tooth : bool
+        Append the median-tooth indicators (:func:`rvdiag.features.orders.median_tooth` over the shaft's mesh
+        periods): ``median_tooth_rms_ratio`` rms(median tooth) / rms(TSA), the share of the TSA every tooth
+        shares, and ``tooth_deviation_trimmed``, the periods' mean-square deviation from the median tooth (the
+        2 N largest left out on the sun, N planets; 2 on the other shafts) over its mean square; log10 with
+        ``log``.  Wear of every tooth raises the first and lowers the second; a broken tooth barely moves either
+        (docs/monitoring.md, "What the baseline buys").  Off by default: the ``tsa-ci`` set keeps its nine.
     """
 
     def __init__(self, fs: float = 48000.0, shaft: str = "sun", output_speed_deg_s: float = 45.0,
                  speed_column: str | None = None, samples_per_rev: int | None = None, shaft_orders: int = 2,
-                 params: str | None = None, log: bool = True, modulation: bool = False):
+                 params: str | None = None, log: bool = True, modulation: bool = False,
+                 median_tooth: bool = False):
         self.fs = fs
         self.shaft = shaft
         self.output_speed_deg_s = output_speed_deg_s
@@ -132,16 +154,22 @@ class TSAIndicatorFeatures(_AngleFeatures):
         self.params = params
         self.log = log
         self.modulation = modulation
+        self.median_tooth = median_tooth
 
     def _names(self) -> tuple[str, ...]:
         from rvdiag.features.planetary import MODULATION_INDICATORS
 
-        return _CI + (tuple(MODULATION_INDICATORS) if getattr(self, "modulation", False) else ())
+        # models pickled before an option existed have no such attribute: the option was off
+        return (_CI + (tuple(MODULATION_INDICATORS) if getattr(self, "modulation", False) else ())
+                + (_TOOTH if getattr(self, "median_tooth", False) else ()))
 
     def _rows(self, X, f_hz):
         names = self._names()
         out = np.empty((X.shape[0], len(names)))
-        mod = len(names) > len(_CI)
+        mod = getattr(self, "modulation", False)
+        tooth = getattr(self, "median_tooth", False)
+        if tooth:
+            trim = 2 * int(_o._params(self.params).stage1.n_planets) if self.shaft == "sun" else 2
         if mod:
             from rvdiag.features import planetary as pl
 
@@ -153,6 +181,8 @@ class TSAIndicatorFeatures(_AngleFeatures):
             if mod:
                 ci.update(pl.modulation_indicators(t, m, spacing))
                 ci["sideband_asymmetry_db"] = float(np.clip(ci["sideband_asymmetry_db"], -60.0, 60.0))
+            if tooth:
+                ci.update(tooth_indicators(t, m, trim))
             out[i] = [ci[k] for k in names]
         if self.log:
             logged = [k not in _SIGNED for k in names]
