@@ -107,7 +107,7 @@ def test_per_record_calibration_keeps_the_stated_rate_per_record():
     """A designed case: records of 4 windows that share their record's change, and a window noise twice its
     spread.  A record is decided on its windows' mean change (as ``diagnose`` decides a file).  Calibrated on record
     means (``rvdiag train``), the alarm keeps its stated rate on new records, within the binomial interval;
-    calibrated on windows, as before, the same records raise it about 70 times less often than stated."""
+    calibrated on windows, the same records raise it about 70 times less often than stated."""
     from rvdiag.cli._baseline import binomial_interval, record_means
 
     rng = np.random.default_rng(3)
@@ -119,7 +119,7 @@ def test_per_record_calibration_keeps_the_stated_rate_per_record():
     y = np.array(["T1"] * D.shape[0])
     per_record = BaselineMonitor(alpha=alpha).fit(D, y, groups=groups_w[first])
     per_window = BaselineMonitor(alpha=alpha).fit(W, np.array(["T1"] * W.shape[0]), groups=groups_w)
-    assert per_record.n_calibration_ == 1000 and per_window.n_calibration_ == 4000
+    assert per_record.n_calibration_ == 2000 and per_window.n_calibration_ == 8000  # CV+: every healthy record
     Wn, un = _windows_of_records(rng, 4000, k, windows, noise=2.0)
     new, _, _ = record_means(Wn, {"unit": un})
     hits = int(per_record.alarm(new).sum())
@@ -140,6 +140,77 @@ def test_record_means_keep_the_order_records_first_appear():
     assert np.array_equal(m, D) and n.tolist() == [1] * 5
 
 
+def _grouped(rng, n_groups: int, per_group: int, k: int = 3, shift: float = 1.0):
+    """Healthy rows of ``n_groups`` reducers: each reducer's own offset (N(0, shift^2 I), the population spread)
+    plus each record's run-to-run variation (N(0, I)); the reducers are exchangeable, their records are not."""
+    off = shift * rng.standard_normal((n_groups, k))
+    g = np.repeat(np.arange(n_groups), per_group)
+    return off[g] + rng.standard_normal((g.size, k)), g
+
+
+def test_cross_fitted_calibration_scores_every_group_by_a_detector_that_never_saw_it():
+    """CV+ (the default): every healthy row of every group calibrates, each scored by the detector of the folds that
+    do not hold its group; the split calibrates on half the groups."""
+    from sklearn.covariance import LedoitWolf
+
+    rng = np.random.default_rng(4)
+    D, g = _grouped(rng, 13, 8)
+    y = np.array(["T1"] * D.shape[0])
+    cv = BaselineMonitor(alpha=0.05).fit(D, y, groups=g)
+    split = BaselineMonitor(alpha=0.05, calibration="split").fit(D, y, groups=g)
+    assert cv.calibration == "cv+" and cv.n_calibration_ == 104 and cv.n_calibration_groups_ == 13
+    assert split.n_calibration_ in (48, 56) and split.n_calibration_groups_ in (6, 7)
+    fold = cv.calibration_fold_
+    assert len(cv.fold_detectors_) == 5 and sorted(np.bincount(fold).tolist()) == [16, 16, 24, 24, 24]
+    for r in range(13):  # a group lies in one fold
+        assert np.unique(fold[g == r]).size == 1
+    j = int(fold[0])  # fold j's scores come from a detector fitted on the other folds' rows only
+    F = D[fold != j]
+    mu, sd = F.mean(axis=0), F.std(axis=0, ddof=1)
+    ref = LedoitWolf().fit((F - mu) / sd).mahalanobis((D[fold == j] - mu) / sd)
+    np.testing.assert_allclose(cv.calibration_scores_[fold == j], ref, rtol=1e-10)
+    # leave-one-group-out with fewer groups than folds
+    few = BaselineMonitor(alpha=0.2, calibration_folds=5).fit(D[g < 4], y[g < 4], groups=g[g < 4])
+    assert len(few.fold_detectors_) == 4 and few.n_calibration_ == 32
+    # the alarm, the p-value and the health index agree: index > 1 exactly when p <= alpha
+    new = rng.standard_normal((3000, 3)) * 2.0
+    p, idx = cv.p_value(new), cv.health_index(new)
+    assert np.array_equal(idx > 1.0, p <= 0.05 + 1e-12) and 0.02 < (idx > 1).mean() < 0.9
+    assert np.array_equal(cv.alarm(new), idx > 1.0) and np.array_equal(cv.decision_function(new) < 0, idx > 1.0)
+
+
+@pytest.mark.parametrize("calibration", ["cv+", "split"])
+def test_false_alarm_rate_on_new_exchangeable_records_is_alpha_over_many_seeds(calibration):
+    """Exchangeable records (one per group, Student t tails): over 200 seeds the mean false-alarm rate on new records
+    lies within 4 standard errors of alpha (CV+ guarantees <= 2 alpha + sqrt(2/n) in the worst case; it is near
+    alpha for a stable fit), and no seed's rate exceeds that bound by more than 4 binomial sigma."""
+    alpha, n, k = 0.10, 60, 3
+    rates = []
+    for seed in range(200):
+        rng = np.random.default_rng(1000 + seed)
+        D = rng.standard_t(4, size=(n, k))
+        m = BaselineMonitor(alpha=alpha, calibration=calibration, random_state=seed).fit(
+            D, np.array(["T1"] * n), groups=np.arange(n))
+        rates.append(m.alarm(rng.standard_t(4, size=(2000, k))).mean())
+    rates = np.array(rates)
+    se = rates.std(ddof=1) / math.sqrt(rates.size)
+    assert abs(rates.mean() - alpha) <= 4 * se + 0.005, (rates.mean(), se)
+    bound = 2 * alpha + math.sqrt(2 / n)
+    assert rates.max() <= bound + 4 * math.sqrt(bound * (1 - bound) / 2000), rates.max()
+
+
+def test_cross_fitted_threshold_needs_the_same_calibration_records_as_the_split():
+    """ceil(1/alpha) - 1 healthy calibration rows at least: with 98 the 1 % threshold is infinite (no alarm), with
+    99 (all of them calibrate under CV+) it is the largest out-of-fold score."""
+    rng = np.random.default_rng(5)
+    D, g = _grouped(rng, 99, 1)
+    y = np.array(["T1"] * 99)
+    m = BaselineMonitor(alpha=0.01).fit(D, y, groups=g)
+    assert m.n_calibration_ == 99 and m.threshold_ == m.calibration_scores_.max()
+    m98 = BaselineMonitor(alpha=0.01).fit(D[:98], y[:98], groups=g[:98])
+    assert math.isinf(m98.threshold_) and not m98.alarm(100 * D).any()
+
+
 def test_monitor_refuses_too_few_healthy_groups_and_bad_alpha():
     D = np.zeros((6, 2))
     y = np.array(["T1"] * 6)
@@ -147,6 +218,10 @@ def test_monitor_refuses_too_few_healthy_groups_and_bad_alpha():
         BaselineMonitor().fit(D, y, groups=np.array([0, 0, 1, 1, 2, 2]))
     with pytest.raises(ParameterError, match="alpha"):
         BaselineMonitor(alpha=1.5).fit(D, y)
+    with pytest.raises(ParameterError, match="calibration must be one of cv\\+\\|split"):
+        BaselineMonitor(calibration="jackknife").fit(D, y)
+    with pytest.raises(ParameterError, match="calibration_folds"):
+        BaselineMonitor(calibration_folds=1).fit(D, y)
 
 
 def test_match_baseline_picks_the_nearest_operating_point_of_the_reducer():
@@ -210,8 +285,11 @@ def test_saved_monitor_round_trip(tmp_path):
     got = load_model(tmp_path / "mon")
     assert got.card["needs_baseline"] is True
     assert got.card["input_length"] == X.shape[1] and got.card["alarm"]["alpha"] == 0.01
+    assert got.card["alarm"]["calibration"] == "cv+" and got.card["alarm"]["calibration_folds"] == 5
+    assert got.card["alarm"]["n_calibration"] == 72 and got.card["alarm"]["n_calibration_groups"] == 12
     est = got.estimator
     np.testing.assert_allclose(est.health_index(est.paired_features(X, B, groups)), m.health_index(D))
+    np.testing.assert_allclose(est.p_value(D), m.p_value(D))
     assert list(est.predict(D)) == list(m.predict(D))
     words = est.diagnose(D[-1:])[0]
     assert set(words) == {"health_index", "alarm", "p_value", "state", "probability", "changed"}

@@ -125,12 +125,15 @@ def test_train_on_a_paired_store_trains_a_baseline_monitor_and_says_so(paired, t
     assert code == 0, err
     assert "paired store: training a baseline-referenced monitor (tsa-change features" in err
     assert "7 reducers" in err and "3 held-out reducers" in err
-    # 4 of the 7 training reducers calibrate, 6 healthy records each: 24 < 99, so 1 % cannot be guaranteed
-    assert ("warning: 24 healthy calibration records are too few for a false-alarm rate of 1 % (it needs >= 99); "
-            "the alarm is set at 4.00 %") in err
+    # every one of the 7 training reducers calibrates (CV+), 6 healthy records each: 42 < 99, so 1 % cannot be
+    # guaranteed; 1/43 rounded up is 2.33 %
+    assert ("warning: 42 healthy calibration records are too few for a false-alarm rate of 1 % (it needs >= 99); "
+            "the alarm is set at 2.33 %") in err
+    assert "calibrated on 42 healthy records of 7 training reducers" in err and "CV+ over 5 folds" in err
     card = json.loads((tmp_path / "m" / "card.json").read_text())
     assert card["needs_baseline"] is True and card["monitor_features"] == "tsa-change"
-    assert card["alarm"]["alpha"] == 0.04 and np.isfinite(card["alarm"]["threshold"])
+    assert card["alarm"]["alpha"] == 0.0233 and np.isfinite(card["alarm"]["threshold"])
+    assert card["alarm"]["calibration"] == "cv+" and card["alarm"]["n_calibration_groups"] == 7
     assert card["reducer"]["name"] == "RV-20E" and card["reducer"]["sun_teeth"] == 11
     assert card["metadata_columns"] == ["output_speed_deg_s"] and card["input_length"] == L
     assert set(card["metrics"]) >= {"accuracy", "false_alarm_rate", "detection_rate", "healthy_recall"}
@@ -141,7 +144,7 @@ def test_train_keeps_an_alpha_the_calibration_records_can_guarantee(paired, tmp_
     assert code == 0, err
     assert "warning" not in err
     res = json.loads(out)
-    assert res["alpha"] == 0.05 and res["n_calibration"] == 24 and res["needs_baseline"] is True
+    assert res["alpha"] == 0.05 and res["n_calibration"] == 42 and res["needs_baseline"] is True
 
 
 def test_train_refuses_a_paired_store_not_split_by_reducer(tmp_path, capsys):
@@ -175,10 +178,10 @@ def test_evaluate_on_a_paired_store_needs_no_baseline(paired, model, capsys):
     assert m["detection_rate"] == 1.0, m["detection_rate_per_state"]
     assert m["false_alarm_rate"] <= 1 / 18 + 1e-12  # at most one of the 18 held-out healthy records
     assert m["accuracy"] >= 0.9 and m["recall"]["T2"] >= 0.9
-    assert m["alarm"]["alpha"] == 0.04
+    assert m["alarm"]["alpha"] == 0.0233 and m["alarm"]["calibration"] == "cv+"
     code, out, err = run_cli(["evaluate", model, paired["store"]], capsys)
     assert code == 0
-    for word in ("accuracy", "false-alarm rate", "stated 4 %)", "of 18 healthy records, 95 % interval",
+    for word in ("accuracy", "false-alarm rate", "stated 2.33 %)", "of 18 healthy records, 95 % interval",
                  "detection rate", "T2 100.0 %", "healthy recall"):
         assert word in out
 
@@ -217,9 +220,9 @@ def test_a_record_of_several_windows_is_one_row_of_training_calibration_and_eval
     code, out, err = run_cli(["train", tmp_path / "p2.zarr", "-o", tmp_path / "m", "--alpha", "0.05"], capsys)
     assert code == 0, err
     assert "on 84 monitored records (168 windows) of 7 reducers" in err
-    assert "5 % per record (of 2 window(s), decided on their mean change), calibrated on 24 healthy records" in err
+    assert "5 % per record (of 2 window(s), decided on their mean change), calibrated on 42 healthy records" in err
     card = json.loads((tmp_path / "m" / "card.json").read_text())
-    assert card["alarm"]["n_calibration"] == 24  # 4 calibration reducers x 6 healthy records, not their 48 windows
+    assert card["alarm"]["n_calibration"] == 42  # 7 training reducers x 6 healthy records, not their 84 windows
     assert card["alarm"]["record_windows"] == 2 and card["input_length"] == half
     code, out, err = run_cli(["evaluate", tmp_path / "m", tmp_path / "p2.zarr", "--json", "--merge", "T3=T1"],
                              capsys)
@@ -247,7 +250,7 @@ def test_diagnose_gives_index_alarm_state_and_what_changed(paired, model, tmp_pa
     assert code == 0, err
     r = json.loads(out)
     assert r["recognised"] is True and r["reason"] is None
-    assert r["alarm"] is True and r["health_index"] > 1 and r["false_alarm_rate"] == 0.04
+    assert r["alarm"] is True and r["health_index"] > 1 and r["false_alarm_rate"] == 0.0233
     assert r["state"] == "T2" and 0.5 < r["probability"] <= 1
     assert len(r["changes"]) == 3 and all(" up " in w or " down " in w for w in r["changes"])
     assert r["n_windows"] == 2 and r["baseline"]["n_records"] == 3 and r["baseline"]["load_Nm"] == pytest.approx(50, rel=0.05)
@@ -255,7 +258,7 @@ def test_diagnose_gives_index_alarm_state_and_what_changed(paired, model, tmp_pa
     code, out, err = run_cli(["diagnose", model, healthy, "--baseline", base, "--fs", FS, "--output-speed", 59.6,
                               "--load", 128], capsys)
     assert code == 0, err
-    assert "no alarm (the alarm's false-alarm rate is 4 % of healthy records" in out
+    assert "no alarm (the alarm's false-alarm rate is 2.33 % of healthy records" in out
     assert "most probable state: T1 (healthy) (probability" in out and "what changed since the baseline" in out
 
 

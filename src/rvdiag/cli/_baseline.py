@@ -5,7 +5,8 @@ when the store is paired (:func:`rvdiag.datasets.store.is_paired`) or the model'
 - :func:`train_monitor`: :class:`rvdiag.models.monitoring.BaselineMonitor` on
   :class:`rvdiag.features.relative.BaselineReferencedFeatures` of the monitored records of the ``train`` split, each
   against its reducer's baseline records at the nearest operating point (:func:`rvdiag.datasets.store.match_baseline`).
-  The split must be by reducer: a reducer in both ``train`` and ``test`` is refused.
+  The split must be by reducer: a reducer in both ``train`` and ``test`` is refused.  The alarm's threshold is
+  calibrated by K-fold CV+ over the training reducers (:class:`BaselineMonitor`, ``calibration="cv+"``).
 - :func:`evaluate_monitor`: the state's accuracy and recall beside the alarm's false-alarm and detection rates.
 - :func:`diagnose_monitor`: one record's health index, alarm, most probable state and what changed, in words.
 
@@ -256,9 +257,17 @@ def train_monitor(store, data, out: Path, *, features: str | None, alpha: float 
                  metrics=metrics or {}, seed=seed, extra={"reducer": kind, "monitor_features": name})
     echo(f"saved model to {out}: it needs a baseline (card needs_baseline); the alarm's false-alarm rate is "
          f"{100 * m.alpha:g} % per record (of {record_windows} window(s), decided on their mean change), calibrated "
-         f"on {n} healthy records of held-out calibration reducers")
+         f"on {n} healthy records of {m.n_calibration_groups_} training reducers, each scored by a detector that "
+         f"never saw its reducer ({calibration_words(m)})")
     return {"model_dir": str(out), "metrics": metrics, "alpha": float(m.alpha), "n_calibration": n,
             "features": name, "needs_baseline": True}
+
+
+def calibration_words(m) -> str:
+    """How a monitor's threshold was calibrated, in words (card ``alarm.calibration``)."""
+    if m.calibration == "cv+":
+        return f"CV+ over {len(m.fold_detectors_)} folds of reducers"
+    return "split: the detector fitted on the other reducers"
 
 
 def _first_row(s, fx):
@@ -304,7 +313,7 @@ def _score(m, mon, base, fs, baseline_fs, tolerances, where, merge=None) -> dict
     out["detection_rate"] = float(alarm[faulty].mean()) if faulty.any() else None
     out["detection_rate_per_state"] = {c: float(alarm[y == c].mean()) for c in sorted(set(y[faulty].tolist()))}
     out["alarm"] = {"alpha": float(m.alpha), "threshold": float(m.threshold_),
-                    "n_calibration": int(m.n_calibration_)}
+                    "n_calibration": int(m.n_calibration_), "calibration": m.calibration}
     out["n_reducers"] = int(len(np.unique(reducers))) if reducers is not None else None
     if merge:
         out["merged"] = merged_classification_metrics(y, pred, merge, labels)

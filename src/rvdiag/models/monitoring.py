@@ -15,12 +15,32 @@ The squared Mahalanobis distance of the standardised row from the healthy pairs,
 (Ledoit & Wolf, "A well-conditioned estimator for large-dimensional covariance matrices", J. Multivar. Anal. 88
 (2004) 365-411; :class:`sklearn.covariance.LedoitWolf`, as scikit-learn's novelty detector
 :class:`~sklearn.covariance.EllipticEnvelope` uses the robust one: ``detector="elliptic-envelope"``), divided by
-the alarm threshold, so the alarm is ``index > 1``.  The threshold is a split-conformal quantile (Vovk, Gammerman
-& Shafer, *Algorithmic Learning in a Random World*, 2005; Lei, G'Sell, Rinaldo, Tibshirani & Wasserman,
-"Distribution-free predictive inference for regression", JASA 113 (2018) 1094-1111, Eq. 2 and Theorem 2.2): the
-healthy pairs are split, by reducer when ``groups`` are given, into a part that fits the detector and a
-calibration part of n rows whose scores give the threshold as their ceil((n + 1)(1 - alpha))-th smallest value.
-For a new healthy record exchangeable with the calibration records, P(alarm) <= alpha (and >= alpha - 1/(n + 1)).
+the alarm threshold, so the alarm is ``index > 1``.  Its threshold is conformal, calibrated on healthy records that
+the detector scoring them never saw, in one of two ways (``calibration``):
+
+- ``"cv+"`` (default): K-fold CV+ (Barber, Candes, Ramdas & Tibshirani, "Predictive inference with the
+  jackknife+", Ann. Statist. 49 (2021) 486-507, Sec. 3 and Theorem 4).  The healthy groups (the reducers, when
+  ``groups`` are given) are cut into ``calibration_folds`` folds (leave-one-group-out with fewer groups); the
+  detector ``d_k`` of fold k is fitted on the healthy rows of the other folds and scores fold k's rows: ``R_i``.
+  Every healthy row calibrates (n of them, from every training reducer).  A new record x raises the alarm when
+  ``#{i : d_k(i)(x) > R_i} >= ceil((1 - alpha)(n + 1))``, i.e. when its CV+ p-value
+  ``(1 + #{i : R_i >= d_k(i)(x)}) / (n + 1)`` is <= alpha; the health index is the ``(n - m + 1)``-th smallest of
+  ``d_k(i)(x) / R_i`` (m = ceil((1 - alpha)(n + 1))), which is ``d(x) / threshold`` when every fold is the same
+  detector (the split rule below).  The detector that :meth:`explain` and the classifier use is fitted on every
+  healthy row.  Guarantee (Theorem 4): for a new record exchangeable with the n calibration rows,
+  P(alarm) <= 2 alpha + min(2(1 - 1/K)/(n/K + 1), (1 - K/n)/(K + 1)) <= 2 alpha + sqrt(2/n): twice the stated
+  rate in the worst case, not alpha; the paper finds it near alpha for stable fits such as this covariance.
+- ``"split"``: split-conformal (Vovk, Gammerman & Shafer, *Algorithmic Learning in a Random World*, 2005; Lei,
+  G'Sell, Rinaldo, Tibshirani & Wasserman, "Distribution-free predictive inference for regression", JASA 113
+  (2018) 1094-1111, Eq. 2 and Theorem 2.2): a share ``calibration_fraction`` of the healthy groups calibrates, the
+  rest fits the detector; the threshold is the ceil((n + 1)(1 - alpha))-th smallest of the n calibration scores.
+  For a new record exchangeable with them, alpha - 1/(n + 1) <= P(alarm) <= alpha.
+
+Either needs n >= ceil(1/alpha) - 1 calibration rows (99 for 1 %); with fewer the threshold is infinite and no alarm
+is raised.  Both guarantees are per record and assume the records exchangeable.  Records of one reducer are not
+exchangeable with another's (each reducer has its own specimen, path and floor), so on new reducers the rate holds
+only as well as the training reducers represent them: the exchangeable units are reducers
+(docs/monitoring.md, "Measured with the shipped configs").
 
 State
 -----
@@ -45,6 +65,7 @@ from sklearn.utils.validation import check_is_fitted
 from rvdiag.errors import ParameterError
 
 DETECTORS = ("ledoit-wolf", "elliptic-envelope")
+CALIBRATIONS = ("cv+", "split")
 
 
 def conformal_threshold(scores, alpha: float) -> float:
@@ -56,8 +77,13 @@ def conformal_threshold(scores, alpha: float) -> float:
     99.0
     """
     s = np.sort(np.asarray(scores, dtype=np.float64).ravel())
-    k = math.ceil((s.size + 1) * (1.0 - float(alpha)))
+    k = conformal_rank(s.size, alpha)
     return float(s[k - 1]) if 1 <= k <= s.size else math.inf
+
+
+def conformal_rank(n: int, alpha: float) -> int:
+    """ceil((n + 1)(1 - alpha)), the rank of the conformal quantile among n calibration scores (> n: too few)."""
+    return math.ceil((int(n) + 1) * (1.0 - float(alpha)) - 1e-9)
 
 
 class BaselineMonitor(ClassifierMixin, BaseEstimator):
@@ -69,8 +95,13 @@ class BaselineMonitor(ClassifierMixin, BaseEstimator):
         False-alarm rate per record of the alarm (default 1 %).
     healthy : str
         The healthy label (a library's ``T1``).
+    calibration : {"cv+", "split"}
+        How the threshold is calibrated (module docstring): K-fold CV+ over the healthy groups, every healthy row
+        calibrating (default), or a split of the groups into a fitting and a calibration part.
+    calibration_folds : int
+        K of ``"cv+"`` (default 5; leave-one-group-out when there are fewer groups).
     calibration_fraction : float
-        Share of the healthy pairs (of their groups, when given) that calibrate the threshold.
+        ``"split"``: share of the healthy pairs (of their groups, when given) that calibrate the threshold.
     detector : {"ledoit-wolf", "elliptic-envelope"}
         Covariance of the healthy pairs for the Mahalanobis distance: shrunk (default; stable with few records per
         feature) or the robust minimum covariance determinant of :class:`sklearn.covariance.EllipticEnvelope`.
@@ -81,19 +112,24 @@ class BaselineMonitor(ClassifierMixin, BaseEstimator):
         The transformer that makes ``D`` from windows and their baselines (:meth:`paired_features`), kept with the
         model so that a saved monitor diagnoses raw records.
     random_state : int
-        Seed of the calibration split and of the SVC's probability calibration.
+        Seed of the calibration split or folds and of the SVC's probability calibration.
 
     Attributes
     ----------
-    classes_, mean_, scale_ (the healthy pairs' per-feature mean and spread), detector_, threshold_,
-    n_calibration_, classifier_, n_features_in_
+    classes_, mean_, scale_ (the healthy pairs' per-feature mean and spread), detector_, threshold_ (the conformal
+    quantile of the calibration scores), calibration_scores_, n_calibration_, n_calibration_groups_ (the groups
+    they come from), classifier_, n_features_in_; with ``"cv+"`` also fold_means_, fold_scales_, fold_detectors_
+    (the detector of each fold) and calibration_fold_ (the fold of each calibration score).
     """
 
-    def __init__(self, alpha: float = 0.01, healthy: str = "T1", calibration_fraction: float = 0.5,
+    def __init__(self, alpha: float = 0.01, healthy: str = "T1", calibration: str = "cv+",
+                 calibration_folds: int = 5, calibration_fraction: float = 0.5,
                  detector: str = "ledoit-wolf", C: float = 10.0, gamma: str | float = "scale",
                  feature_names=None, features=None, random_state: int = 0):
         self.alpha = alpha
         self.healthy = healthy
+        self.calibration = calibration
+        self.calibration_folds = calibration_folds
         self.calibration_fraction = calibration_fraction
         self.detector = detector
         self.C = C
@@ -133,16 +169,21 @@ class BaselineMonitor(ClassifierMixin, BaseEstimator):
         return D
 
     def fit(self, D, y, groups=None):
-        """Fit the detector on part of the healthy rows, calibrate its threshold on the rest (whole groups when
-        ``groups``, e.g. the reducer ids, are given), and the classifier on every row; returns ``self``."""
+        """Fit the detector and calibrate its threshold on the healthy rows (``calibration``: CV+ folds or a split,
+        of whole groups when ``groups``, e.g. the reducer ids, are given), and the classifier on every row;
+        returns ``self``."""
         from sklearn.calibration import CalibratedClassifierCV
-        from sklearn.covariance import EllipticEnvelope, LedoitWolf
         from sklearn.svm import SVC
 
         if not 0 < float(self.alpha) < 1:
             raise ParameterError(f"alpha must lie in (0, 1), got {self.alpha!r}")
-        if not 0 < float(self.calibration_fraction) < 1:
+        if self.calibration not in CALIBRATIONS:
+            raise ParameterError(f"calibration must be one of {'|'.join(CALIBRATIONS)}, got {self.calibration!r}")
+        if self.calibration == "split" and not 0 < float(self.calibration_fraction) < 1:
             raise ParameterError(f"calibration_fraction must lie in (0, 1), got {self.calibration_fraction!r}")
+        if self.calibration == "cv+" and (int(self.calibration_folds) != self.calibration_folds
+                                          or int(self.calibration_folds) < 2):
+            raise ParameterError(f"calibration_folds must be an integer >= 2, got {self.calibration_folds!r}")
         if self.detector not in DETECTORS:
             raise ParameterError(f"detector must be one of {'|'.join(DETECTORS)}, got {self.detector!r}")
         D = self._check(D, y)
@@ -162,21 +203,34 @@ class BaselineMonitor(ClassifierMixin, BaseEstimator):
         if units.size < 4:
             raise ParameterError(f"BaselineMonitor needs healthy pairs (label {self.healthy!r}) of at least 4 "
                                  f"{'groups' if groups is not None else 'records'}, got {units.size}")
-        n_cal = min(max(1, int(round(float(self.calibration_fraction) * units.size))), units.size - 2)
-        cal_units = rng.permutation(units)[:n_cal]
-        cal = h[np.isin(unit_of, cal_units)]
-        fit_rows = h[~np.isin(unit_of, cal_units)]
         self.n_features_in_ = D.shape[1]
-        self.mean_ = D[fit_rows].mean(axis=0)
-        sd = D[fit_rows].std(axis=0, ddof=1)
-        self.scale_ = np.where(sd > 0, sd, 1.0)
-        Z = (D[fit_rows] - self.mean_) / self.scale_
-        if self.detector == "ledoit-wolf":
-            self.detector_ = LedoitWolf().fit(Z)
+        if self.calibration == "split":
+            n_cal = min(max(1, int(round(float(self.calibration_fraction) * units.size))), units.size - 2)
+            cal_units = rng.permutation(units)[:n_cal]
+            cal = h[np.isin(unit_of, cal_units)]
+            fit_rows = h[~np.isin(unit_of, cal_units)]
+            self.mean_, self.scale_, self.detector_ = self._fit_detector(D[fit_rows])
+            self.calibration_scores_ = self._distance(D[cal])
+            self.n_calibration_groups_ = int(n_cal)
         else:
-            self.detector_ = EllipticEnvelope(contamination=float(self.alpha), random_state=self.random_state).fit(Z)
-        self.calibration_scores_ = self._distance(D[cal])
-        self.n_calibration_ = int(cal.size)
+            k = min(int(self.calibration_folds), units.size)
+            fold_of_unit = np.empty(units.size, dtype=np.int64)
+            fold_of_unit[rng.permutation(units.size)] = np.arange(units.size) % k  # folds of near-equal size
+            fold = fold_of_unit[np.searchsorted(units, unit_of)] if groups is not None \
+                else fold_of_unit[np.arange(h.size)]
+            means, scales, dets, scores = [], [], [], np.empty(h.size)
+            for j in range(k):
+                mu, sd, det = self._fit_detector(D[h[fold != j]])
+                means.append(mu)
+                scales.append(sd)
+                dets.append(det)
+                scores[fold == j] = self._mahalanobis(det, mu, sd, D[h[fold == j]])
+            self.fold_means_, self.fold_scales_, self.fold_detectors_ = np.array(means), np.array(scales), dets
+            self.calibration_fold_ = fold
+            self.calibration_scores_ = scores
+            self.mean_, self.scale_, self.detector_ = self._fit_detector(D[h])
+            self.n_calibration_groups_ = int(units.size)
+        self.n_calibration_ = int(self.calibration_scores_.size)
         self.threshold_ = conformal_threshold(self.calibration_scores_, float(self.alpha))
         self.classes_ = np.unique(y)
         self.classifier_ = None  # healthy pairs only: a detector without states
@@ -186,14 +240,51 @@ class BaselineMonitor(ClassifierMixin, BaseEstimator):
                 (D - self.mean_) / self.scale_, y)
         return self
 
+    def _fit_detector(self, F):
+        """``(mean, scale, covariance estimator)`` of healthy rows ``F``: standardised, then Ledoit-Wolf or MCD."""
+        from sklearn.covariance import EllipticEnvelope, LedoitWolf
+
+        mean = F.mean(axis=0)
+        sd = F.std(axis=0, ddof=1)
+        scale = np.where(sd > 0, sd, 1.0)
+        Z = (F - mean) / scale
+        if self.detector == "ledoit-wolf":
+            return mean, scale, LedoitWolf().fit(Z)
+        return mean, scale, EllipticEnvelope(contamination=float(self.alpha), random_state=self.random_state).fit(Z)
+
+    @staticmethod
+    def _mahalanobis(det, mean, scale, D) -> np.ndarray:
+        return np.asarray(det.mahalanobis((np.asarray(D) - mean) / scale), dtype=np.float64)
+
+    def _cv_rows(self, D, reduce) -> np.ndarray:
+        """CV+: ``reduce(ratios)`` of the ratios ``d_k(i)(x) / R_i`` of records ``x`` (rows) to every calibration
+        score (columns), over blocks of rows (a block holds at most ~4 million ratios)."""
+        S = np.stack([self._mahalanobis(det, mu, sd, D) for det, mu, sd in
+                      zip(self.fold_detectors_, self.fold_means_, self.fold_scales_)], axis=1)
+        R = np.maximum(self.calibration_scores_, np.finfo(float).tiny)
+        step = max(1, 4_000_000 // max(1, R.size))
+        return np.concatenate([reduce(S[a:a + step][:, self.calibration_fold_] / R)
+                               for a in range(0, S.shape[0], step)]) if S.shape[0] else np.zeros(0)
+
     # ------------------------------------------------------------------------------------------- scoring
     def _distance(self, D) -> np.ndarray:
-        return np.asarray(self.detector_.mahalanobis((np.asarray(D) - self.mean_) / self.scale_), dtype=np.float64)
+        return self._mahalanobis(self.detector_, self.mean_, self.scale_, D)
+
+    def _cv(self) -> bool:
+        return getattr(self, "fold_detectors_", None) is not None and self.calibration == "cv+"
 
     def health_index(self, D) -> np.ndarray:
-        """The squared Mahalanobis distance from the healthy pairs over the alarm threshold: > 1 raises the alarm."""
+        """The squared Mahalanobis distance from the healthy pairs over the alarm threshold (``"split"``), or its
+        CV+ form (module docstring): > 1 raises the alarm; 0 when the calibration records are too few."""
         check_is_fitted(self, "threshold_")
-        return self._distance(self._check(D)) / self.threshold_
+        D = self._check(D)
+        if math.isinf(self.threshold_):
+            return np.zeros(D.shape[0])
+        if not self._cv():
+            return self._distance(D) / self.threshold_
+        n = self.calibration_scores_.size
+        m = conformal_rank(n, float(self.alpha))
+        return self._cv_rows(D, lambda r: np.partition(r, n - m, axis=1)[:, n - m])
 
     def score_samples(self, D) -> np.ndarray:
         """scikit-learn's novelty convention: minus the squared Mahalanobis distance (lower = more abnormal)."""
@@ -201,16 +292,23 @@ class BaselineMonitor(ClassifierMixin, BaseEstimator):
         return -self._distance(self._check(D))
 
     def decision_function(self, D) -> np.ndarray:
-        """Threshold minus distance: negative for the records that raise the alarm (as ``EllipticEnvelope``)."""
-        return self.score_samples(D) + self.threshold_
+        """Threshold times (1 - health index), threshold minus distance with ``"split"``: negative for the records
+        that raise the alarm (as ``EllipticEnvelope``)."""
+        return self.threshold_ * (1.0 - self.health_index(D))
 
     def alarm(self, D) -> np.ndarray:
         """Whether each record raises the alarm (false-alarm rate ``alpha`` on healthy records)."""
         return self.health_index(D) > 1.0
 
     def p_value(self, D) -> np.ndarray:
-        """Conformal p-value of each record being healthy: (1 + #calibration scores >= its score) / (n + 1)."""
-        s = self._distance(self._check(D))
+        """Conformal p-value of each record being healthy: (1 + #{i : R_i >= its score}) / (n + 1), its score by the
+        detector that did not see calibration row i with ``"cv+"``."""
+        check_is_fitted(self, "threshold_")
+        D = self._check(D)
+        n = self.calibration_scores_.size
+        if self._cv():
+            return (1.0 + self._cv_rows(D, lambda r: (r <= 1.0).sum(axis=1))) / (n + 1.0)
+        s = self._distance(D)
         c = np.sort(self.calibration_scores_)
         return (1.0 + c.size - np.searchsorted(c, s, side="left")) / (c.size + 1.0)
 
@@ -290,7 +388,11 @@ def save_monitor(monitor: BaselineMonitor, directory, *, model: str = "baseline-
                      "speed_tolerance": SPEED_TOLERANCE if speed_tolerance is None else float(speed_tolerance),
                      "load_tolerance": LOAD_TOLERANCE if load_tolerance is None else float(load_tolerance)},
         "alarm": {"alpha": float(monitor.alpha), "threshold": float(monitor.threshold_),
-                  "n_calibration": int(monitor.n_calibration_), "detector": monitor.detector,
+                  "n_calibration": int(monitor.n_calibration_),
+                  "n_calibration_groups": int(getattr(monitor, "n_calibration_groups_", 0)) or None,
+                  "calibration": monitor.calibration,
+                  "calibration_folds": len(monitor.fold_detectors_) if monitor._cv() else None,
+                  "detector": monitor.detector,
                   "record_windows": None if record_windows is None else int(record_windows)},
         "preprocessing": {"features": "baseline-referenced",
                           "feature_names": [str(f) for f in feats.get_feature_names_out()]},
@@ -304,4 +406,4 @@ def save_monitor(monitor: BaselineMonitor, directory, *, model: str = "baseline-
     return Path(directory)
 
 
-__all__ = ["BaselineMonitor", "DETECTORS", "conformal_threshold", "save_monitor"]
+__all__ = ["BaselineMonitor", "CALIBRATIONS", "DETECTORS", "conformal_rank", "conformal_threshold", "save_monitor"]
