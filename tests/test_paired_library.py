@@ -301,7 +301,13 @@ def test_shipped_monitoring_config_is_paired():
     assert cfg.paired and cfg.specimen and cfg.noise_floor and cfg.noise_snr_db.values == (20.0,)
     assert len(b.operating_points) == 6 and cfg.classes == ["T1", "T2", "T3", "T4", "T5", "T6"]
     assert (cfg.speed.lo, cfg.speed.hi, cfg.load_Nm.lo, cfg.load_Nm.hi) == (20.0, 70.0, 30.0, 150.0)
-    # enough healthy monitored records in the held-out reducers to calibrate a 1 % alarm (ceil(1/0.01) - 1)
+    # enough healthy monitored records in the held-out reducers to measure a 1 % alarm, and in the training ones to
+    # calibrate it by CV+ (ceil(1/0.01) - 1 = 99)
     assert b.test_reducers * b.monitored_healthy >= 99
+    assert (b.reducers - b.test_reducers) * b.monitored_healthy >= 99
+    # the TSA change's own spread from two commissioning records per point, not the windows of one
+    assert b.records_per_point == 2
+    demo = LibraryConfig.load("demo-monitoring").baseline
+    assert demo.records_per_point == 2 and (demo.reducers - demo.test_reducers) * demo.monitored_healthy >= 19
     for state, sweeps in LibraryConfig.load("independent").states.items():
         assert cfg.states[state] == sweeps
