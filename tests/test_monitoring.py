@@ -342,3 +342,20 @@ def test_baseline_features_append_the_median_tooth_unless_pickled_before_it():
     del fx.median_tooth  # as a model pickled before the option existed
     assert list(fx.get_feature_names_out()) == list(TSA_CHANGE_NAMES)
     np.testing.assert_allclose(fx.transform(X, base, [np.arange(3)])[0], D[0, : len(TSA_CHANGE_NAMES)])
+
+
+def test_tsa_change_from_tsa_is_tsa_change_features_on_tsas_computed_once():
+    from rvdiag.features import orders as _o
+    from rvdiag.features.relative import sun_tsa, tsa_change_from_tsa
+
+    rng = np.random.default_rng(7)
+    speeds = [45.0, 45.3, 44.8]
+    base = [_gear(v, rng) for v in speeds]
+    x = _gear(45.1, rng, fault=0.5)
+    spr = _o.default_samples_per_rev(48000.0, shaft_frequency("sun", output_speed_deg_s=45.1), 11)
+    Tb = [sun_tsa(b, 48000.0, v, spr) for b, v in zip(base, speeds)]
+    got = tsa_change_from_tsa(sun_tsa(x, 48000.0, 45.1, spr), Tb, 11, 2, median_tooth=True)
+    np.testing.assert_allclose(got, tsa_change_features(x, 45.1, base, speeds, 48000.0, median_tooth=True))
+    assert got[3] > math.log10(3)  # the pulse is seen: not a vacuous comparison of two NaN vectors
+    with pytest.raises(ParameterError, match=">= 1 baseline TSA"):
+        tsa_change_from_tsa(Tb[0], [], 11, 2)

@@ -152,23 +152,34 @@ def tsa_change_features(x, output_speed_deg_s: float, baseline: Sequence[np.ndar
                              f"{len(baseline)} windows and {len(baseline_speeds)} speeds")
     f = _o.shaft_frequency("sun", p, output_speed_deg_s=float(output_speed_deg_s))
     spr = int(samples_per_rev or _o.default_samples_per_rev(float(fs), f, mesh))
-    slots = 2 * mesh
     Tb = [sun_tsa(b, fs, v, spr, p) for b, v in zip(baseline, baseline_speeds)]
-    Tb = [Tb[0]] + [align(t, Tb[0]) for t in Tb[1:]]
-    ref = np.mean(Tb, axis=0)
     t = sun_tsa(x, fs, output_speed_deg_s, spr, p)
-    c, cr, dr, var_b, peak = _change(t, ref, mesh, slots, planets)
+    return tsa_change_from_tsa(t, Tb, mesh, planets, median_tooth=median_tooth)
+
+
+def tsa_change_from_tsa(t, baseline_tsas: Sequence[np.ndarray], teeth: int, planets: int,
+                        median_tooth: bool = False) -> np.ndarray:
+    """:func:`tsa_change_features` of the sun TSA ``t`` against the baseline TSAs ``baseline_tsas`` (all at the
+    same angular sampling, :func:`sun_tsa`), ``teeth`` = Z1 and ``planets`` = N: the same figures from TSAs
+    already computed."""
+    slots = 2 * teeth
+    Tb = list(baseline_tsas)
+    if len(Tb) < 1:
+        raise ParameterError("tsa_change_from_tsa needs >= 1 baseline TSA")
+    Tb = [Tb[0]] + [align(b, Tb[0]) for b in Tb[1:]]
+    ref = np.mean(Tb, axis=0)
+    c, cr, dr, var_b, peak = _change(t, ref, teeth, slots, planets)
     na4 = float(np.mean((dr - dr.mean()) ** 4) / var_b**2) if var_b > 0 else 0.0
     own = np.full(3, np.nan)
     if len(Tb) >= 2:
         loo = []
         for j in range(len(Tb)):
-            cj, crj, _, _, pj = _change(Tb[j], np.mean(Tb[:j] + Tb[j + 1:], axis=0), mesh, slots, planets)
+            cj, crj, _, _, pj = _change(Tb[j], np.mean(Tb[:j] + Tb[j + 1:], axis=0), teeth, slots, planets)
             loo.append((cj, crj, pj))
         own = np.median(loo, axis=0)
     v = np.array([c, cr, na4, peak, c / own[0], cr / own[1], peak / own[2]])
     out = np.log10(np.maximum(v, 1e-12), where=np.isfinite(v), out=np.full(v.size, np.nan))
-    return np.r_[out, median_tooth_change(t, ref, mesh)] if median_tooth else out
+    return np.r_[out, median_tooth_change(t, ref, teeth)] if median_tooth else out
 
 
 class BaselineReferencedFeatures(TransformerMixin, BaseEstimator):
@@ -286,4 +297,4 @@ class BaselineReferencedFeatures(TransformerMixin, BaseEstimator):
 
 
 __all__ = ["MEDIAN_TOOTH_NAMES", "TSA_CHANGE_NAMES", "BaselineReferencedFeatures", "align", "median_tooth_change",
-           "relative_features", "sun_tsa", "tsa_change_features"]
+           "relative_features", "sun_tsa", "tsa_change_features", "tsa_change_from_tsa"]
