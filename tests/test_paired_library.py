@@ -289,12 +289,12 @@ def test_a_paired_librarys_profile_holds_the_arm_alone(profile):
 
 
 def test_shipped_current_monitoring_config_is_paired_current_with_one_arm_per_joint():
-    cfg = LibraryConfig.load(Path(__file__).parents[1] / "configs" / "monitoring-current.toml")
+    cfg = LibraryConfig.load("monitoring-current")
     assert cfg.paired and cfg.model["signal"] == "current" and cfg.channel == "i_a" and cfg.specimen
     assert cfg.baseline.operating_points == ((45.0, 20.0),) and cfg.baseline.records_per_point >= 2
     assert cfg.classes == ["T1", "T2", "T8"] and set(cfg.profile.arm) == {"arm_mass_kg", "arm_length_m",
                                                                            "arm_angle_deg"}
-    mcsa = LibraryConfig.load(Path(__file__).parents[1] / "configs" / "mcsa.toml")
+    mcsa = LibraryConfig.load("mcsa")
     assert cfg.profile.arm == mcsa.profile.arm and cfg.fs == mcsa.fs and cfg.load_Nm == mcsa.load_Nm
     assert cfg.states["T2"] == mcsa.states["T2"] and cfg.states["T8"] == mcsa.states["T8"]
 

@@ -180,13 +180,14 @@ class CurrentLineFeatures(SignalTransformer):
     def _check_params(self, n_points: int) -> None:
         if not (isinstance(self.fs, (int, float)) and not isinstance(self.fs, bool) and self.fs > 0):
             raise ParameterError(f"fs must be a number > 0, got {self.fs!r}")
-        from rvdiag.motor.lines import SIDEBAND_ORDERS
+        from rvdiag.kinematics import characteristic_frequencies
+        from rvdiag.motor.lines import line_frequencies
 
-        known = {"fe-fsp", "fe+fsp", "fe-fcs", "fe+fcs", "5fe"} | {f"fe{s}{k}f1" for k in SIDEBAND_ORDERS for s in "-+"}
+        known = set(line_frequencies(characteristic_frequencies(self._params(), output_speed_deg_s=1.0))) - {"fe"}
         bad = [ln for ln in self.lines if ln not in known]
         if not len(self.lines) or bad:
-            raise ParameterError(f"lines must name lines of rvdiag.motor.lines.current_lines ({', '.join(sorted(known))}),"
-                                 f" got {list(self.lines)!r}")
+            raise ParameterError("lines must name lines of rvdiag.motor.lines.current_lines "
+                                 f"({', '.join(sorted(known))}), got {list(self.lines)!r}")
 
     def _features(self, X):
         from rvdiag.motor.lines import current_lines
