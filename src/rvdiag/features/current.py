@@ -151,8 +151,7 @@ class CurrentLineFeatures(SignalTransformer):
     ``lines`` is read from the window's Hann amplitude spectrum at its frequency for that point
     (:func:`rvdiag.motor.lines.current_lines`: the largest of the 5 bins around it).  A sun-gear fault raises the
     ``f_e +- k f1`` family (Li, Zhao et al. 2024, section 4 and Table 3; docs/model.md section 10).  Relative to
-    the supply line, the figures do not depend on the sensor's gain, and a load change moves them less than it
-    moves the current's level; against the same joint's baseline (:class:`rvdiag.features.relative.
+    the supply line, the figures do not depend on the sensor's gain; against the same joint's baseline (:class:`rvdiag.features.relative.
     BaselineReferencedFeatures`) the lines the reducer's own manufacturing errors put there cancel to first order.
 
     Parameters
