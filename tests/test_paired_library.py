@@ -41,7 +41,7 @@ PAIRED = {
 def paired(**changes):
     data = copy.deepcopy(PAIRED)
     for key, value in changes.items():
-        data[key] = {**data[key], **value} if isinstance(value, dict) and key != "states" else value
+        data[key] = {**data.get(key, {}), **value} if isinstance(value, dict) and key != "states" else value
     return LibraryConfig.from_dict(data, source="paired.toml")
 
 
@@ -250,6 +250,53 @@ def test_a_config_without_baseline_builds_todays_library():
     assert not cfg.paired and cfg.n_simulations == 12
     assert all(u.reducer is None and u.role is None and not u.variation for u in plan)
     assert not Job.from_config(cfg, cfg.reducer_params()).paired_columns
+
+
+ARM = {"arm_mass_kg": 15.0, "arm_length_m": 0.5, "arm_angle_deg": {"min": -60.0, "max": 60.0}}
+
+
+def test_the_joints_arm_is_drawn_once_per_reducer_and_reaches_every_record():
+    """A paired library's [profile] holds the gravity arm alone: one per reducer (the joint repeats one motion, so
+    its commissioning and later records start at one arm angle), other reducers their own."""
+    cfg = paired(profile=ARM)
+    plan = make_plan(cfg)
+    per = 3 + 2 + 1 + 1
+    angles = []
+    job = Job.from_config(cfg, cfg.reducer_params())
+    for r in range(4):
+        mine = plan[r * per:(r + 1) * per]
+        assert all(u.profile == mine[0].profile for u in mine)
+        assert mine[0].profile["profile"] == 0 and mine[0].profile["accel_deg_s2"] is None  # constant speed
+        angles.append(mine[0].profile["arm_angle_deg"])
+        for u in (mine[0], mine[-1]):
+            _, _, kwargs = simulator_call(u, job)
+            lp = kwargs["load_profile"]
+            assert (lp.arm_mass_kg, lp.arm_length_m, lp.arm_angle_deg) == (15.0, 0.5, angles[-1])
+            assert "profile" not in kwargs
+        assert "load_profile" not in simulator_call(mine[0], job, twin=True)[2]  # the noise floor's twin: no arm
+    assert len(set(angles)) == 4 and all(-60.0 <= a <= 60.0 for a in angles)
+    # the arm is drawn after everything else of the reducer: the reducers themselves are those without it
+    for a, b in zip(plan, make_plan(paired())):
+        assert (a.specimen, a.scales, a.seed, a.variation, a.speed) == (b.specimen, b.scales, b.seed, b.variation,
+                                                                        b.speed)
+
+
+@pytest.mark.parametrize("profile", [{"trapezoid_fraction": 0.5, "accel_deg_s2": 1000.0},
+                                     {"accel_deg_s2": 100.0, **ARM}])
+def test_a_paired_librarys_profile_holds_the_arm_alone(profile):
+    with pytest.raises(ConfigError, match=r"\[profile\] may hold only the gravity arm"):
+        paired(profile=profile)
+
+
+def test_shipped_current_monitoring_config_is_paired_current_with_one_arm_per_joint():
+    cfg = LibraryConfig.load("monitoring-current")
+    assert cfg.paired and cfg.model["signal"] == "current" and cfg.channel == "i_a" and cfg.specimen
+    assert cfg.baseline.operating_points == ((45.0, 20.0),) and cfg.baseline.records_per_point >= 2
+    assert cfg.classes == ["T1", "T2", "T8"] and set(cfg.profile.arm) == {"arm_mass_kg", "arm_length_m",
+                                                                           "arm_angle_deg"}
+    mcsa = LibraryConfig.load("mcsa")
+    assert cfg.profile.arm == mcsa.profile.arm and cfg.fs == mcsa.fs and cfg.load_Nm == mcsa.load_Nm
+    assert cfg.states["T2"] == mcsa.states["T2"] and cfg.states["T8"] == mcsa.states["T8"]
 
 
 def test_paired_config_round_trips_and_hashes_its_table():

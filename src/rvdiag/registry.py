@@ -47,6 +47,7 @@ _BUILTIN: frozenset[str] = frozenset({
     "rvdiag.features.tsa.OrderSpectrumFeatures",
     "rvdiag.features.baseline.HealthyBaselineFeatures",
     "rvdiag.features.relative.BaselineReferencedFeatures",
+    "rvdiag.features.current.CurrentLineFeatures",
     "rvdiag.models.monitoring.BaselineMonitor",
     "sklearn.covariance._shrunk_covariance.LedoitWolf",
     "sklearn.covariance._elliptic_envelope.EllipticEnvelope",

@@ -26,10 +26,15 @@ from rvdiag.errors import ParameterError, StoreError
 
 MONITOR_MODEL = "baseline-monitor"
 #: ``--features`` of a monitor -> (inner window features or "none", TSA change appended)
-MONITOR_FEATURES = {"tsa-change": ("none", True), "orders": (None, False), "orders+tsa-change": (None, True)}
+MONITOR_FEATURES = {"tsa-change": ("none", True), "orders": (None, False), "orders+tsa-change": (None, True),
+                    "current-lines": ("current-lines", False)}
 #: the TSA change alone: the best six-state accuracy of the routes measured in docs/monitoring.md (59.5 %, false
 #: alarms 4.2 % at alpha 5 %, leave-3-reducers-out)
 DEFAULT_MONITOR_FEATURES = "tsa-change"
+#: the default of a motor-current store (its ``[model] signal = "current"``): the reducer's lines around the supply
+#: line relative to it (:class:`rvdiag.features.current.CurrentLineFeatures`); the TSA change and the order
+#: spectrum read a housing acceleration
+DEFAULT_CURRENT_MONITOR_FEATURES = "current-lines"
 #: the alarm's false-alarm rate per record
 DEFAULT_ALPHA = 0.01
 OPERATING_COLUMNS = ("output_speed_deg_s", "load_Nm")
@@ -74,7 +79,20 @@ def monitor_features(name: str, fs: float):
         raise ParameterError(f"--features {name!r} does not apply to a baseline-referenced model; use one of "
                              f"{'|'.join(MONITOR_FEATURES)} (default {DEFAULT_MONITOR_FEATURES})")
     inner, tsa = MONITOR_FEATURES[name]
+    if inner == "current-lines":
+        from rvdiag.features.current import CurrentLineFeatures
+
+        inner = CurrentLineFeatures(fs=float(fs))
     return BaselineReferencedFeatures(features=inner, tsa_change=tsa, fs=float(fs))
+
+
+def default_monitor_features(store) -> str:
+    """The ``--features`` of a monitor trained on ``store`` when none is given: :data:`DEFAULT_CURRENT_MONITOR_FEATURES`
+    on a motor-current store, else :data:`DEFAULT_MONITOR_FEATURES`."""
+    from rvdiag.cli._store_info import signal_info
+
+    current = signal_info(store)["signal"] == "current"
+    return DEFAULT_CURRENT_MONITOR_FEATURES if current else DEFAULT_MONITOR_FEATURES
 
 
 def _roles(samples, role: str) -> np.ndarray:
@@ -206,7 +224,7 @@ def train_monitor(store, data, out: Path, *, features: str | None, alpha: float 
     from rvdiag.models.monitoring import BaselineMonitor, save_monitor
     from rvdiag.params import ReducerParams
 
-    name = features or DEFAULT_MONITOR_FEATURES
+    name = features or default_monitor_features(store)
     alpha = DEFAULT_ALPHA if alpha is None else float(alpha)
     if not 0 < alpha < 1:
         raise ParameterError(f"--alpha must lie in (0, 1), got {alpha}")

@@ -18,6 +18,9 @@ load's slow amplitude modulation and the small error of the estimated frequency 
 amplitude).  A fault's sidebands ``f_e +- f1`` beat ``f1 * T`` times per window (dozens), far beyond what a
 low-degree polynomial follows, so they stay in the residual.
 
+:class:`CurrentLineFeatures` reads the reducer's lines around the supply line, each relative to it (the features of a
+current monitored against its own baseline, docs/monitoring.md).
+
 :class:`FundamentalResidual` is the transformer (windows in, residual windows of the same length out);
 the CNN's ``residual`` input representation (:class:`rvdiag.models.torch_estimator.CNNClassifier`) uses the
 function.
@@ -133,4 +136,79 @@ class FundamentalResidual(SignalTransformer):
         return [f"residual{k}" for k in range(self.n_features_in_)]
 
 
-__all__ = ["FundamentalResidual", "MIN_PEAK_BINS", "SUPPLY_HARMONICS", "electrical_frequency", "fundamental_residual"]
+#: the lines of :func:`rvdiag.motor.lines.current_lines` that :class:`CurrentLineFeatures` reads by default: the
+#: reducer's lines around the supply line (the sun / input shaft family ``f_e +- k f1``, the stage-1 mesh
+#: ``|f_e +- f_sp|`` and the cycloid-pin mesh ``|f_e +- f_cs|``; Li, Zhao et al. 2024, Table 3), not the drive's
+#: own dead-time line ``5 f_e``
+REDUCER_LINES = ("fe-1f1", "fe+1f1", "fe-2f1", "fe+2f1", "fe-3f1", "fe+3f1", "fe-fsp", "fe+fsp", "fe-fcs", "fe+fcs")
+
+
+class CurrentLineFeatures(SignalTransformer):
+    """The reducer's lines in a phase current, each relative to the supply line: ``log10(A_line / A_fe)``.
+
+    Per window: the supply frequency ``f_e`` is the window's highest spectral peak (:func:`electrical_frequency`,
+    refined), the operating point follows from it (``f_e = p f1``, ``p`` the motor's pole pairs), and each line of
+    ``lines`` is read from the window's Hann amplitude spectrum at its frequency for that point
+    (:func:`rvdiag.motor.lines.current_lines`: the largest of the 5 bins around it).  A sun-gear fault raises the
+    ``f_e +- k f1`` family (Li, Zhao et al. 2024, section 4 and Table 3; docs/model.md section 10).  Relative to
+    the supply line, the figures do not depend on the sensor's gain; against the same joint's baseline (:class:`rvdiag.features.relative.
+    BaselineReferencedFeatures`) the lines the reducer's own manufacturing errors put there cancel to first order.
+
+    Parameters
+    ----------
+    fs : float
+        Sampling rate of the current, Hz.
+    lines : names of :func:`rvdiag.motor.lines.current_lines`' lines (default :data:`REDUCER_LINES`); a line
+        outside the window's spectrum is refused when it is read.
+    params : reducer parameters (str path or ReducerParams; default the built-in RV-20E): the pole pairs, the
+        ratio and the tooth counts behind the lines' frequencies.
+    """
+
+    _min_points = 256
+
+    def __init__(self, fs: float = 1000.0, lines: Sequence[str] = REDUCER_LINES, params=None):
+        self.fs = fs
+        self.lines = lines
+        self.params = params
+
+    def _params(self):
+        from rvdiag.features.orders import _params
+
+        return _params(self.params)
+
+    def _check_params(self, n_points: int) -> None:
+        if not (isinstance(self.fs, (int, float)) and not isinstance(self.fs, bool) and self.fs > 0):
+            raise ParameterError(f"fs must be a number > 0, got {self.fs!r}")
+        from rvdiag.kinematics import characteristic_frequencies
+        from rvdiag.motor.lines import line_frequencies
+
+        known = set(line_frequencies(characteristic_frequencies(self._params(), output_speed_deg_s=1.0))) - {"fe"}
+        bad = [ln for ln in self.lines if ln not in known]
+        if not len(self.lines) or bad:
+            raise ParameterError("lines must name lines of rvdiag.motor.lines.current_lines "
+                                 f"({', '.join(sorted(known))}), got {list(self.lines)!r}")
+
+    def _features(self, X):
+        from rvdiag.motor.lines import current_lines
+
+        p = self._params()
+        out = np.empty((X.shape[0], len(self.lines)))
+        for i, x in enumerate(X):
+            fe = electrical_frequency(x) * float(self.fs)
+            speed = fe / p.operation.motor_pole_pairs / p.ratio * 360.0
+            table = current_lines(x, float(self.fs), p, output_speed_deg_s=speed)["lines"]
+            ref = table["fe"]["amplitude"]
+            for j, name in enumerate(self.lines):
+                a = table[name]["amplitude"]
+                if a is None or not ref:
+                    raise ParameterError(f"window {i}: the line {name} ({table[name]['hz']:.1f} Hz at f_e = {fe:.1f} "
+                                         f"Hz) lies outside the spectrum of {self.fs:g} Hz")
+                out[i, j] = np.log10(max(a, 1e-300) / ref)
+        return out
+
+    def _feature_names(self):
+        return [f"log10_{name}_over_fe" for name in self.lines]
+
+
+__all__ = ["CurrentLineFeatures", "FundamentalResidual", "MIN_PEAK_BINS", "REDUCER_LINES", "SUPPLY_HARMONICS",
+           "electrical_frequency", "fundamental_residual"]

@@ -114,6 +114,8 @@ def _paired_plan(cfg: LibraryConfig) -> list[Unit]:
     noise density, then its specimen (from the reducer seed's specimen stream).  Each record draws from its own
     unit's stream: its severities, its operating point (monitored records: one of ``operating_points``, equally
     likely), then its run-to-run factors; its speed and load are the point's times the speed and load factors.
+    A ``[profile]`` (the gravity arm alone) is drawn once per reducer, after its specimen: the joint's arm, the same
+    in every record of it (the load factor scales the constant torque, not the arm).
     The last ``test_reducers`` reducers are the test set, every record of them."""
     from rvdiag.library.paired import draw_variation, reducer_seed
 
@@ -134,6 +136,9 @@ def _paired_plan(cfg: LibraryConfig) -> list[Unit]:
         sensor = {key: float(sw.draw(rng)) for key, sw in cfg.sensor.items()}
         density = None if cfg.noise_density_ug_per_rthz is None else float(cfg.noise_density_ug_per_rthz.draw(rng))
         specimen = draw_specimen(specimen_seed(r_seed), cfg.iso1328_grade) if cfg.specimen else {}
+        # the joint's gravity arm (a [profile] of arm keys only): one per reducer, drawn last, so every record of
+        # the reducer, commissioning ones included, repeats one motion from one arm angle
+        arm = _draw_profile(cfg.profile, rng) if cfg.profile is not None else {}
         split = "test" if r >= b.reducers - b.test_reducers else "train"
         for k, (role, state, point) in enumerate(schedule):
             u = len(units)
@@ -145,7 +150,7 @@ def _paired_plan(cfg: LibraryConfig) -> list[Unit]:
             variation = draw_variation(rng, b.variation)
             speed, load = b.operating_points[point]
             units.append(Unit(u, state, k, seeds[u], severity, speed * variation["speed"], load * variation["load"],
-                              snr, scales, split, cfg.rows_per_simulation(state), mounting, colour, {}, sensor,
+                              snr, scales, split, cfg.rows_per_simulation(state), mounting, colour, arm, sensor,
                               specimen, density, reducer=r, role=role, operating_point=point, variation=variation))
     return units
 

@@ -762,9 +762,11 @@ class LibraryConfig:
             for key in ("train_per_state", "test_per_state", "assign"):
                 if key in spl:
                     raise ConfigError(f"{w} {key}: a paired library splits by reducer (reducers, test_reducers)")
-            if profile is not None:
-                raise ConfigError(f"{source}: [profile]: a paired library runs at constant speed and load (its "
-                                  "records are matched by operating point); remove [profile]")
+            if profile is not None and (profile.trapezoid_fraction > 0 or profile.scurve_fraction > 0
+                                        or profile.accel_deg_s2 is not None or profile.jerk_deg_s3 is not None):
+                raise ConfigError(f"{source}: [profile]: a paired library runs at constant speed (its records are "
+                                  "matched by operating point); [profile] may hold only the gravity arm "
+                                  f"({', '.join(ARM_KEYS)})")
             kw["baseline"] = _parse_baseline(sections["baseline"], spl, f"{source}: [baseline]", w,
                                              speed_key=speed_key, speed=speed, load=load, states=list(states))
         else:

@@ -58,6 +58,20 @@ def _speed_from_spectrum(f: np.ndarray, amp: np.ndarray, params, min_hz: float =
     return fe / params.operation.motor_pole_pairs / params.ratio * 360.0
 
 
+def line_frequencies(fr) -> dict[str, float]:
+    """The lines of :func:`current_lines` by name, in Hz, at the characteristic frequencies ``fr``
+    (:func:`rvdiag.kinematics.characteristic_frequencies`): ``fe``, ``fe-kf1`` / ``fe+kf1`` (k in
+    :data:`SIDEBAND_ORDERS`), ``fe-fsp`` / ``fe+fsp``, ``fe-fcs`` / ``fe+fcs`` (absolute values of the differences)
+    and ``5fe``."""
+    wanted = {"fe": fr.fe}
+    for k in SIDEBAND_ORDERS:
+        wanted[f"fe-{k}f1"] = abs(fr.fe - k * fr.f1)
+        wanted[f"fe+{k}f1"] = fr.fe + k * fr.f1
+    wanted.update({"fe-fsp": abs(fr.fe - fr.fsp), "fe+fsp": fr.fe + fr.fsp,
+                   "fe-fcs": abs(fr.fe - fr.fcs), "fe+fcs": fr.fe + fr.fcs, "5fe": 5 * fr.fe})
+    return wanted
+
+
 def current_lines(x: np.ndarray, fs: float, params, output_speed_deg_s: float | None = None) -> dict:
     """The characteristic lines of one phase current ``x`` sampled at ``fs`` Hz.
 
@@ -79,12 +93,7 @@ def current_lines(x: np.ndarray, fs: float, params, output_speed_deg_s: float | 
     if output_speed_deg_s is None:
         output_speed_deg_s, source = _speed_from_spectrum(f, amp, params), "strongest line taken as f_e"
     fr = characteristic_frequencies(params, output_speed_deg_s=output_speed_deg_s)
-    wanted = {"fe": fr.fe}
-    for k in SIDEBAND_ORDERS:
-        wanted[f"fe-{k}f1"] = abs(fr.fe - k * fr.f1)
-        wanted[f"fe+{k}f1"] = fr.fe + k * fr.f1
-    wanted.update({"fe-fsp": abs(fr.fe - fr.fsp), "fe+fsp": fr.fe + fr.fsp,
-                   "fe-fcs": abs(fr.fe - fr.fcs), "fe+fcs": fr.fe + fr.fcs, "5fe": 5 * fr.fe})
+    wanted = line_frequencies(fr)
     df = float(f[1] - f[0])
     lines = {}
     for name, hz in wanted.items():
