@@ -207,8 +207,8 @@ def register(app: typer.Typer) -> None:
                                      help="Classical models: time | spectrum | spectrum-abs | logspec | envelope | "
                                           "bearing-envelope | wpd | eemd | tsa-ci | tsa-mod | tsa-ci-z | tsa-mod-z | "
                                           "orders | none | cnn, or several joined by '+' (default wpd).  A "
-                                          "baseline monitor (paired store): tsa-change (default) | orders | "
-                                          "orders+tsa-change | current-lines (default on a motor-current store)."),
+                                          "baseline monitor (paired store): tsa-change (default) | orders (default on a "
+                                          "motor-current store) | orders+tsa-change | current-lines."),
         out: Path = opt.out("Model directory to write (replaced whole with --overwrite)."),
         overwrite: bool = opt.overwrite("Replace an existing --out model directory (whole: no file of the old "
                                         "model is left)."),
