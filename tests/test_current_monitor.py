@@ -126,3 +126,38 @@ def test_a_current_store_defaults_to_the_order_spectrum_change(current_store, ca
 
     assert default_monitor_features(SampleStore.open(current_store / "paired.zarr")) == "orders"
     assert DEFAULT_MONITOR_FEATURES == "tsa-change"  # an acceleration store keeps the TSA change
+
+
+def test_diagnose_a_current_file_against_the_joints_own_commissioning_files(current_store, tmp_path, capsys):
+    """The user's flow on a current: commissioning CSV files -> ``dataset from-files`` -> ``diagnose --baseline``
+    of a later CSV file, with the record's measured speed and load."""
+    d = current_store
+    code, out, err = run_cli(["train", str(d / "paired.zarr"), "-o", str(tmp_path / "mon"), "--alpha", "0.1",
+                              "--features", "current-lines"], capsys)
+    assert code == 0, out + err
+    X, y, meta = paired_currents()
+    r = N_REDUCERS - 1  # a held-out joint
+    t = np.arange(X.shape[1]) / FS
+    (tmp_path / "base").mkdir()
+    picked = {}
+    for i in np.flatnonzero(meta["reducer"] == r):
+        name = f"{y[i]}_{i:03d}_{meta['output_speed_deg_s'][i]:.4f}dps_{meta['load_Nm'][i]:.4f}Nm.csv"
+        where = tmp_path / ("base" if meta["role"][i] == "baseline" else "later")
+        where.mkdir(exist_ok=True)
+        np.savetxt(where / name, np.c_[t, X[i]], delimiter=",", header="time_s,i_a", comments="")
+        if meta["role"][i] == "monitored":
+            picked.setdefault(y[i], (where / name, meta["output_speed_deg_s"][i], meta["load_Nm"][i]))
+    code, out, err = run_cli(["dataset", "from-files", str(tmp_path / "base"), "--label-regex", "^(?P<label>T1)_",
+                              "--channel", "i_a", "--meta-regex",
+                              r"_(?P<output_speed_deg_s>[\d.]+)dps_(?P<load_Nm>[\d.]+)Nm", "--window", str(X.shape[1]),
+                              "-o", str(tmp_path / "base.zarr")], capsys)
+    assert code == 0, out + err
+    got = {}
+    for state, (path, speed, load) in picked.items():
+        code, out, err = run_cli(["diagnose", str(tmp_path / "mon"), str(path), "--channel", "i_a",
+                                  "--output-speed", f"{speed:.4f}", "--load", f"{load:.4f}",
+                                  "--baseline", str(tmp_path / "base.zarr"), "--json"], capsys)
+        assert code == 0, out + err
+        got[state] = json.loads(out[out.index("{"):])
+    assert not got["T1"]["alarm"] and got["T1"]["health_index"] < 1
+    assert got["T2"]["alarm"] and got["T2"]["health_index"] > 1 and got["T2"]["state"] == "T2"
