@@ -199,6 +199,25 @@ def test_false_alarm_rate_on_new_exchangeable_records_is_alpha_over_many_seeds(c
     assert rates.max() <= bound + 4 * math.sqrt(bound * (1 - bound) / 2000), rates.max()
 
 
+def test_a_monitor_saved_before_the_calibration_option_loads_as_the_split_it_was():
+    """A monitor pickled before ``calibration`` existed carries neither it nor ``calibration_folds``: it loads as
+    the split-calibrated monitor it is, and scores as before."""
+    import pickle
+
+    rng = np.random.default_rng(8)
+    D, g = _grouped(rng, 12, 4)
+    m = BaselineMonitor(alpha=0.1, calibration="split").fit(D, np.array(["T1"] * D.shape[0]), groups=g)
+    old = dict(m.__dict__)
+    del old["calibration"], old["calibration_folds"]
+    saved = BaselineMonitor.__new__(BaselineMonitor)
+    saved.__dict__.update(old)
+    loaded = pickle.loads(pickle.dumps(saved))
+    assert (loaded.calibration, loaded.calibration_folds) == ("split", 5)
+    new = rng.standard_normal((50, 3)) * 2.0
+    np.testing.assert_array_equal(loaded.health_index(new), m.health_index(new))
+    np.testing.assert_array_equal(loaded.p_value(new), m.p_value(new))
+
+
 def test_cross_fitted_threshold_needs_the_same_calibration_records_as_the_split():
     """ceil(1/alpha) - 1 healthy calibration rows at least: with 98 the 1 % threshold is infinite (no alarm), with
     99 (all of them calibrate under CV+) it is the largest out-of-fold score."""

@@ -161,6 +161,14 @@ class BaselineMonitor(ClassifierMixin, BaseEstimator):
         return [f"x{j}" for j in range(n)]
 
     # ----------------------------------------------------------------------------------------------- fit
+    #: parameters added since monitors were first saved, with the value that reproduces such a monitor: it was
+    #: calibrated by the split (its threshold, scores and detector are the split's)
+    _SAVED_BEFORE = {"calibration": "split", "calibration_folds": 5}
+
+    def __setstate__(self, state):
+        # a monitor saved (pickled or by skops) before a parameter existed loads with the value it was fitted with
+        super().__setstate__({**self._SAVED_BEFORE, **state})
+
     def _check(self, D, y=None):
         D = np.asarray(D, dtype=np.float64)
         if D.ndim != 2 or D.shape[0] < 1 or not np.all(np.isfinite(D)):
@@ -273,7 +281,7 @@ class BaselineMonitor(ClassifierMixin, BaseEstimator):
         return self._mahalanobis(self.detector_, self.mean_, self.scale_, D)
 
     def _cv(self) -> bool:
-        return getattr(self, "fold_detectors_", None) is not None and self.calibration == "cv+"
+        return self.calibration == "cv+"
 
     def health_index(self, D) -> np.ndarray:
         """The squared Mahalanobis distance from the healthy pairs over the alarm threshold (``"split"``), or its
