@@ -189,14 +189,13 @@ class CurrentLineFeatures(SignalTransformer):
                                  f"({', '.join(sorted(known))}), got {list(self.lines)!r}")
 
     def _features(self, X):
-        from rvdiag.motor.lines import current_lines
+        from rvdiag.motor.lines import current_lines, output_speed_from_fe
 
         p = self._params()
         out = np.empty((X.shape[0], len(self.lines)))
         for i, x in enumerate(X):
             fe = electrical_frequency(x) * float(self.fs)
-            speed = fe / p.operation.motor_pole_pairs / p.ratio * 360.0
-            table = current_lines(x, float(self.fs), p, output_speed_deg_s=speed)["lines"]
+            table = current_lines(x, float(self.fs), p, output_speed_deg_s=output_speed_from_fe(fe, p))["lines"]
             ref = table["fe"]["amplitude"]
             for j, name in enumerate(self.lines):
                 a = table[name]["amplitude"]

@@ -55,6 +55,12 @@ def _speed_from_spectrum(f: np.ndarray, amp: np.ndarray, params, min_hz: float =
     if fe is None or not np.isfinite(amp[keep]).all() or amp[keep].max() <= 0:
         raise ParameterError("cannot estimate the speed from the current: no line above "
                              f"{min_hz:g} Hz; give the speed (--meta output_speed_deg_s=...)")
+    return output_speed_from_fe(fe, params)
+
+
+def output_speed_from_fe(fe: float, params) -> float:
+    """The output speed (deg/s) at which the supply frequency is ``fe`` Hz: ``f_e = p f1`` (``p`` pole pairs,
+    ``f1`` the input shaft's rotation frequency), the output turning ``1 / ratio`` as fast."""
     return fe / params.operation.motor_pole_pairs / params.ratio * 360.0
 
 
