@@ -29,8 +29,9 @@ demo: $(STAMP)
 paper: $(STAMP)
 	$(PY) examples/demo.py --out $(OUT)/paper --config configs/paper.toml
 
+# tests/services/start.sh starts PostgreSQL and installs Debian's chromium where it can (the fleet's tests)
 test: $(STAMP)
-	$(PY) -m pytest -q -p no:cacheprovider
+	eval "$$(bash tests/services/start.sh)"; $(PY) -m pytest -q -p no:cacheprovider
 
 bench: $(STAMP)
 	$(PY) bench/tvms_speed.py
