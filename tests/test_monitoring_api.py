@@ -136,7 +136,7 @@ def test_read_record_reads_the_load_and_speed_from_the_name_in_one_spelling(pair
         assert res.operating_point["load_Nm"] == 50.0
         assert res.operating_point["output_speed_deg_s"] == pytest.approx(30.0)
         assert "from the file name" in res.operating_point["speed_source"]
-    with pytest.raises(ParameterError, match="both name the column 'load_Nm'"):
+    with pytest.raises(ParameterError, match="both give 'load_Nm'"):
         read_record(f, fs=FS, meta_regex=r"_(?P<load>\d+)dps_(?P<load_Nm>\d+)Nm")
 
 

@@ -102,7 +102,7 @@ def open_baseline_store(path: Path, loaded, fs: float | None):
         if c not in s.meta:
             raise ParameterError(f"--baseline {path} has no metadata column {c!r} to match operating points by "
                                  "(build it with 'rvdiag dataset from-files --meta-regex' naming groups speed_dps "
-                                 "and load_Nm, or with --angle-channel)")
+                                 "and load_Nm (or load), or with --angle-channel)")
     return s, store
 
 
