@@ -126,7 +126,8 @@ def test_make_baseline_writes_a_store_that_judges_as_the_built_one(paired, loade
     assert not (tmp_path / "m2.zarr").exists() and not (tmp_path / "m3").exists()
 
 
-def test_read_record_reads_the_load_and_speed_from_the_name_in_one_spelling(paired, loaded, base, tmp_path):  # noqa: F811
+def test_read_record_reads_the_load_and_speed_from_the_name_in_one_spelling(paired, loaded, base,  # noqa: F811
+                                                                            tmp_path):
     """``--meta-regex`` groups ``load`` and ``load_Nm`` both give ``load_Nm``; ``speed_dps`` gives the speed."""
     rng = np.random.default_rng(5)
     x = np.concatenate([record(rng, paired["fps"][8], 30.0, 50.0, "T2") for _ in range(2)])

@@ -165,7 +165,8 @@ def monitor_record(model, rec, base: Baseline, *, output_speed: float | None = N
     if speed.get("output_speed_deg_s") is None:
         raise ParameterError(f"the record's speed is needed to find its baseline: {speed.get('error')}")
     X = x[: k * L].reshape(k, L)
-    meta = {OPERATING_COLUMNS[0]: np.full(k, float(speed["output_speed_deg_s"])), OPERATING_COLUMNS[1]: np.full(k, load)}
+    meta = {OPERATING_COLUMNS[0]: np.full(k, float(speed["output_speed_deg_s"])),
+            OPERATING_COLUMNS[1]: np.full(k, load)}
     mon = Samples(X=X, y=np.array(["?"] * k), meta=meta, index=np.arange(k))
     D, groups = paired_features(est.features, mon, bs, fs=float(rec.fs), baseline_fs=base.fs,
                                 card_tolerances=model.card.get("baseline"), where="the record")
