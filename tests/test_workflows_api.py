@@ -69,6 +69,22 @@ def test_diagnose_returns_what_the_cli_prints(trained, tmp_path, capsys):
     assert len(ax.lines) == 3  # one line per class
 
 
+def test_monitoring_refuses_a_classifier_in_one_line(trained, tmp_path):
+    from rvdiag.monitoring import monitor_record, open_baseline
+
+    model = load_model(trained[0].model_dir)
+    with pytest.raises(ParameterError, match="not baseline-referenced"):
+        open_baseline(tmp_path / "b.zarr", model)
+    rec = read_record(_npy(tmp_path, np.zeros(L)), fs=FS)
+    with pytest.raises(ParameterError, match="judge its records with rvdiag.workflows.diagnose"):
+        monitor_record(model, rec, None)
+
+
+def _npy(tmp_path, x):
+    np.save(tmp_path / "x.npy", x)
+    return tmp_path / "x.npy"
+
+
 def test_a_flat_record_is_not_recognised(trained, tmp_path):
     res, _ = trained
     model = load_model(res.model_dir)
