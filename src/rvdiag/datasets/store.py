@@ -34,9 +34,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import shutil
-import tempfile
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
@@ -46,7 +44,7 @@ import numpy as np
 import zarr
 
 from rvdiag import __version__
-from rvdiag.atomic import replace_directory
+from rvdiag.atomic import atomic_file, staged_directory
 from rvdiag.errors import ParameterError, StoreError
 
 STORE_FORMAT = "rvdiag-store/1"
@@ -327,9 +325,7 @@ def write_store(
     unknown = set(names.tolist()) - set(lookup)
     if unknown:
         raise StoreError(f"labels not among classes: {sorted(unknown)}")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
-    try:
+    with staged_directory(path) as tmp:
         group = zarr.open_group(str(tmp), mode="w")
         group.attrs.update(_base_attrs(kind, classes, X.shape[1], fs, config, extra_attrs or {}))
         sig = group.create_array("signals", shape=X.shape, dtype="float32", chunks=(1, X.shape[1]))
@@ -338,10 +334,6 @@ def write_store(
         lab[:] = np.asarray([lookup[v] for v in names.tolist()], dtype=np.int16)
         _write_meta_columns(group, meta, X.shape[0])
         group.attrs["complete"] = True
-        replace_directory(tmp, path)
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
     return path
 
 
@@ -474,12 +466,8 @@ class StoreBuilder:
             if len(v) != hi - lo:
                 raise StoreError(f"unit {unit}: metadata column {k!r} has {len(v)} rows, expected {hi - lo}")
         target = self._units_dir / f"{unit}.json"
-        tmp = target.with_suffix(".json.tmp")
-        with open(tmp, "w", encoding="utf-8") as fh:
+        with atomic_file(target, "w", encoding="utf-8") as fh:
             json.dump(record, fh)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, target)
 
     def finalize(self) -> Path:
         """Turn the unit records into ``label`` and ``meta`` columns and mark the store complete.

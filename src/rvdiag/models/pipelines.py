@@ -43,8 +43,9 @@ from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
 
 from rvdiag import features as _features
+from rvdiag.atomic import atomic_write
 from rvdiag.errors import ModelFileError, ParameterError
-from rvdiag.models.card import atomic_write, card_text, read_card, write_card
+from rvdiag.models.card import card_text, read_card, write_card
 from rvdiag.models.cnn_features import CNNFeatures
 from rvdiag.models.kelm import KELMClassifier
 from rvdiag.models.multilabel import CompoundFaultClassifier
