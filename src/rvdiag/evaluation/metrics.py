@@ -50,15 +50,15 @@ HEALTHY_NAMES = ("healthy", "normal")
 
 def healthy_class(labels: Sequence[str]) -> str | None:
     """The healthy state among ``labels``: the library's healthy state (``T1``,
-    :data:`rvdiag.gears.faults.STATES`), else the first label named as in :data:`HEALTHY_NAMES`, else None.
+    :data:`rvdiag.gears.faults.FAULT_KINDS`), else the first label named as in :data:`HEALTHY_NAMES`, else None.
 
     >>> healthy_class(["T1", "T2"]), healthy_class(["normal", "inner race"]), healthy_class(["a", "b"])
     ('T1', 'normal', None)
     """
-    from rvdiag.gears.faults import STATES
+    from rvdiag.gears.faults import FAULT_KINDS
 
     labels = [str(c) for c in labels]
-    healthy = [k for k, v in STATES.items() if v == "healthy"]
+    healthy = [k for k, v in FAULT_KINDS.items() if v == "healthy"]
     for c in labels:
         if c in healthy:
             return c
