@@ -65,6 +65,14 @@ def sun_speed_hz(
     return float(output_speed_deg_s) / 360.0 * params.ratio
 
 
+def output_speed_from_input_hz(params: ReducerParams, input_hz: float) -> float:
+    """Output (carrier) speed in deg/s of a sun (input) rotation frequency ``input_hz``: f_H = f_s / i, the inverse
+    of :func:`sun_speed_hz`.  Every speed estimate that reads an input-shaft frequency (a vibration mesh line,
+    :func:`rvdiag.io.angles.input_revolutions`; a motor current's supply line,
+    :func:`rvdiag.motor.lines.output_speed_from_fe`) turns it into the output speed here."""
+    return float(input_hz) * 360.0 / params.ratio
+
+
 def characteristic_frequencies(
     params: ReducerParams,
     input_speed_rpm: float | None = None,
