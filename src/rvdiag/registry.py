@@ -45,7 +45,7 @@ _BUILTIN: frozenset[str] = frozenset({
     "rvdiag.features.eemd.EEMDFeatures",
     "rvdiag.features.tsa.TSAIndicatorFeatures",
     "rvdiag.features.tsa.OrderSpectrumFeatures",
-    "rvdiag.features.baseline.HealthyBaselineFeatures",
+    "rvdiag.features.zscore.HealthyBaselineFeatures",
     "rvdiag.features.relative.BaselineReferencedFeatures",
     "rvdiag.features.current.CurrentLineFeatures",
     "rvdiag.models.monitoring.BaselineMonitor",
@@ -90,6 +90,15 @@ _BUILTIN: frozenset[str] = frozenset({
 #: Types a saved classical model may contain (skops type names); nothing else is loaded.
 TRUSTED_TYPES: set[str] = set(_BUILTIN)
 
+#: Types whose module has moved since a saved model could name them: the skops name in an older ``model.skops``
+#: -> the name now (one of :data:`TRUSTED_TYPES`).  :func:`rvdiag.models.pipelines.load_classical` reads the new
+#: name in place of the old before it checks the file against the trusted list, so a model saved before the move
+#: loads as it did.
+MOVED_TYPES: dict[str, str] = {
+    # features/baseline.py held the healthy-sample z-scores until 2026-11-28 (now features/zscore.py)
+    "rvdiag.features.baseline.HealthyBaselineFeatures": "rvdiag.features.zscore.HealthyBaselineFeatures",
+}
+
 
 def register_trusted_type(name: str) -> None:
     """Allow another type in saved models, by its skops name (``'package.module.ClassName'``).
@@ -102,4 +111,4 @@ def register_trusted_type(name: str) -> None:
     TRUSTED_TYPES.add(name)
 
 
-__all__ = ["CLASSICAL_MODELS", "CNN_MODELS", "OLD_MODEL_NAMES", "RECOMMENDED_TRAINING", "TRUSTED_TYPES", "register_trusted_type"]
+__all__ = ["CLASSICAL_MODELS", "CNN_MODELS", "MOVED_TYPES", "OLD_MODEL_NAMES", "RECOMMENDED_TRAINING", "TRUSTED_TYPES", "register_trusted_type"]

@@ -57,7 +57,7 @@ def register(app: typer.Typer) -> None:
         """Score a saved model on a split of a sample store (progress with an ETA on stderr; -q: none)."""
         from rvdiag.cli._progress import progress_bars
         from rvdiag.datasets import SampleStore
-        from rvdiag.datasets import parse_condition
+        from rvdiag.datasets import parse_where as parse_condition
         from rvdiag.evaluation.evaluate import (accuracy_against_snr, accuracy_by, evaluate_on_store, merged_metrics,
                                                 record_metrics, report_html)
         from rvdiag.evaluation.report import write_report

@@ -51,21 +51,21 @@ STORE_FORMAT = "rvdiag-store/1"
 REQUIRED_META = ("split", "unit")
 
 
-#: The comparison operators of a sample condition (:func:`parse_condition`), longest first.
-CONDITION_OPERATORS = ("<=", ">=", "==", "!=", "<", ">", "=")
+#: The comparison operators of a ``--where`` filter (:func:`parse_where`), longest first.
+WHERE_OPERATORS = ("<=", ">=", "==", "!=", "<", ">", "=")
 
 
-def parse_condition(text: str) -> tuple[str, str, float | str]:
-    """``(column, operator, value)`` of a sample condition ``COLUMN OP VALUE`` (``OP`` one of ``< <= > >= == !=``,
+def parse_where(text: str) -> tuple[str, str, float | str]:
+    """``(column, operator, value)`` of a ``--where`` filter on the samples' metadata, ``COLUMN OP VALUE`` (``OP`` one of ``< <= > >= == !=``,
     ``=`` meaning ``==``): the value is a number when it reads as one, else a string (``state==T1``).
 
-    >>> parse_condition("noise_snr_db>=20")
+    >>> parse_where("noise_snr_db>=20")
     ('noise_snr_db', '>=', 20.0)
-    >>> parse_condition("state = T4")
+    >>> parse_where("state = T4")
     ('state', '==', 'T4')
     """
     t = str(text)
-    for op in CONDITION_OPERATORS:
+    for op in WHERE_OPERATORS:
         if op in t:
             column, _, value = (x.strip() for x in t.partition(op))
             if column and value and not any(o in value for o in "<>=!"):
@@ -174,7 +174,7 @@ class SampleStore:
 
     def indices(self, split: str = "all", where: Iterable[str] = ()) -> np.ndarray:
         """Sample indices of a split (``"all"`` = every sample), keeping only the samples that satisfy every
-        condition of ``where`` (``"noise_snr_db>=20"``, ``"simulation<10"``: :func:`parse_condition`)."""
+        condition of ``where`` (``"noise_snr_db>=20"``, ``"simulation<10"``: :func:`parse_where`)."""
         if split == "all":
             idx = np.arange(self.n_samples)
         elif split not in self.splits():
@@ -182,7 +182,7 @@ class SampleStore:
         else:
             idx = np.flatnonzero(self.meta["split"] == split)
         for text in where or ():
-            column, op, value = parse_condition(text)
+            column, op, value = parse_where(text)
             if column not in self.meta:
                 raise StoreError(f"{self.path}: no metadata column {column!r} for the condition {text!r} "
                                  f"(columns: {', '.join(sorted(self.meta))})")

@@ -20,7 +20,7 @@ tsa-ci            :class:`~rvdiag.features.tsa.TSAIndicatorFeatures`   Decker 20
                   (FM0, FM4, NA4, NB4, M6A, M8A... of the TSA)
 tsa-mod           the same with ``modulation=True``: + sideband   Randall 1982; McFadden & Smith 1985;
                   asymmetry, phase modulation of the mesh         McFadden 1986
-tsa-ci-z          :class:`~rvdiag.features.baseline.HealthyBaselineFeatures`  Dempsey & Zakrajsek 2001
+tsa-ci-z          :class:`~rvdiag.features.zscore.HealthyBaselineFeatures`  Dempsey & Zakrajsek 2001
                   of ``tsa-ci``: z-scores against the healthy     (load-normalised NA4*)
                   training samples of the same speed and load
                   bin (``tsa-mod-z``: of ``tsa-mod``)
@@ -47,7 +47,7 @@ from typing import Callable
 
 from rvdiag.errors import ParameterError
 from rvdiag.features._base import SignalTransformer, as_signal_matrix
-from rvdiag.features.baseline import HealthyBaselineFeatures, healthy_modulation_features, healthy_tsa_features
+from rvdiag.features.zscore import HealthyBaselineFeatures, healthy_modulation_features, healthy_tsa_features
 from rvdiag.features.bearing import BearingEnvelopeFeatures
 from rvdiag.features.combine import CombinedFeatures, input_metadata, with_metadata
 from rvdiag.features.current import FundamentalResidual, fundamental_residual
