@@ -296,8 +296,8 @@ class Pitting:
     (:func:`cut_section`), and a contact line at s touches L - delta_L(s) of the face, so that the Hertz stiffness
     is k_h = pi E (L - delta_L) / (4 (1 - nu^2)) there.
 
-    Severity
-    --------
+    Parameters
+    ----------
     area_fraction : float
         Fraction of the band's flank area covered by pits, in [0, pi/4) (0: no pits, healthy).  Default 0.15
         (``DEFAULT_PIT_AREA_FRACTION``), within the 10-20 % of a moderately pitted flank; the number of pits,
@@ -380,8 +380,8 @@ class Spalling:
     model of Chaari, Baccar, Abbes & Haddar 2008, Eur. J. Mech. A/Solids 27, and of Jia & Howard 2006, Mech.
     Syst. Signal Process. 20).
 
-    Severity
-    --------
+    Parameters
+    ----------
     width_fraction : float
         Spall width across the face as a fraction of the face width, in [0, 1] (0: no spall, healthy; 1: a spall
         through the whole face).  Default 0.5 (``DEFAULT_SPALL_WIDTH_FRACTION``): a spall over half the face, in
