@@ -130,3 +130,18 @@ def test_bad_input():
         Wear(1e-6, shape=((0.0, 0.5), (0.0, 1.0)))       # does not cover the path of contact
     with pytest.raises(ParameterError):
         mesh_passes(P, 1.0, DUTY, "ring")
+
+
+def test_history_matches_single_profiles(life):
+    """One integration through several record times gives each time's profile as a separate call does (to the
+    step of the run-in integration, 5 % of a deflection), and the depth never decreases."""
+    from rvdiag.gears.wear import wear_depth_history
+
+    hist = wear_depth_history(P, [0.0, 5000.0, 20000.0], DUTY, 1e-17)
+    assert hist[0].max_depth == 0.0
+    np.testing.assert_allclose(hist[-1].sun, life.sun, atol=0.1 * life.deflection_m)
+    single = wear_depth_profile(P, 5000.0, DUTY, 1e-17)
+    np.testing.assert_allclose(hist[1].sun, single.sun, atol=0.1 * life.deflection_m)
+    assert np.all(hist[2].sun >= hist[1].sun) and np.all(hist[1].planet >= hist[0].planet)
+    with pytest.raises(ParameterError):
+        wear_depth_history(P, [2.0, 1.0], DUTY, 1e-17)

@@ -195,10 +195,20 @@ def wear_depth_profile(params, hours: float, duty: DutyCycle, k_wear: float = DE
     >>> float(np.interp(w.pitch_roll, w.roll, w.sun)) < 1e-3 * w.max_depth
     True
     """
-    for name, value in (("hours", hours), ("wear coefficient", k_wear)):
+    return wear_depth_history(params, [hours], duty, k_wear, run_in=run_in, points=points)[0]
+
+
+def wear_depth_history(params, hours, duty: DutyCycle, k_wear: float = DEFAULT_WEAR_COEFFICIENT, *,
+                       run_in: bool = True, points: int = _POINTS) -> list[WearDepthProfile]:
+    """:func:`wear_depth_profile` at each of the increasing ``hours`` (a sequence) of one steady duty, from one
+    integration (the growth law of a life history: the profile at a record's time in service)."""
+    hours = list(hours)
+    for value in hours + [k_wear]:
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
                 or not math.isfinite(value) or value < 0:
-            raise ParameterError(f"{name} must be a finite number >= 0, got {value!r}")
+            raise ParameterError(f"hours and the wear coefficient must be finite numbers >= 0, got {value!r}")
+    if any(b < a for a, b in zip(hours, hours[1:])):
+        raise ParameterError("hours must not decrease")
     if not isinstance(duty, DutyCycle):
         raise ParameterError(f"duty must be a DutyCycle, got {type(duty).__name__}")
     pair = GearPair.sun_planet(params)
@@ -209,34 +219,32 @@ def wear_depth_profile(params, hours: float, duty: DutyCycle, k_wear: float = DE
     slip_s, slip_p = sliding_ratio(pair, "driver", s), sliding_ratio(pair, "driven", s)
     force = mesh_force(params, duty.load_Nm)
     width = min(pair.driver.face_width, pair.driven.face_width)
-    n_sun, n_planet = mesh_passes(params, hours, duty, "sun"), mesh_passes(params, hours, duty, "planet")
     k_pair = tooth_pair_components(pair, s)["stiffness"]
     deflection = force / float(k_pair.min()) if force > 0 else 0.0
     rate = k_wear * force / width                          # depth per pass per unit sliding ratio and load share
     enter, leave = s <= path - pb, s >= pb                  # double contact: partner at s + pb / at s - pb
+    double = enter | leave
+    partner = np.where(enter, s + pb, np.where(leave, s - pb, np.nan))
+    k_partner = np.interp(np.nan_to_num(partner), s, k_pair)
+    ratio = params.stage1.sun_teeth / (params.stage1.planet_teeth * params.stage1.n_planets)  # planet / sun passes
     h_sun, h_planet = np.zeros_like(s), np.zeros_like(s)
-    if rate == 0.0 or n_sun == 0.0:
-        pass
-    elif not run_in:
-        share = np.where(enter | leave, 0.5, 1.0)
-        h_sun, h_planet = rate * share * slip_s * n_sun, rate * share * slip_p * n_planet
-    else:
-        partner = np.where(enter, s + pb, np.where(leave, s - pb, np.nan))
-        k_partner = np.interp(np.nan_to_num(partner), s, k_pair)
-        double = enter | leave
-        ratio = n_planet / n_sun
-        done = 0.0
-        while done < n_sun:
+    done, out = 0.0, []
+    for t in hours:
+        n_sun, n_planet = mesh_passes(params, t, duty, "sun"), mesh_passes(params, t, duty, "planet")
+        if rate > 0.0 and not run_in:
+            share = np.where(double, 0.5, 1.0)
+            h_sun, h_planet = rate * share * slip_s * n_sun, rate * share * slip_p * n_planet
+        while rate > 0.0 and run_in and done < n_sun:
             e = h_sun + h_planet
             e_partner = np.interp(np.nan_to_num(partner), s, e)
             delta = (force + k_pair * e + k_partner * e_partner) / (k_pair + k_partner)
-            both = np.clip(k_pair * (delta - e) / force, 0.0, 1.0)
-            share = np.where(double, both, 1.0)
+            share = np.where(double, np.clip(k_pair * (delta - e) / force, 0.0, 1.0), 1.0)
             g = rate * share * (slip_s + ratio * slip_p)     # separation growth per sun pass
             step = min(n_sun - done, _STEP * deflection / float(g.max()))
             h_sun = h_sun + rate * share * slip_s * step
             h_planet = h_planet + rate * share * slip_p * ratio * step
             done += step
-    return WearDepthProfile(roll=s, sun=h_sun, planet=h_planet, pitch_roll=pitch_roll(pair),
-                            passes=(n_sun, n_planet), force_N=float(force), deflection_m=float(deflection),
-                            k_wear=float(k_wear))
+        out.append(WearDepthProfile(roll=s, sun=h_sun.copy(), planet=h_planet.copy(), pitch_roll=pitch_roll(pair),
+                                    passes=(n_sun, n_planet), force_N=float(force), deflection_m=float(deflection),
+                                    k_wear=float(k_wear)))
+    return out
