@@ -6,7 +6,7 @@ study of Li, Zhao et al. 2024 (docs/references.md), Table 2 and the Table 3 test
 With f_s the sun (input) speed and f_H = f_s / i the carrier (output) speed, i = 1 + (Z2/Z1) Zp:
 
 - motor electrical frequency  f_e = p f_s                      (p pole pairs)
-- crank shaft, absolute       f2 = Zc f_H  (= |crank relative to carrier| - f_H = Zp f_H - f_H)
+- crank shaft, absolute       f2 = Zc f_H  (= ``|crank relative to carrier|`` - f_H = Zp f_H - f_H)
 - stage-1 mesh                f_sp = Z1 (f_s - f_H)
 - stage-2 mesh                f_cs = Zc Zp f_H
 - local sun-tooth fault       N (f_s - f_H)                   (N planets, each meets the tooth once)

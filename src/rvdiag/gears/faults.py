@@ -91,10 +91,16 @@ class Wear:
     (default 1 um: the RV-20E's sun-planet pair at its rated torque, 107 N on a ~1.3e8 N/m pair); the load shares
     of the two pairs in double contact follow their worn separations within it (:func:`archard_wear_profile`).
     ``0`` keeps the fixed shares (1/2 in double contact) of the model before 2026-11-25.
+
+    ``shape``, optional, replaces that profile by a tabulated one: ``(positions, depths)``, the positions as
+    fractions 0..1 of the path of contact (0 its start) and the depths relative to their maximum, which ``depth``
+    scales; :meth:`rvdiag.gears.wear.WearDepthProfile.to_wear` gives the shape Archard's law grows over a duty
+    cycle.  ``run_in_deflection`` is then unused.
     """
 
     depth: float
     run_in_deflection: float = 1.0e-6
+    shape: tuple[tuple[float, ...], tuple[float, ...]] | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         d = _finite("wear depth", self.depth)
@@ -105,6 +111,22 @@ class Wear:
             raise ParameterError(f"wear run-in deflection must be >= 0, got {r!r} m")
         object.__setattr__(self, "depth", d)
         object.__setattr__(self, "run_in_deflection", r)
+        if self.shape is not None:
+            x, y = (np.asarray(v, dtype=float) for v in self.shape)
+            if (x.ndim != 1 or x.shape != y.shape or x.size < 2 or not np.all(np.isfinite(x))
+                    or not np.all(np.isfinite(y)) or np.any(np.diff(x) <= 0) or x[0] > 0 or x[-1] < 1
+                    or np.any(y < 0) or y.max() <= 0):
+                raise ParameterError("wear shape must be (positions, depths): increasing positions covering 0..1 "
+                                     "of the path of contact and depths >= 0, not all zero")
+            object.__setattr__(self, "shape", (tuple(x.tolist()), tuple((y / y.max()).tolist())))
+
+    def profile(self, pair: GearPair, gear: str, roll: np.ndarray) -> np.ndarray:
+        """Depth (m) at path-of-contact positions ``roll`` (m) of the ``gear`` flank: the tabulated ``shape``
+        scaled to ``depth``, or :func:`archard_wear_profile` without one."""
+        if self.shape is None:
+            return archard_wear_profile(pair, gear, roll, self.depth, self.run_in_deflection)
+        x, y = self.shape
+        return self.depth * np.interp(np.asarray(roll, dtype=float) / pair.path_of_contact, x, y)
 
 
 @dataclass(frozen=True)
@@ -314,8 +336,8 @@ class Pitting:
     (:func:`cut_section`), and a contact line at s touches L - delta_L(s) of the face, so that the Hertz stiffness
     is k_h = pi E (L - delta_L) / (4 (1 - nu^2)) there.
 
-    Severity
-    --------
+    Parameters
+    ----------
     area_fraction : float
         Fraction of the band's flank area covered by pits, in [0, pi/4) (0: no pits, healthy).  Default 0.15
         (``DEFAULT_SEVERITIES``), within the 10-20 % of a moderately pitted flank; the number of pits,
@@ -398,8 +420,8 @@ class Spalling:
     model of Chaari, Baccar, Abbes & Haddar 2008, Eur. J. Mech. A/Solids 27, and of Jia & Howard 2006, Mech.
     Syst. Signal Process. 20).
 
-    Severity
-    --------
+    Parameters
+    ----------
     width_fraction : float
         Spall width across the face as a fraction of the face width, in [0, 1] (0: no spall, healthy; 1: a spall
         through the whole face).  Default 0.5 (``DEFAULT_SEVERITIES``): a spall over half the face, in
@@ -645,7 +667,7 @@ def cut_section(thickness: np.ndarray, face_width: float,
     return area, second - first * first / area
 
 
-def _sliding(pair: GearPair, gear: str, roll: np.ndarray) -> np.ndarray:
+def sliding_ratio(pair: GearPair, gear: str, roll: np.ndarray) -> np.ndarray:
     """Sliding per unit rolling of the ``gear`` flank at path positions ``roll``: |1 - v_j / v_i| with
     v_i = omega_i rho_i (Flodin & Andersson 1997, eq. (2)); zero at the pitch point."""
     rho1, rho2 = pair.roll_lengths(np.asarray(roll, dtype=float))
@@ -685,7 +707,7 @@ def archard_wear_profile(pair: GearPair, gear: str, roll: np.ndarray, depth: flo
     roll = np.asarray(roll, dtype=float)
     pb, path = pair.base_pitch, pair.path_of_contact
     s = np.linspace(0.0, path, _RUN_IN_POINTS)
-    slip = _sliding(pair, gear, s)
+    slip = sliding_ratio(pair, gear, s)
     enter = s <= path - pb          # double contact, the partner pair at s + pb
     leave = s >= pb                 # double contact, the partner pair at s - pb
     fixed_share = np.where(enter | leave, 0.5, 1.0)
@@ -726,7 +748,7 @@ def flank_deviation(pair: GearPair, gear: str, faults: Iterable[Fault], roll: np
     faults = tuple(faults)
     for f in faults:
         if isinstance(f, Wear) and f.depth > 0:
-            out = out + archard_wear_profile(pair, gear, roll, f.depth, f.run_in_deflection)
+            out = out + f.profile(pair, gear, roll)
     loss = FlankLoss()
     for f in faults:
         if isinstance(f, (Pitting, Spalling)):
@@ -768,7 +790,7 @@ def damaged_profile(pair: GearPair, gear: str, faults: Iterable[Fault]) -> Damag
                 roll = (pair.line_of_action_length - rho) - pair.start_roll_length_driver
             active = (roll >= 0) & (roll <= pair.path_of_contact) & (np.arange(len(y)) >= prof.n_fillet)
             h = np.zeros_like(y)
-            h[active] = archard_wear_profile(pair, gear, roll[active], f.depth, f.run_in_deflection)
+            h[active] = f.profile(pair, gear, roll[active])
             tau = rho / g.base_radius - g.base_half_angle     # flank normal vs. section (load angle)
             xl = xl - h / np.cos(tau)
             if np.any(xl[active] <= 0.0):
