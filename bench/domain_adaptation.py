@@ -29,8 +29,8 @@ dann        the same MLP with a domain classifier behind a gradient reversal lay
             ``DANN``, reg 1)
 ==========  =======================================================================================
 
-Prints, per feature set, target and method, the accuracy and its ratio to the baseline's.  docs/results.md
-("Domain adaptation (skada)") and bench/HISTORY.md hold the figures.  Importing skada switches on scikit-learn's
+Prints, per feature set, target and method, the accuracy and its ratio to the baseline's.  bench/HISTORY.md
+("Domain adaptation (skada)") holds the figures.  Importing skada switches on scikit-learn's
 metadata routing for the whole process (``sklearn.set_config(enable_metadata_routing=True)``).
 """
 

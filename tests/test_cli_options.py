@@ -144,12 +144,14 @@ def test_model_names_come_from_the_registry():
 
 
 def test_readme_command_block_uses_existing_options():
-    """Every option in the README's command block is a visible option of its command (no stale spellings)."""
+    """Every option in the README's command blocks ("Start here", "Using it") is a visible option of its command (no
+    stale spellings)."""
     text = (REPO / "README.md").read_text()
-    block = text[text.index("## Using it"):].split("```")[1]
+    blocks = [b for b in text.split("```")[1::2] if b.startswith("bash")]
+    assert text[text.index("## Using it"):].split("```")[1] in blocks and len(blocks) >= 4
     commands = _commands()
     bad = []
-    for line in re.sub(r"\\\n\s*", " ", block).splitlines():
+    for line in re.sub(r"\\\n\s*", " ", "\n".join(blocks)).splitlines():
         words = line.split("#")[0].split()
         if not words or words[0] != "rvdiag":
             continue

@@ -58,7 +58,8 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Score a saved model on a split of a sample store (progress with an ETA on stderr; -q: none)."""
         from rvdiag.cli._progress import progress_bars
-        from rvdiag.datasets import SampleStore, parse_condition
+        from rvdiag.datasets import SampleStore
+        from rvdiag.datasets import parse_where as parse_condition
         from rvdiag.evaluation.evaluate import report_html
         from rvdiag.evaluation.report import write_report
         from rvdiag.workflows import load_model

@@ -153,7 +153,7 @@ FLAT_FRACTION = 1e-9
 def state_name(c: str) -> str:
     """``T2 (broken tooth)``: a state with its fault's name (:data:`rvdiag.gears.faults.STATES`); other classes as
     they are."""
-    from rvdiag.gears.faults import STATES
+    from rvdiag.gears.faults import FAULT_KINDS as STATES
 
     names = {"healthy": "healthy", "broken": "broken tooth", "wear": "wear", "crack": "root crack",
              "broken+wear": "broken tooth + wear", "broken+wear+crack": "broken tooth + wear + root crack"}
