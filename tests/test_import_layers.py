@@ -21,7 +21,7 @@ LAYERS = {
     "library": 4, "datasets": 4, "io": 4, "updating": 4,
     "features": 5,
     "models": 6,
-    "evaluation": 7,
+    "evaluation": 7, "prognostics": 7,
     "cli": 8, "__main__": 8,
 }
 
