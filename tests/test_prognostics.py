@@ -172,7 +172,7 @@ def test_joint_prognosis_interface():
 def test_joint_prognosis_before_onset_and_bad_input():
     base, days, hi = _joint()
     d = joint_prognosis(days[:15], health_index=hi[:15], baseline_scores=base, threshold=20.0).to_dict()
-    assert d["alarm_time"] is None and d["rul"] == {"estimated": False, "model": "exponential",
+    assert d["alarm_time"] is None and d["rul"] == {"estimated": False, "model": "size",
                                                     "reason": "no confirmed onset: the change detector has not alarmed"}
     # p-values alone drive the detector (ranked as 1 - p)
     assert joint_prognosis(days[:5], p_values=[0.5] * 5, baseline_scores=[0.3] * 5).alarm_index is None
@@ -213,3 +213,40 @@ def test_synthetic_histories_truth_and_determinism(params):
     assert np.quantile(healthy, 0.5) < 1.0 and not np.any(draw_history("healthy", 1, params, spec).size)
     with pytest.raises(ParameterError):
         draw_history("pitting", 0, params)
+
+
+def test_size_model_intervals_cover_when_wear_grows_linearly():
+    # the index is phi + z^2 with the implied size z growing linearly (Archard wear at a steady duty) plus noise
+    rng = np.random.default_rng(4)
+    hits = []
+    for s in range(150):
+        t = np.arange(12) * 7.0
+        z = 0.05 * t + rng.normal(0.0, 0.3, t.size)
+        hi = 1.0 + np.sign(z) * z ** 2
+        true_rul = (np.sqrt(20.0 - 1.0) / 0.05) - t[-1]
+        r = estimate_rul(t, hi, threshold=20.0, healthy_level=1.0, model="size", seed=s, n_samples=2000)
+        hits.append(r.estimated and r.p10_days <= true_rul <= r.p90_days)
+    assert 0.70 <= np.mean(hits) <= 0.90
+
+
+def test_paris_model_follows_the_closed_form_growth():
+    # a crack by Paris' law (m = 3): a^(-1/2) falls linearly; the index excess grows as a^2, so (HI - phi)^(-1/4)
+    # falls linearly to the threshold's
+    t = np.arange(10) * 5.0
+    a = (1.0 - 0.01 * t) ** -2.0                      # unstable at t = 100; a = 16 at t = 75
+    hi = 0.5 + a ** 2 * (1.0 + np.random.default_rng(0).normal(0.0, 1e-4, t.size))
+    r = estimate_rul(t, hi, threshold=0.5 + 16.0 ** 2, healthy_level=0.5, model="paris")
+    assert r.median_days == pytest.approx(75.0 - t[-1], abs=0.5)
+
+
+def test_threshold_draws_and_the_joints_own_scale():
+    base, days, hi = _joint()
+    with pytest.raises(ParameterError):
+        estimate_rul(days, hi, threshold=np.ones(7))
+    kw = dict(threshold=20.0, model="size", reference_level=float(np.median(base)))
+    p1 = joint_prognosis(days, health_index=hi, baseline_scores=base, **kw)
+    p3 = joint_prognosis(days, health_index=3.0 * hi, baseline_scores=3.0 * base, **kw)
+    # a joint whose index runs at 3x reaches the same fault size at 3x the threshold: the same remaining life
+    assert p1.rul.estimated and p3.rul.median_days == pytest.approx(p1.rul.median_days, rel=1e-9)
+    p3_fixed = joint_prognosis(days, health_index=3.0 * hi, baseline_scores=3.0 * base, threshold=20.0, model="size")
+    assert p3_fixed.rul.median_days < 0.8 * p1.rul.median_days

@@ -64,7 +64,7 @@ class _Clock:
 
 @dataclass
 class Prognosis:
-    """A joint's onset, alarm and remaining life.  ``rul`` is the exponential degradation model's estimate,
+    """A joint's onset, alarm and remaining life.  ``rul`` is the chosen degradation model's estimate,
     ``rul_baseline`` linear extrapolation of the index (the classical comparison); ``p_before`` is given for each
     of ``before`` (times, or days after the last record)."""
 
@@ -96,7 +96,8 @@ class Prognosis:
 
 
 def joint_prognosis(times, scores=None, p_values=None, health_index=None, baseline_scores=(), threshold=None, *,
-                    delta: float = DEFAULT_DELTA, before=None, healthy_level: float | None = None,
+                    delta: float = DEFAULT_DELTA, model: str = "size", before=None,
+                    healthy_level: float | None = None, reference_level: float | None = None,
                     confidence: float = 0.95, min_records: int = 3, seed: int = 0) -> Prognosis:
     """The prognosis of one joint from its records after commissioning, in time order.
 
@@ -122,9 +123,19 @@ def joint_prognosis(times, scores=None, p_values=None, health_index=None, baseli
     before : sequence, optional
         Times (or days after the last record when ``times`` are numbers) for ``p_before``; default 30, 90 and 365
         days after the last record.
+    model : {"size", "exponential", "paris", "linear"}
+        The remaining-life model (:func:`rvdiag.prognostics.rul.estimate_rul`): ``size`` (default; the implied fault
+        size's linear trend, wear's law, the commonest way a reducer ages) or ``paris`` (a root crack) where the
+        monitor names the fault; linear extrapolation of the index is always given beside it as ``rul_baseline``.
     healthy_level : float, optional
-        phi of the exponential model; default the median of ``baseline_scores`` when the scores are the health
+        phi of the degradation model; default the median of ``baseline_scores`` when the scores are the health
         index, else 0.
+    reference_level : float, optional
+        The median healthy index of the population the ``threshold`` was set on (e.g. the monitor's calibration
+        records).  When given (and the scores are the health index), the threshold is scaled to this joint by its
+        own commissioning median over ``reference_level`` (a joint whose healthy index runs at 1.3x the
+        population's reaches the failure size at 1.3x the threshold), and the scale's uncertainty (a bootstrap of
+        the commissioning median) is carried into the Monte Carlo.
     seed : int
         Seed of the detector's smoothing draws and of the Monte Carlo.
 
@@ -170,16 +181,24 @@ def joint_prognosis(times, scores=None, p_values=None, health_index=None, baseli
         horizons = {str(b if not clock.dated else _as_datetime(b).isoformat()): clock.to_day(b) - last
                     if clock.dated else float(b) for b in before}
 
+    thr = threshold
+    if threshold is not None and reference_level is not None and scores is None and hi is not None and len(base):
+        if not reference_level > 0:
+            raise ParameterError(f"reference_level must be > 0, got {reference_level!r}")
+        boot = np.random.default_rng(seed + 1).choice(base, size=(4000, len(base)), replace=True)
+        thr = float(threshold) * np.median(boot, axis=1) / float(reference_level)
+
     def rul(model: str) -> RulEstimate:
         if alarm is None:
             return RulEstimate(False, "no confirmed onset: the change detector has not alarmed", model, last)
         if hi is None:
             return RulEstimate(False, "no health index given", model, last)
-        return estimate_rul(clock.days[onset:], hi[onset:], threshold=threshold, healthy_level=healthy_level,
-                            model=model, as_of_day=last, confidence=confidence, min_records=min_records, seed=seed)
+        return estimate_rul(clock.days[onset:], hi[onset:], threshold=thr, healthy_level=healthy_level,
+                            model=model, as_of_day=last, confidence=confidence, min_records=min_records, seed=seed,
+                            paris_margin=float(np.max(base) - healthy_level) if len(base) else 0.0)
 
     return Prognosis(onset_time=clock.label(clock.days[onset]) if onset is not None else None,
                      alarm_time=clock.label(clock.days[alarm]) if alarm is not None else None,
                      onset_index=onset, alarm_index=alarm, evidence=evidence if math.isfinite(evidence) else 1e300,
-                     delta=float(delta), rul=rul("exponential"), rul_baseline=rul("linear"), before=horizons,
+                     delta=float(delta), rul=rul(model), rul_baseline=rul("linear"), before=horizons,
                      detector=det.parameters())

@@ -17,6 +17,20 @@ model's mean path reaches the failure threshold, t_f = (y_thr - log theta) / bet
 beta <= 0); the remaining life is t_f minus the prediction time, floored at zero.  The result is the draws'
 median, 10 % and 90 % quantiles, and P(t_f <= a date).
 
+The fault size the index implies (``model="size"``): the index is a squared Mahalanobis distance, which grows with
+the square of a mean shift of the features, and a small fault shifts them in proportion to its size, so
+z = sqrt(HI - phi) is proportional to the fault size; its linear trend is Archard wear's (a constant wear rate under
+a steady duty), fitted as above with z in place of y.  (The exponential model's log(HI - phi) is 2 log z, so it is
+the same model for the index and for the size.)
+
+A root crack by Paris' law (``model="paris"``): with m = 3 (:mod:`rvdiag.gears.crack_growth`) a^(1 - m/2) = a^(-1/2)
+falls linearly in the load cycles (and so in time under a steady duty) until the growth becomes unstable, so
+-z^(-1/2) = -(HI - phi)^(-1/4) is fitted linearly, on the records whose index is above ``phi + paris_margin``
+(:func:`rvdiag.prognostics.joint_prognosis` uses the commissioning records' largest index: a near-zero excess
+would blow up the transform).  Which model suits a joint follows from its fault: ``size`` for wear, ``paris``
+for a root crack; ``exponential`` is the general-purpose choice of Gebraeel et al. and MATLAB.  Measured on
+synthetic histories with known truth in ``bench/prognostics.py`` (bench/HISTORY.md).
+
 "Not estimated" (with the reason): before an onset, with fewer than ``min_records`` usable records since it, when
 the slope is not positive at the stated ``confidence`` (posterior P(beta > 0) < confidence: the trend does not
 hold), or when no failure threshold is set.
@@ -36,12 +50,13 @@ import numpy as np
 from scipy import stats
 
 from rvdiag.errors import ParameterError
+from rvdiag.gears.crack_growth import PARIS_M
 
 ASSUMPTION = ("Assumes the joint's duty cycle (speed, load and hours in motion) stays as it was since the onset; a "
               "heavier duty shortens the life, a lighter one lengthens it, and a change in the fault's nature is not "
               "foreseen.")
 
-MODELS = ("exponential", "linear")
+MODELS = ("exponential", "size", "paris", "linear")
 
 
 @dataclass
@@ -119,20 +134,24 @@ def _posterior(x: np.ndarray, y: np.ndarray, prior: dict | None):
 def estimate_rul(t_days, health_index, *, threshold: float | None, healthy_level: float = 0.0,
                  model: str = "exponential", as_of_day: float | None = None, confidence: float = 0.95,
                  min_records: int = 3, prior: dict | None = None, n_samples: int = 4000,
-                 seed: int = 0) -> RulEstimate:
+                 paris_margin: float = 0.0, seed: int = 0) -> RulEstimate:
     """Remaining life from the health index of the records since onset (``t_days`` in days, increasing).
 
     Parameters
     ----------
     t_days, health_index : sequences of float
         The records since the estimated onset and their index.
-    threshold : float or None
-        The index at the failure threshold (the index that the fault size at failure gives).  None: not estimated.
+    threshold : float, array of ``n_samples`` floats, or None
+        The index at the failure threshold (the index that the fault size at failure gives), or draws of it (its
+        uncertainty, e.g. from the joint's own scale, carried into the Monte Carlo).  None: not estimated.
     healthy_level : float
         phi of the exponential model (the commissioning records' median index); the records at or below it are left
         out of the exponential fit (log of a non-positive excess).
-    model : {"exponential", "linear"}
-        The exponential degradation model, or linear extrapolation of the index (the baseline).
+    model : {"exponential", "size", "paris", "linear"}
+        The exponential degradation model; a linear trend of the fault size the index implies (wear); Paris' law
+        of the implied size (a root crack); or linear extrapolation of the index (the baseline).
+    paris_margin : float
+        ``model="paris"`` fits only the records whose index is above ``healthy_level + paris_margin``.
     as_of_day : float, optional
         The prediction time (default: the last record's).
     confidence : float
@@ -154,19 +173,29 @@ def estimate_rul(t_days, health_index, *, threshold: float | None, healthy_level
     if np.any(np.diff(t) < 0):
         raise ParameterError("t_days must not decrease")
     as_of = float(t[-1]) if as_of_day is None and len(t) else (float(as_of_day) if as_of_day is not None else None)
-    params = {"threshold": threshold, "healthy_level": float(healthy_level), "confidence": float(confidence),
-              "prior": "reference (1/sigma^2)" if prior is None else "normal-inverse-gamma", "seed": int(seed)}
-    if threshold is None or not math.isfinite(float(threshold)):
+    thr = None if threshold is None else np.asarray(threshold, dtype=float).ravel()
+    params = {"threshold": None if thr is None else float(np.median(thr)), "healthy_level": float(healthy_level),
+              "confidence": float(confidence), "seed": int(seed),
+              "prior": "reference (1/sigma^2)" if prior is None else "normal-inverse-gamma"}
+    if thr is None or not np.all(np.isfinite(thr)) or thr.size == 0:
         return RulEstimate(False, "no failure threshold on the health index is set", model, as_of,
                            parameters=params)
+    if thr.size not in (1, n_samples):
+        raise ParameterError(f"threshold must be one number or {n_samples} draws")
+    if model != "linear" and np.any(thr <= healthy_level):
+        return RulEstimate(False, "the failure threshold is not above the healthy level", model, as_of,
+                           parameters=params)
     if model == "exponential":
-        if float(threshold) <= healthy_level:
-            return RulEstimate(False, "the failure threshold is not above the healthy level", model, as_of,
-                               parameters=params)
         use = h > healthy_level
-        t, y, y_thr = t[use], np.log(h[use] - healthy_level), math.log(float(threshold) - healthy_level)
+        t, y, y_thr = t[use], np.log(h[use] - healthy_level), np.log(thr - healthy_level)
+    elif model == "size":
+        y, y_thr = np.sqrt(np.clip(h - healthy_level, 0.0, None)), np.sqrt(thr - healthy_level)
+    elif model == "paris":
+        use = h > healthy_level + paris_margin
+        exponent = 0.5 * (1.0 - PARIS_M / 2.0)          # z^(1 - m/2), z = (HI - phi)^(1/2)
+        t, y, y_thr = t[use], -((h[use] - healthy_level) ** exponent), -((thr - healthy_level) ** exponent)
     else:
-        y, y_thr = h, float(threshold)
+        y, y_thr = h, thr
     n = len(t)
     if n < max(3, int(min_records)):
         return RulEstimate(False, f"{n} usable record(s) since onset, {max(3, int(min_records))} needed", model,

@@ -74,6 +74,11 @@ class HistorySpec:
         return float(stats.chi2.ppf(0.99, self.dof))
 
     @property
+    def reference_level(self) -> float:
+        """The population's median healthy index."""
+        return float(stats.chi2.median(self.dof)) / self.quantile99
+
+    @property
     def threshold_index(self) -> float:
         """The population's mean index at the failure size."""
         return (self.dof + self.lambda_fail) / self.quantile99

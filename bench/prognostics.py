@@ -1,0 +1,162 @@
+"""Change detection and remaining life on synthetic life histories with known truth (issue 35, items 3-4).
+
+Usage::
+
+    .venv/bin/python bench/prognostics.py                        # 1000 healthy, 200 per fault, 60 records a life
+    .venv/bin/python bench/prognostics.py --healthy 200 --faults 50   # quicker
+    .venv/bin/python bench/prognostics.py --log                  # also append the result to bench/HISTORY.md
+
+Histories: :mod:`rvdiag.prognostics.synthetic` (the health index of a monitor whose per-reducer scale varies, wear
+by Archard, a root crack by Paris' law that ends in a broken tooth, a sudden broken tooth; commissioning records
+first).  Measured, in the same run:
+
+* the share of healthy histories that ever alarm (Clopper-Pearson 95 % interval) for the conformal test martingale
+  (stated bound delta), CUSUM and Page-Hinkley (no bound), and today's per-record alarm (index > 1 on any record);
+* the detection delay in records after the first record at or after the onset, per fault (median, 90th
+  percentile, share within 3 records, share detected before failure);
+* remaining life at the prediction time lambda = 0.5 (Saxena et al. 2008, "Metrics for evaluating performance of
+  prognostic techniques", PHM 2008; Saxena et al. 2010, IJPHM 1(1)): t_lambda = t_P + 0.5 (EoL - t_P), t_P the
+  alarm, EoL the true failure; the first record at or after t_lambda (before failure) is the prediction.  The 80 %
+  interval's coverage of the true remaining life, and alpha-lambda accuracy with alpha 0.2 and beta 0.5 (half the
+  predicted distribution within +-20 % of the true remaining life) computed by ProgPy's
+  ``progpy.metrics.alpha_lambda``; for the exponential degradation model and for linear extrapolation of the index.
+  A history whose remaining life is not estimated at t_lambda counts as a miss for both.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy import stats
+
+from rvdiag.params import ReducerParams
+from rvdiag.prognostics import ConformalMartingale, Cusum, PageHinkley, joint_prognosis
+from rvdiag.prognostics.synthetic import HistorySpec, draw_history
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def clopper_pearson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
+    a = (1.0 - level) / 2.0
+    lo = 0.0 if k == 0 else float(stats.beta.ppf(a, k, n - k + 1))
+    hi = 1.0 if k == n else float(stats.beta.ppf(1.0 - a, k + 1, n - k))
+    return lo, hi
+
+
+def detectors(h, delta, seed):
+    return {"martingale": ConformalMartingale(h.baseline, delta=delta, seed=seed).run(h.health_index),
+            "cusum": Cusum(h.baseline).run(h.health_index),
+            "page_hinkley": PageHinkley(h.baseline).run(h.health_index)}
+
+
+def alpha_lambda_progpy(t_pred: float, toe_samples: np.ndarray, eol: float, alpha=0.2, beta=0.5) -> bool:
+    from progpy.metrics import alpha_lambda
+    from progpy.predictors import ToEPredictionProfile
+    from progpy.uncertain_data import UnweightedSamples
+
+    profile = ToEPredictionProfile()
+    profile.add_prediction(t_pred, UnweightedSamples([{"f": float(v)} for v in toe_samples]))
+    return bool(alpha_lambda(profile, {"f": float(eol)}, t_pred, alpha, beta)["f"])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--healthy", type=int, default=1000)
+    ap.add_argument("--faults", type=int, default=200, help="histories per fault kind")
+    ap.add_argument("--records", type=int, default=60, help="records per healthy life after commissioning")
+    ap.add_argument("--baseline", type=int, default=20, help="commissioning records per joint")
+    ap.add_argument("--delta", type=float, default=0.01)
+    ap.add_argument("--samples", type=int, default=2000, help="Monte Carlo draws per remaining-life estimate")
+    ap.add_argument("--model", default="exponential", help="the remaining-life model (rvdiag.prognostics.rul.MODELS)")
+    ap.add_argument("--log", action="store_true")
+    args = ap.parse_args()
+    params = ReducerParams.default()
+    spec = HistorySpec(n_baseline=args.baseline, n_records=args.records)
+    t0 = time.perf_counter()
+    lines = [f"histories: {args.healthy} healthy x {args.records} records, {args.faults} per fault; "
+             f"{args.baseline} commissioning records; delta = {args.delta}; record every {spec.interval_days} days; "
+             f"index threshold at failure {spec.threshold_index:.2f}"]
+
+    # healthy lifetime false alarms
+    ever = {"martingale": 0, "cusum": 0, "page_hinkley": 0, "per_record_index_gt_1": 0}
+    for s in range(args.healthy):
+        h = draw_history("healthy", 10_000 + s, params, spec)
+        for name, d in detectors(h, args.delta, s).items():
+            ever[name] += d.alarmed
+        ever["per_record_index_gt_1"] += bool(np.any(h.health_index > 1.0))
+    lines.append("healthy histories ever alarming (share, CI95):")
+    for name, k in ever.items():
+        lo, hi = clopper_pearson(k, args.healthy)
+        bound = f"  (stated bound {args.delta})" if name == "martingale" else ""
+        lines.append(f"  {name:24s} {k / args.healthy:.4f} [{lo:.4f}, {hi:.4f}]{bound}")
+
+    # detection delay and remaining life
+    for kind in ("broken", "crack", "wear"):
+        delays = {n: [] for n in ("martingale", "cusum", "page_hinkley")}
+        before_fail = {n: 0 for n in delays}
+        cover = {args.model: [], "linear": []}
+        al = {args.model: [], "linear": []}
+        estimated = {args.model: 0, "linear": 0}
+        n_rul = 0
+        for s in range(args.faults):
+            h = draw_history(kind, 20_000 + 1000 * ("broken", "crack", "wear").index(kind) + s, params, spec)
+            i_on = h.onset_index
+            dets = detectors(h, args.delta, s)
+            for name, d in dets.items():
+                ok = d.alarm_index is not None and d.alarm_index >= i_on
+                delays[name].append(d.alarm_index - i_on if ok else math.inf)
+                before_fail[name] += ok and (kind == "broken" or h.days[d.alarm_index] < h.failure_day)
+            m = dets["martingale"]
+            if kind == "broken" or m.alarm_index is None or h.days[m.alarm_index] >= h.failure_day:
+                continue
+            t_p = h.days[m.alarm_index]
+            t_lam = t_p + 0.5 * (h.failure_day - t_p)
+            k = int(np.searchsorted(h.days, t_lam, side="left"))
+            if k >= len(h.days) or h.days[k] >= h.failure_day:
+                k = int(np.searchsorted(h.days, h.failure_day, side="left")) - 1
+            n_rul += 1
+            p = joint_prognosis(h.days[:k + 1], health_index=h.health_index[:k + 1], baseline_scores=h.baseline,
+                                threshold=h.threshold_index, delta=args.delta, seed=s,
+                                model=args.model, reference_level=spec.reference_level)
+            true_rul = h.failure_day - h.days[k]
+            for model, r in ((args.model, p.rul), ("linear", p.rul_baseline)):
+                if not r.estimated:
+                    cover[model].append(False)
+                    al[model].append(False)
+                    continue
+                estimated[model] += 1
+                cover[model].append(r.p10_days <= true_rul <= r.p90_days)
+                al[model].append(alpha_lambda_progpy(h.days[k], h.days[k] + r.samples_days, h.failure_day))
+        lines.append(f"{kind}: detection delay in records after onset (median, p90, within 3, before failure):")
+        for name, dl in delays.items():
+            dl = np.array(dl)
+            lines.append(f"  {name:24s} {np.median(dl):.0f}, {np.quantile(dl, 0.9):.0f}, "
+                         f"{np.mean(dl <= 2):.3f}, {before_fail[name] / len(dl):.3f}")
+        if n_rul:
+            extra = ""
+            if kind == "crack":
+                extra = " (crack histories' stress range for 40-200 days of growth: see HISTORY text)"
+            lines.append(f"{kind}: remaining life at lambda = 0.5, {n_rul} histories alarmed before failure{extra}:")
+            for model in cover:
+                lo, hi = clopper_pearson(int(np.sum(cover[model])), n_rul)
+                lines.append(f"  {model:12s} estimated {estimated[model] / n_rul:.3f}, 80 % interval coverage "
+                             f"{np.mean(cover[model]):.3f} [{lo:.3f}, {hi:.3f}], alpha-lambda (0.2, beta 0.5) "
+                             f"{np.mean(al[model]):.3f}")
+    lines.append(f"wall time {time.perf_counter() - t0:.0f} s")
+    text = "\n".join(lines)
+    print(text)
+    if args.log:
+        cmd = ".venv/bin/python bench/prognostics.py " + " ".join(
+            f"--{k} {v}" for k, v in vars(args).items() if k != "log")
+        with open(ROOT / "bench" / "HISTORY.md", "a") as f:
+            f.write(f"\n## {dt.date.today()} prognostics on synthetic life histories (bench/prognostics.py)\n"
+                    f"Command: `{cmd}`\n\n```\n{text}\n```\n")
+
+
+if __name__ == "__main__":
+    main()
