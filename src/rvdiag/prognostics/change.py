@@ -33,13 +33,16 @@ above the joint's earlier ones): f_a(p) = kappa + (1 - kappa) / a for p <= a, ka
 ``levels``, beside the function f = 1 that does not bet (the Simple Jumper's eps = 0).  Each record:
 C_k <- (1 - J) C_k + J w_k sum_j C_j, then C_k <- C_k f_k(p_n); the total sum_k C_k is a test martingale (each f_k
 integrates to 1 over [0, 1] and the redistribution keeps the total), so Ville's bound holds as stated.  The
-defaults (levels 0.02, 0.05, 0.1, kappa 0.2, J 0.1, half the redistributed capital to f = 1) were chosen on
-simulated gamma-distributed streams (bench/prognostics.py, bench/HISTORY.md) for a short delay after a step.
+defaults (levels 0.05, 0.1, 0.2, kappa 0.2, J 0.1, half the redistributed capital to f = 1) were chosen on
+the synthetic histories of bench/prognostics.py (bench/HISTORY.md): smaller levels speak a record sooner after a
+broken tooth but leave some broken teeth unalarmed for good (below).
 
 How fast it can speak: with n earlier scores a record above all of them gets p ~ U(0, 1/(n + 1)), so no betting
 function can gain more than a factor n + 1 from one record, and an alarm needs at least log(1/delta) / log(n + 1)
 records after a change (2 for delta = 1 % and n between 10 and 99), more since the k-th record after a step is
-ranked among the k - 1 faulty records before it.  A joint with few commissioning records is slow to alarm.
+ranked among the k - 1 faulty records before it, so that its p-value is about U(0, k / (n + k)): the evidence a
+lasting change gives shrinks record by record, and a martingale that has not alarmed within the first several
+records after a step may never alarm.  A joint with few commissioning records is slow to alarm.
 
 Onset estimate: the record after the martingale's last minimum before the alarm (where the evidence began rising;
 as CUSUM's change-point estimate, Page 1954).
@@ -179,10 +182,10 @@ class ConformalMartingale(_Detector):
     --------
     >>> det = ConformalMartingale([1.0, 1.2, 0.9, 1.1, 1.05] * 6, seed=0)
     >>> det.run([1.0, 0.95, 9.0, 9.5, 8.0, 9.9, 9.1]).alarm_index
-    5
+    6
     """
 
-    def __init__(self, baseline_scores=(), *, delta: float = DEFAULT_DELTA, levels=(0.02, 0.05, 0.1),
+    def __init__(self, baseline_scores=(), *, delta: float = DEFAULT_DELTA, levels=(0.05, 0.1, 0.2),
                  kappa: float = 0.2, jump: float = 0.1, stay_weight: float = 0.5, seed: int = 0):
         if not 0.0 < float(delta) < 1.0:
             raise ParameterError(f"delta must be in (0, 1), got {delta!r}")
