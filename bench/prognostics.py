@@ -73,16 +73,19 @@ def main() -> None:
     ap.add_argument("--records", type=int, default=60, help="records per healthy life after commissioning")
     ap.add_argument("--baseline", type=int, default=20, help="commissioning records per joint")
     ap.add_argument("--delta", type=float, default=0.01)
+    ap.add_argument("--scale-spread", type=float, default=0.25,
+                    help="sd of the log of each reducer's own index scale (bench/prognostics_real.py measures it)")
     ap.add_argument("--samples", type=int, default=2000, help="Monte Carlo draws per remaining-life estimate")
     ap.add_argument("--models", default="size,paris,exponential",
                     help="remaining-life models (rvdiag.prognostics.rul.MODELS), each against linear extrapolation")
     ap.add_argument("--log", action="store_true")
     args = ap.parse_args()
     params = ReducerParams.default()
-    spec = HistorySpec(n_baseline=args.baseline, n_records=args.records)
+    spec = HistorySpec(n_baseline=args.baseline, n_records=args.records, scale_spread=args.scale_spread)
     t0 = time.perf_counter()
     lines = [f"histories: {args.healthy} healthy x {args.records} records, {args.faults} per fault; "
              f"{args.baseline} commissioning records; delta = {args.delta}; record every {spec.interval_days} days; "
+             f"reducer scale spread {spec.scale_spread}; "
              f"index threshold at failure {spec.threshold_index:.2f}"]
 
     # healthy lifetime false alarms
@@ -164,7 +167,7 @@ def main() -> None:
     print(text)
     if args.log:
         cmd = ".venv/bin/python bench/prognostics.py " + " ".join(
-            f"--{k} {v}" for k, v in vars(args).items() if k != "log")
+            f"--{k.replace('_', '-')} {v}" for k, v in vars(args).items() if k != "log")
         with open(ROOT / "bench" / "HISTORY.md", "a") as f:
             f.write(f"\n## {dt.date.today()} prognostics on synthetic life histories (bench/prognostics.py)\n"
                     f"Command: `{cmd}`\n\n```\n{text}\n```\n")
