@@ -162,6 +162,12 @@ def test_joint_prognosis_interface():
     assert d["rul"]["p10_days"] <= d["rul"]["median_days"] <= d["rul"]["p90_days"]
     assert list(d["rul"]["p_before"]) == ["2027-01-01T00:00:00+00:00"]
     assert "duty cycle" in d["assumption"]
+    import json
+    assert json.loads(json.dumps(d)) == d
+    # without commissioning scores the first records fill the bag, and those before the onset are the healthy ones
+    e = joint_prognosis(np.arange(70.0) * 7, health_index=np.concatenate([base, hi]), baseline_scores=[],
+                        threshold=20.0)
+    assert e.alarmed and e.onset_index >= 30 and e.rul.parameters["healthy_level"] > 0
     # the same history as numbers of days gives the same onset and alarm
     q = joint_prognosis(days, health_index=hi, baseline_scores=base, threshold=20.0).to_dict()
     assert (q["onset_index"], q["alarm_index"]) == (d["onset_index"], d["alarm_index"])

@@ -115,7 +115,10 @@ def joint_prognosis(times, scores=None, p_values=None, health_index=None, baseli
     baseline_scores : sequence of float
         The commissioning records' scores (the same quantity as ``scores``), in order; the first members of the
         bag later records are ranked among.  With fewer than about 20 the detector needs more records to alarm
-        (:mod:`rvdiag.prognostics.change`).
+        (:mod:`rvdiag.prognostics.change`).  A monitor whose index is a change against the commissioning records
+        gives those records no index: pass ``[]`` and the joint's first records fill the bag (its "learning"
+        records), or pass those first records here and the rest as ``times`` / ``health_index``.  Without
+        commissioning scores the joint's records before the onset stand for its healthy index.
     threshold : float, optional
         The health index at the failure threshold; None: the remaining life is not estimated.
     delta : float
@@ -129,7 +132,7 @@ def joint_prognosis(times, scores=None, p_values=None, health_index=None, baseli
         monitor names the fault; linear extrapolation of the index is always given beside it as ``rul_baseline``.
     healthy_level : float, optional
         phi of the degradation model; default the median of ``baseline_scores`` when the scores are the health
-        index, else 0.
+        index (of the records before the onset when none are given), else 0.
     reference_level : float, optional
         The median healthy index of the population the ``threshold`` was set on (e.g. the monitor's calibration
         records).  When given (and the scores are the health index), the threshold is scaled to this joint by its
@@ -168,11 +171,15 @@ def joint_prognosis(times, scores=None, p_values=None, health_index=None, baseli
         if arr is not None and len(arr) != n:
             raise ParameterError(f"{name} has {len(arr)} values for {n} times")
     base = np.asarray(baseline_scores, dtype=float).ravel()
-    if healthy_level is None:
-        healthy_level = float(np.median(base)) if (scores is None and hi is not None and len(base)) else 0.0
     det = ConformalMartingale(base, delta=delta, seed=seed)
     run = det.run(s) if n else None
     alarm, onset = (run.alarm_index, run.onset_index) if run is not None else (None, None)
+    # the joint's healthy index: its commissioning records', else its records before the onset
+    healthy = np.array([])
+    if scores is None and hi is not None:
+        healthy = base if len(base) else (hi[:onset] if onset else np.array([]))
+    if healthy_level is None:
+        healthy_level = float(np.median(healthy)) if len(healthy) else 0.0
     evidence = float(run.statistic[-1]) if n else 1.0
     last = float(clock.days[-1]) if n else 0.0
     if before is None:
@@ -182,10 +189,10 @@ def joint_prognosis(times, scores=None, p_values=None, health_index=None, baseli
                     if clock.dated else float(b) for b in before}
 
     thr = threshold
-    if threshold is not None and reference_level is not None and scores is None and hi is not None and len(base):
+    if threshold is not None and reference_level is not None and len(healthy):
         if not reference_level > 0:
             raise ParameterError(f"reference_level must be > 0, got {reference_level!r}")
-        boot = np.random.default_rng(seed + 1).choice(base, size=(4000, len(base)), replace=True)
+        boot = np.random.default_rng(seed + 1).choice(healthy, size=(4000, len(healthy)), replace=True)
         thr = float(threshold) * np.median(boot, axis=1) / float(reference_level)
 
     def rul(model: str) -> RulEstimate:
@@ -195,7 +202,7 @@ def joint_prognosis(times, scores=None, p_values=None, health_index=None, baseli
             return RulEstimate(False, "no health index given", model, last)
         return estimate_rul(clock.days[onset:], hi[onset:], threshold=thr, healthy_level=healthy_level,
                             model=model, as_of_day=last, confidence=confidence, min_records=min_records, seed=seed,
-                            paris_margin=float(np.max(base) - healthy_level) if len(base) else 0.0)
+                            paris_margin=float(np.max(healthy) - healthy_level) if len(healthy) else 0.0)
 
     return Prognosis(onset_time=clock.label(clock.days[onset]) if onset is not None else None,
                      alarm_time=clock.label(clock.days[alarm]) if alarm is not None else None,
