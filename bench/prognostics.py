@@ -66,6 +66,24 @@ def alpha_lambda_progpy(t_pred: float, toe_samples: np.ndarray, eol: float, alph
     return bool(alpha_lambda(profile, {"f": float(eol)}, t_pred, alpha, beta)["f"])
 
 
+def horizon_progpy(times, toe_samples, eol: float, alpha=0.2, beta=0.5) -> float | None:
+    """ProgPy's prognostic horizon (EoL minus the first prediction time whose distribution has ``beta`` of its mass
+    within +-``alpha`` of the true time to failure; Saxena et al. 2010), or None if no prediction meets it."""
+    from progpy.metrics import prognostic_horizon
+    from progpy.predictors import ToEPredictionProfile
+    from progpy.uncertain_data import UnweightedSamples
+
+    profile = ToEPredictionProfile()
+    for t, toe in zip(times, toe_samples):
+        profile.add_prediction(float(t), UnweightedSamples([{"f": float(v)} for v in toe]))
+
+    def criterion(tte, truth):
+        gt = truth["f"]
+        return {"f": tte.percentage_in_bounds({"f": [gt * (1 - alpha), gt * (1 + alpha)]})["f"] >= beta}
+
+    return prognostic_horizon(profile, criterion, {"f": float(eol)})["f"]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--healthy", type=int, default=1000)
@@ -78,6 +96,8 @@ def main() -> None:
     ap.add_argument("--samples", type=int, default=2000, help="Monte Carlo draws per remaining-life estimate")
     ap.add_argument("--models", default="size,paris,exponential",
                     help="remaining-life models (rvdiag.prognostics.rul.MODELS), each against linear extrapolation")
+    ap.add_argument("--horizon", action="store_true",
+                    help="also ProgPy's prognostic horizon (a prediction at every record from alarm to failure)")
     ap.add_argument("--log", action="store_true")
     args = ap.parse_args()
     params = ReducerParams.default()
@@ -112,6 +132,7 @@ def main() -> None:
         rel_width = {m: [] for m in models}                # (p90 - p10) / true
         estimated = {m: 0 for m in models}
         n_rul = 0
+        horizon = {m: [] for m in (models[0], "linear")}   # prognostic horizon / (EoL - alarm), 0 if never met
         for s in range(args.faults):
             h = draw_history(kind, 20_000 + 1000 * ("broken", "crack", "wear").index(kind) + s, params, spec)
             i_on = h.onset_index
@@ -130,6 +151,22 @@ def main() -> None:
                 k = int(np.searchsorted(h.days, h.failure_day, side="left")) - 1
             n_rul += 1
             true_rul = h.failure_day - h.days[k]
+            # prognostic horizon over every record from the alarm to the last before failure (first model, linear)
+            ks = range(m.alarm_index, int(np.searchsorted(h.days, h.failure_day, side="left")))
+            profiles = {mm: ([], []) for mm in horizon}
+            for kk in ks:
+                pk = joint_prognosis(h.days[:kk + 1], health_index=h.health_index[:kk + 1],
+                                     baseline_scores=h.baseline, threshold=h.threshold_index, delta=args.delta,
+                                     seed=s, model=models[0], reference_level=spec.reference_level,
+                                     ) if args.horizon else None
+                for mm, r in (((models[0], pk.rul), ("linear", pk.rul_baseline)) if pk else ()):
+                    if r.estimated:
+                        profiles[mm][0].append(h.days[kk])
+                        profiles[mm][1].append(h.days[kk] + r.samples_days[::10])
+            if args.horizon:
+                for mm, (tt, toe) in profiles.items():
+                    ph = horizon_progpy(tt, toe, h.failure_day) if tt else None
+                    horizon[mm].append(0.0 if ph is None else ph / (h.failure_day - t_p))
             results = {}
             for model in models[:-1]:
                 p = joint_prognosis(h.days[:k + 1], health_index=h.health_index[:k + 1], baseline_scores=h.baseline,
@@ -162,6 +199,10 @@ def main() -> None:
                              f"{np.mean(al[model]):.3f}; median |error| of the median {np.median(rel_err[model]):.2f}, "
                              f"median within 20 % {np.mean(np.array(rel_err[model]) <= 0.2):.2f}, "
                              f"80 % interval width {np.median(rel_width[model]):.2f} of the true life")
+            for model, ph in horizon.items():
+                if ph:
+                    lines.append(f"  prognostic horizon ({model}, alpha 0.2, beta 0.5) as a share of alarm-to-failure:"
+                                 f" median {np.median(ph):.2f}, met in {np.mean(np.array(ph) > 0):.2f}")
     lines.append(f"wall time {time.perf_counter() - t0:.0f} s")
     text = "\n".join(lines)
     print(text)
