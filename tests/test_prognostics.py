@@ -180,6 +180,11 @@ def test_joint_prognosis_before_onset_and_bad_input():
                                                     "reason": "no confirmed onset: the change detector has not alarmed"}
     # p-values alone drive the detector (ranked as 1 - p)
     assert joint_prognosis(days[:5], p_values=[0.5] * 5, baseline_scores=[0.3] * 5).alarm_index is None
+    # a broken tooth has failed: no remaining life; a crack gets Paris' law
+    d = joint_prognosis(days, health_index=hi, baseline_scores=base, threshold=20.0, fault_state="T5").to_dict()
+    assert d["alarm_time"] is not None and "broken tooth" in d["rul"]["reason"]
+    assert joint_prognosis(days, health_index=hi, baseline_scores=base, threshold=20.0, fault_state="T4").rul.model \
+        == "paris"
     with pytest.raises(ParameterError):
         joint_prognosis(days, health_index=hi[:-1], baseline_scores=base)
     with pytest.raises(ParameterError):

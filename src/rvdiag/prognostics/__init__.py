@@ -11,8 +11,8 @@ on a joint's sequence of record scores / health indices (it consumes the monitor
 """
 
 from rvdiag.prognostics.change import ConformalMartingale, Cusum, Detection, DetectorState, PageHinkley
-from rvdiag.prognostics.prognosis import Prognosis, joint_prognosis
+from rvdiag.prognostics.prognosis import Prognosis, joint_prognosis, model_for_state
 from rvdiag.prognostics.rul import ASSUMPTION, RulEstimate, estimate_rul
 
 __all__ = ["ASSUMPTION", "ConformalMartingale", "Cusum", "Detection", "DetectorState", "PageHinkley", "Prognosis",
-           "RulEstimate", "estimate_rul", "joint_prognosis"]
+           "RulEstimate", "estimate_rul", "joint_prognosis", "model_for_state"]

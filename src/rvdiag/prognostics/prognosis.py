@@ -21,6 +21,22 @@ from rvdiag.prognostics.rul import ASSUMPTION, RulEstimate, estimate_rul
 #: horizons (days after the last record) at which ``p_before`` is given by default
 DEFAULT_HORIZONS_DAYS = (30.0, 90.0, 365.0)
 
+#: the remaining-life model for the monitor's fault state (rvdiag.library.states): Paris' law for a root crack,
+#: the implied size's linear law (Archard wear) otherwise; a state with a broken tooth has failed already
+MODEL_FOR_STATE = {"T3": "size", "T4": "paris", "T7": "size", "T8": "size"}
+FAILED_STATES = ("T2", "T5", "T6")
+
+
+def model_for_state(state: str | None) -> str | None:
+    """The remaining-life model for the monitor's most probable fault state (``None`` for a broken tooth: failed).
+
+    >>> model_for_state("T4"), model_for_state("T3"), model_for_state(None), model_for_state("T2")
+    ('paris', 'size', 'size', None)
+    """
+    if state in FAILED_STATES:
+        return None
+    return MODEL_FOR_STATE.get(state, "size")
+
 
 def _as_datetime(value) -> datetime:
     if isinstance(value, datetime):
@@ -96,7 +112,8 @@ class Prognosis:
 
 
 def joint_prognosis(times, scores=None, p_values=None, health_index=None, baseline_scores=(), threshold=None, *,
-                    delta: float = DEFAULT_DELTA, model: str = "size", before=None,
+                    delta: float = DEFAULT_DELTA, model: str | None = None, fault_state: str | None = None,
+                    before=None,
                     healthy_level: float | None = None, reference_level: float | None = None,
                     confidence: float = 0.95, min_records: int = 3, seed: int = 0) -> Prognosis:
     """The prognosis of one joint from its records after commissioning, in time order.
@@ -126,10 +143,14 @@ def joint_prognosis(times, scores=None, p_values=None, health_index=None, baseli
     before : sequence, optional
         Times (or days after the last record when ``times`` are numbers) for ``p_before``; default 30, 90 and 365
         days after the last record.
-    model : {"size", "exponential", "paris", "linear"}
-        The remaining-life model (:func:`rvdiag.prognostics.rul.estimate_rul`): ``size`` (default; the implied fault
-        size's linear trend, wear's law, the commonest way a reducer ages) or ``paris`` (a root crack) where the
-        monitor names the fault; linear extrapolation of the index is always given beside it as ``rul_baseline``.
+    model : {"size", "exponential", "paris", "linear"}, optional
+        The remaining-life model (:func:`rvdiag.prognostics.rul.estimate_rul`); default :func:`model_for_state` of
+        ``fault_state``: ``paris`` for a root crack, else ``size`` (the implied fault size's linear trend, wear's
+        law, the commonest way a reducer ages).  Linear extrapolation of the index is always given beside it as
+        ``rul_baseline``.
+    fault_state : str, optional
+        The monitor's most probable fault state of the latest records (``T1``..``T8``); with a broken tooth (T2, T5,
+        T6) the remaining life is not estimated: the failure has happened.
     healthy_level : float, optional
         phi of the degradation model; default the median of ``baseline_scores`` when the scores are the health
         index (of the records before the onset when none are given), else 0.
@@ -195,7 +216,13 @@ def joint_prognosis(times, scores=None, p_values=None, health_index=None, baseli
         boot = np.random.default_rng(seed + 1).choice(healthy, size=(4000, len(healthy)), replace=True)
         thr = float(threshold) * np.median(boot, axis=1) / float(reference_level)
 
+    failed = fault_state in FAILED_STATES
+    model = model if model is not None else (model_for_state(fault_state) or "size")
+
     def rul(model: str) -> RulEstimate:
+        if failed:
+            return RulEstimate(False, f"the monitor names a broken tooth ({fault_state}): the joint has failed", model,
+                               last)
         if alarm is None:
             return RulEstimate(False, "no confirmed onset: the change detector has not alarmed", model, last)
         if hi is None:
