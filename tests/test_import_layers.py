@@ -24,6 +24,7 @@ LAYERS = {
     "evaluation": 7,
     "workflows": 8,  # the application layer: read a record, train, evaluate, diagnose (rvdiag.workflows)
     "monitoring": 9,  # a joint against its own baseline; uses workflows' record reading and checks
+    "prognostics": 9,  # change detection and remaining life on a joint's record scores (no signals)
     "fleet": 10,  # many joints over time, on monitoring and workflows
     "cli": 11, "__main__": 11,
 }
