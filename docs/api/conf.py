@@ -42,7 +42,8 @@ def setup(app):
 #: (package, what it is for the reader), application layer first
 PACKAGES = [
     ("workflows", "train, evaluate, diagnose a record: the Python API"),
-    ("monitoring", "the baseline monitor"),
+    ("monitoring", "the baseline monitor: one home"),
+    ("prognostics", "change detection and remaining life of a joint"),
     ("fleet", "history store, joint state, HTTP API, dashboard"),
     ("params", "reducer parameter sets"),
     ("gears", "gear geometry, mesh stiffness, tooth faults"),
@@ -53,7 +54,7 @@ PACKAGES = [
     ("datasets", "the Zarr sample store"),
     ("io", "measured signal files"),
     ("features", "feature extractors"),
-    ("models", "classifiers and the monitor's model"),
+    ("models", "classifiers, CNN features, persistence"),
     ("evaluation", "metrics, figures, the report"),
     ("kinematics", "characteristic and fault frequencies"),
     ("errors", "the exceptions rvdiag raises"),
