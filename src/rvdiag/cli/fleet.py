@@ -42,6 +42,10 @@ def _angle_channel():
     return typer.Option(None, "--angle-channel", metavar="RE", help="The input shaft's encoder angle channel (rad).")
 
 
+def _fs():
+    return opt.fs("Sampling rate in Hz (overrides the file's).")
+
+
 def _print_json(obj) -> None:
     typer.echo(json.dumps(obj, indent=2, default=str))
 
@@ -106,7 +110,7 @@ def register(app: typer.Typer) -> None:
                    files: List[Path] = typer.Argument(..., help="The joint's healthy commissioning records."),
                    output_speed: float = opt.output_speed(), load: float = opt.load("Output load torque, N m."),
                    meta_regex: str = _meta_regex(), channel: str = opt.channel(),
-                   angle_channel: str = _angle_channel(), fs: float = opt.fs("Sampling rate in Hz (overrides the file's)."),
+                   angle_channel: str = _angle_channel(), fs: float = _fs(),
                    time: Optional[str] = typer.Option(None, "--time", metavar="ISO",
                                                       help="When the baseline starts (default: now)."),
                    db: str = _db()) -> None:
@@ -129,7 +133,7 @@ def register(app: typer.Typer) -> None:
                                                              "match), ISO 8601."),
                output_speed: float = opt.output_speed(), load: float = opt.load("Output load torque, N m."),
                meta_regex: str = _meta_regex(), channel: str = opt.channel(),
-               angle_channel: str = _angle_channel(), fs: float = opt.fs("Sampling rate in Hz (overrides the file's)."),
+               angle_channel: str = _angle_channel(), fs: float = _fs(),
                json_out: bool = opt.json_flag("Print the results as JSON."),
                db: str = _db()) -> None:
         """Ingest record files of a joint (time: --time, --time-regex, else the file's modification time)."""
@@ -287,7 +291,7 @@ def register(app: typer.Typer) -> None:
                                                             "time)."),
               output_speed: float = opt.output_speed(), load: float = opt.load("Output load torque, N m."),
               meta_regex: str = _meta_regex(), channel: str = opt.channel(),
-              angle_channel: str = _angle_channel(), fs: float = opt.fs("Sampling rate in Hz (overrides the file's)."),
+              angle_channel: str = _angle_channel(), fs: float = _fs(),
               db: str = _db()) -> None:
         """Ingest new record files in a folder tree named by joint (DIR/plant/r1/j3/*.csv)."""
         from rvdiag.fleet import Fleet

@@ -519,7 +519,8 @@ class Fleet:
         return R.Rules.from_dict(raw).resolved(alpha)
 
     def stated_false_alarms_per_year(self, joint: str, records_per_day: float | None = None) -> float:
-        """The joint's stated false alarms per joint-year after learning (:func:`rvdiag.fleet.rules.false_alarms_per_year`)."""
+        """The joint's stated false alarms per joint-year after learning
+        (:func:`rvdiag.fleet.rules.false_alarms_per_year`)."""
         return R.false_alarms_per_year(self.rules(joint), records_per_day)
 
 
