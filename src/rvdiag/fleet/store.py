@@ -261,16 +261,16 @@ class Fleet:
         else:
             raw, mtime, path = bytes(data), None, None
         filename = Path(str(filename or "record").replace("\\", "/")).name or "record"
-        if time is not None:
-            t = _aware(time)
-        elif reading.time_regex:
-            t = time_from_name(filename, reading.time_regex)
-        else:
-            t = mtime or now()
         digest = checksum(raw)
         with self._sessions() as s:
             j = self._joint(s, joint)
             jid, monitor = j.id, Path(j.monitor)
+            if time is not None:
+                t = _aware(time)
+            elif reading.time_regex:
+                t = time_from_name(filename, reading.time_regex)
+            else:
+                t = mtime or now()
             dup = s.scalar(select(db.Record).where(db.Record.joint_id == jid, db.Record.checksum == digest))
             if dup is not None:
                 return self._ingest_answer(s, j, dup, duplicate=True)
@@ -286,7 +286,9 @@ class Fleet:
             sig = self.judge.read(kept, reading, monitor)
             result = self.judge.judge(monitor, base, sig, reading, op)
         except RvdiagError as exc:
-            rejected = " ".join(str(exc).split()) or type(exc).__name__
+            # the reader read the kept copy: name the file as the user knows it
+            text = str(exc).replace(str(kept), filename).replace(kept.name, filename)
+            rejected = " ".join(text.split()) or type(exc).__name__
         rec = db.Record(joint_id=jid, epoch_id=ep_id, time=t, received=now(), checksum=digest, filename=filename,
                         client_id=client_id, reading=reading.to_dict(), rejected=rejected)
         if result is not None:
