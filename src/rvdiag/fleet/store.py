@@ -175,13 +175,18 @@ class Fleet:
             return list(s.scalars(select(db.Joint.path).order_by(db.Joint.path)))
 
     # ------------------------------------------------------------------------------------------- epochs
-    def commission(self, joint: str, files: list[Path], reading: Reading, time: datetime | None = None) -> dict:
+    def commission(self, joint: str, files: list[Path], reading: Reading, time: datetime | None = None,
+                   operating_points: list[dict] | None = None) -> dict:
         """Make the joint's baseline from its commissioning records ``files`` (healthy, at the joint's operating
         points): a new epoch starting at ``time`` (default now); earlier epochs are kept.  Every file must read; a
-        bad one refuses the whole commissioning (nothing is stored)."""
+        bad one refuses the whole commissioning (nothing is stored).  Each file's operating point is ``reading``'s
+        (``output_speed``, ``load`` or ``meta_regex`` on its name), or the matching one of ``operating_points``
+        (``{"output_speed_deg_s", "load_Nm"}`` per file)."""
         files = [Path(f) for f in files]
         if not files:
             raise FleetError("commissioning needs at least one record file")
+        if operating_points is not None and len(operating_points) != len(files):
+            raise FleetError(f"{len(operating_points)} operating points for {len(files)} commissioning files")
         reading = reading or Reading()
         t = now() if time is None else _aware(time)
         with self._sessions() as s:
@@ -190,11 +195,13 @@ class Fleet:
             number = int(s.scalar(select(func.coalesce(func.max(db.Epoch.number), 0))
                                   .where(db.Epoch.joint_id == jid))) + 1
         signals, ops, kept = [], [], []
-        for f in files:
+        for i, f in enumerate(files):
             data = _read_bytes(f)
             try:
                 sig = self.judge.read(f, reading, monitor)
-                op = reading.operating_point(f.name)
+                op = reading.operating_point(f.name) if operating_points is None else \
+                    {"output_speed_deg_s": operating_points[i].get("output_speed_deg_s"),
+                     "load_Nm": operating_points[i].get("load_Nm")}
             except RvdiagError as exc:
                 raise FleetError(f"{f}: {exc}") from None
             if op["load_Nm"] is None:
