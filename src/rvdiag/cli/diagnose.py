@@ -35,8 +35,8 @@ import numpy as np
 import typer
 
 from rvdiag.cli import _options as opt
-from rvdiag.cli._record import (SPEED_META, flat_reason, not_recognised_line, recognition,  # noqa: F401
-                                 record_speed, state_name)
+from rvdiag.cli._baseline import not_recognised_line
+from rvdiag.workflows.records import SPEED_META, flat_reason, recognition, record_speed, state_name
 from rvdiag.errors import DataFileError, ParameterError
 
 MAX_ROWS = 40
@@ -269,27 +269,32 @@ def register(app: typer.Typer) -> None:
 
 
 def _monitor(loaded, file, channel, fs, baseline, meta, output_speed, load, json_out) -> bool:
-    """Diagnose with a baseline-referenced model (:mod:`rvdiag.cli._baseline`) and say True; False otherwise."""
-    from rvdiag.cli import _baseline
-    from rvdiag.io import read_signal
+    """Diagnose with a baseline-referenced model (:func:`rvdiag.monitoring.monitor_record`) and say True; False
+    otherwise."""
+    from types import SimpleNamespace
 
-    if not _baseline.needs_baseline(loaded):
+    from rvdiag.cli._baseline import print_diagnosis
+    from rvdiag.monitoring import monitor_record, needs_baseline, open_baseline
+    from rvdiag.workflows import read_record
+
+    if not needs_baseline(loaded):
         if baseline is not None:
             raise ParameterError(f"--baseline applies to a baseline-referenced model; {loaded.path} is not one")
         return False
-    sig = read_signal(file, channel_regex=channel, fs=fs)
-    from types import SimpleNamespace
-
-    given = _metadata_values(SimpleNamespace(card={}, metadata_columns=[]), sig, meta)  # --meta NAME=VALUE only
-    res = _baseline.diagnose_monitor(loaded, sig, baseline, given,
-                                     output_speed=output_speed, load=load)
-    res.update({"file": str(file), "channel": sig.channel, "model": str(loaded.path)})
+    if baseline is None:
+        raise ParameterError(f"the model {loaded.path} is baseline-referenced (its card says needs_baseline): give "
+                             "--baseline BASE.zarr, a healthy store of the same machine (docs/monitoring.md)")
+    base = open_baseline(baseline, loaded)
+    rec = read_record(file, channel=channel, fs=fs)
+    given = _metadata_values(SimpleNamespace(card={}, metadata_columns=[]), rec, meta)  # --meta NAME=VALUE only
+    res = monitor_record(loaded, rec, base, output_speed=output_speed, load=load, metadata=given).to_dict()
+    res.update({"file": str(file), "channel": rec.channel, "model": str(loaded.path)})
     for w in res["warnings"]:
         typer.echo(w, err=True)
     if json_out:
         typer.echo(json.dumps(res, indent=2))
     else:
-        _baseline.print_diagnosis(res)
+        print_diagnosis(res)
     return True
 
 

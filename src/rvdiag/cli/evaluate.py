@@ -1,7 +1,7 @@
 """``rvdiag evaluate MODEL_DIR DATA.zarr [--split test|train|all] [--where COND]... [--merge A=B,...] [--records] [--json]
 [--report FILE.html] [--snr-db=LEVELS [--plot FILE.png] [--bound BOUND.json]] [--baseline BASE.zarr]``.
 
-A baseline-referenced model (card ``needs_baseline``) is scored by :func:`rvdiag.cli._baseline.evaluate_monitor`."""
+A baseline-referenced model (card ``needs_baseline``) is scored by :func:`rvdiag.monitoring.evaluate_monitor`."""
 
 from __future__ import annotations
 
@@ -124,11 +124,11 @@ def register(app: typer.Typer) -> None:
 
 
 def _monitor(loaded, data, split, where, baseline, json_out, merge, others: dict) -> bool:
-    """Score a baseline-referenced model (:mod:`rvdiag.cli._baseline`; always per record, ``--merge`` as for any
-    model) and say True; False for any other model."""
-    from rvdiag.cli import _baseline
+    """Score a baseline-referenced model (:func:`rvdiag.monitoring.evaluate_monitor`; always per record, ``--merge``
+    as for any model) and say True; False for any other model."""
+    from rvdiag.monitoring import evaluate_monitor, needs_baseline
 
-    if not _baseline.needs_baseline(loaded):
+    if not needs_baseline(loaded):
         if baseline is not None:
             raise ParameterError(f"--baseline applies to a baseline-referenced model; {loaded.path} is not one")
         return False
@@ -138,11 +138,13 @@ def _monitor(loaded, data, split, where, baseline, json_out, merge, others: dict
     from rvdiag.datasets import SampleStore
 
     merge_map = parse_merge(merge, loaded.card["classes"]) if merge is not None else None
-    res = _baseline.evaluate_monitor(loaded, SampleStore.open(data), data, split, where or (), baseline, merge_map)
+    res = evaluate_monitor(loaded, SampleStore.open(data), data, split, where or (), baseline, merge_map)
     if json_out:
         typer.echo(json.dumps(res, indent=2))
     else:
-        _baseline.print_evaluation(res, loaded, data)
+        from rvdiag.cli._baseline import print_evaluation
+
+        print_evaluation(res, loaded, data)
     return True
 
 
