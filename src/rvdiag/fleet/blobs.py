@@ -22,6 +22,8 @@ ENV_BLOBS = "RVDIAG_FLEET_BLOBS"
 #: a suffix kept on a blob: a dot, then letters and digits (``.csv``, ``.gz``, ``.npy``), at most three of them
 _SUFFIX = re.compile(r"^(\.[a-z0-9]{1,8}){1,3}$")
 _HEX = re.compile(r"^[0-9a-f]{64}$")
+_ONE = re.compile(r"^\.[a-z][a-z0-9]{0,7}$")
+_COMPRESSED = (".gz", ".bz2", ".xz", ".zst")
 
 
 def checksum(data: bytes) -> str:
@@ -30,14 +32,20 @@ def checksum(data: bytes) -> str:
 
 
 def safe_suffix(filename: str) -> str:
-    """The file's suffixes (e.g. ``.csv.gz``) in lower case when they are plain letters and digits, else ``""``.
+    """The file's format ending in lower case (``.csv``, ``.npy``; with a compression ending before it, ``.csv.gz``)
+    when it is plain letters and digits, else ``""``: what the reader needs to know the format, and nothing of the
+    user's name that could make a path.
 
-    >>> safe_suffix("../../etc/x.CSV.gz"), safe_suffix("a.b c"), safe_suffix("noext")
-    ('.csv.gz', '', '')
+    >>> safe_suffix("../../etc/x.CSV.gz"), safe_suffix("r_44.9dps_50.1Nm.npy"), safe_suffix("a.b c"), safe_suffix("x")
+    ('.csv.gz', '.npy', '', '')
     """
     name = Path(str(filename).replace("\\", "/")).name.lower()
-    suffix = "".join(Path(name).suffixes[-3:])
-    return suffix if _SUFFIX.match(suffix) else ""
+    parts = Path(name).suffixes
+    if not parts or not _ONE.match(parts[-1]):
+        return ""
+    if parts[-1] in _COMPRESSED and len(parts) > 1 and _ONE.match(parts[-2]):
+        return parts[-2] + parts[-1]
+    return parts[-1]
 
 
 class BlobStore:
