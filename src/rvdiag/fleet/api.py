@@ -157,10 +157,10 @@ def _one_line(text: str) -> str:
 
 
 def _fleet_error_status(exc: Exception) -> int:
-    """The HTTP status of an error the fleet raised: its own ``http_status`` if it states one, 404 for an unknown
-    joint, 400 otherwise."""
-    status = getattr(exc, "http_status", None)
-    if isinstance(status, int):
+    """The HTTP status of an error the fleet raised: its own ``status`` if it states one (:class:`AuthError`), 404
+    for an unknown joint, 400 otherwise."""
+    status = getattr(exc, "status", None)
+    if isinstance(status, int) and 400 <= status < 500:
         return status
     if isinstance(exc, LookupError) or str(exc).lower().startswith("unknown joint"):
         return 404
@@ -303,7 +303,7 @@ def create_app(fleet, *, max_upload: int | None = None, read_needs_token: bool |
 
     def known(joint: str) -> str:
         check_joint_name(joint)
-        if not any(row["joint"] == joint for row in fleet.status()):
+        if joint not in fleet.joints():
             raise ApiError(404, f"unknown joint {joint!r}")
         return joint
 
@@ -311,7 +311,7 @@ def create_app(fleet, *, max_upload: int | None = None, read_needs_token: bool |
     @app.get("/api/health", tags=["service"])
     def health(request: Request):
         """Liveness: the store answers (no token needed)."""
-        return _json({"ok": True, "version": __version__, "joints": len(fleet.status())})
+        return _json({"ok": True, "version": __version__, "joints": len(fleet.joints())})
 
     @app.get("/api/joints", tags=["read"])
     def joints(request: Request):
@@ -331,15 +331,13 @@ def create_app(fleet, *, max_upload: int | None = None, read_needs_token: bool |
     def history(request: Request, joint: str, limit: Annotated[int | None, Query(ge=1, le=100000)] = None):
         """The joint's records, oldest first; ``limit`` keeps the last N."""
         reader(request)
-        check_joint_name(joint)
-        return _json(fleet.history(joint, limit=limit))
+        return _json(fleet.history(known(joint), limit=limit))
 
     @app.get("/api/joints/{joint:path}/events", tags=["read"])
     def joint_events(request: Request, joint: str, kind: str | None = None):
         """The joint's events (raised, acknowledged, cleared, maintenance, commissioned), oldest first."""
         reader(request)
-        check_joint_name(joint)
-        return _json(fleet.events(joint, kind=kind))
+        return _json(fleet.events(known(joint), kind=kind))
 
     @app.get("/api/events", tags=["read"])
     def all_events(request: Request, kind: str | None = None):
@@ -385,8 +383,6 @@ def create_app(fleet, *, max_upload: int | None = None, read_needs_token: bool |
                           meta_regex=meta_regex or None, time_regex=time_regex or None)
         when = _parse_time(time)
         data = file.file.read()
-        if not data:
-            raise ApiError(400, f"{filename}: the file is empty")
         out = fleet.ingest(joint, data, filename=filename, reading=reading, time=when,
                            client_id=client_id or idempotency_key or None)
         if out.get("rejected"):
