@@ -22,7 +22,7 @@ LAYERS = {
     "features": 5,
     "models": 6,
     "evaluation": 7,
-    "cli": 8, "__main__": 8,
+    "cli": 8, "__main__": 8, "fleet": 8,
 }
 
 

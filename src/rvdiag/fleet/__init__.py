@@ -1,33 +1,19 @@
-"""PLACEHOLDER until branch ``fleet`` lands: the names of INTERFACES.md B that ``rvdiag.fleet.api`` imports.
+"""Watching a fleet of robot joints over their life (issue 34; docs/fleet.md).
 
-Replaced wholesale by the fleet branch's package at merge (take theirs)."""
+- :mod:`rvdiag.fleet.store`: :class:`Fleet`, the one code path of the CLI (``rvdiag fleet ...``), the folder
+  watcher and the HTTP API: joints, commissioning (epochs), ingest, status, history, events, acknowledgement,
+  maintenance, tokens;
+- :mod:`rvdiag.fleet.db`: the tables (SQLAlchemy 2) and :mod:`rvdiag.fleet.migrations` (Alembic);
+- :mod:`rvdiag.fleet.rules`: the joint's state from its records (pure functions) and the stated false-alarm rate;
+- :mod:`rvdiag.fleet.judge`: reading a record and calling the monitor, models and baselines cached per process;
+- :mod:`rvdiag.fleet.blobs`: raw records kept content-addressed beside the database;
+- :mod:`rvdiag.fleet.auth`: API tokens, stored hashed;
+- :mod:`rvdiag.fleet.watch`: new files in a folder tree named by joint.
+"""
 
-from __future__ import annotations
+from rvdiag.errors import AuthError, FleetError
+from rvdiag.fleet.judge import Reading
+from rvdiag.fleet.rules import STATES, Rules
+from rvdiag.fleet.store import Fleet
 
-from dataclasses import dataclass
-
-from rvdiag.errors import RvdiagError
-
-
-class FleetError(RvdiagError):
-    """A fleet operation refused (unknown joint, bad record, newer schema...)."""
-
-
-class AuthError(FleetError):
-    """A missing, unknown or read-only token for the operation asked."""
-
-
-@dataclass(frozen=True)
-class Reading:
-    """How to read a joint's record files."""
-
-    channel: str | None = None
-    fs: float | None = None
-    angle_channel: str | None = None
-    output_speed: float | None = None
-    load: float | None = None
-    meta_regex: str | None = None
-    time_regex: str | None = None
-
-
-__all__ = ["AuthError", "FleetError", "Reading"]
+__all__ = ["AuthError", "Fleet", "FleetError", "Reading", "Rules", "STATES"]
