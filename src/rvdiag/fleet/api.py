@@ -42,7 +42,6 @@ from __future__ import annotations
 import math
 import os
 import re
-from datetime import datetime
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -57,8 +56,9 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from rvdiag import __version__
 from rvdiag.errors import RvdiagError
-from rvdiag.fleet import AuthError, Reading
+from rvdiag.fleet import AuthError, FleetError, Reading
 from rvdiag.fleet import web
+from rvdiag.fleet.store import parse_time, split_joint
 
 #: Default upload limit, bytes (a 10 s record of 8 float64 channels at 48 kHz is 31 MiB as NPY).
 DEFAULT_MAX_UPLOAD = 64 * 1024 * 1024
@@ -68,9 +68,6 @@ ENV_READ_TOKEN = "RVDIAG_FLEET_READ_TOKEN"
 #: The cookie the dashboard sets for reads when ``read_needs_token`` (never accepted for writes).
 TOKEN_COOKIE = "rvdiag_token"
 
-#: A joint name: site/robot/joint, 1 to 8 segments of letters, digits, ``_ . -``, each starting with a letter or
-#: digit (so no ``.`` or ``..`` segment, no leading ``/``, no backslash); at most 200 characters.
-JOINT_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*(?:/[A-Za-z0-9][A-Za-z0-9_.-]*){0,7}")
 #: An uploaded file's name (only its last path component is kept): letters, digits, space and ``_ . + - = , @``,
 #: not starting with a dot.
 FILENAME_PATTERN = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_ .+=,@-]{0,199}")
@@ -102,10 +99,15 @@ class Note(BaseModel):
 
 
 def check_joint_name(joint: str) -> str:
-    """``joint`` if it is a valid joint name (:data:`JOINT_PATTERN`), else :class:`ApiError` 400."""
-    if len(joint) > 200 or not JOINT_PATTERN.fullmatch(joint):
-        raise ApiError(400, f"invalid joint name {joint[:80]!r}: use site/robot/joint, each part letters, digits, "
-                            "'_', '.', '-' starting with a letter or digit")
+    """``joint`` if it is a joint's name exactly as the store spells it (site/robot/joint, each part letters,
+    digits, ``_ . -`` not starting with a dot: :func:`rvdiag.fleet.store.split_joint`), else :class:`ApiError`
+    400.  No ``..``, no leading ``/``, no backslash can pass."""
+    try:
+        parts = split_joint(joint)
+    except FleetError as exc:
+        raise ApiError(400, str(exc)) from None
+    if "/".join(parts) != joint:
+        raise ApiError(400, f"a joint is named site/robot/joint with no extra '/' or space; got {joint[:80]!r}")
     return joint
 
 
@@ -123,13 +125,6 @@ def _finite(name: str, value: float | None) -> float | None:
     return value
 
 
-def _parse_time(value: str | None) -> datetime | None:
-    if value is None or value == "":
-        return None
-    try:
-        return datetime.fromisoformat(value)
-    except ValueError:
-        raise ApiError(400, f"time {value[:60]!r} is not ISO 8601 (e.g. 2026-03-01T08:00:00+00:00)") from None
 
 
 def _clean(obj: Any) -> Any:
@@ -381,7 +376,7 @@ def create_app(fleet, *, max_upload: int | None = None, read_needs_token: bool |
         reading = Reading(channel=channel or None, fs=_finite("fs", fs), angle_channel=angle_channel or None,
                           output_speed=_finite("output_speed", output_speed), load=_finite("load", load),
                           meta_regex=meta_regex or None, time_regex=time_regex or None)
-        when = _parse_time(time)
+        when = parse_time(time, where="time") if time else None
         data = file.file.read()
         out = fleet.ingest(joint, data, filename=filename, reading=reading, time=when,
                            client_id=client_id or idempotency_key or None)
@@ -434,4 +429,4 @@ def create_app(fleet, *, max_upload: int | None = None, read_needs_token: bool |
     return app
 
 
-__all__ = ["DEFAULT_MAX_UPLOAD", "JOINT_PATTERN", "ApiError", "check_joint_name", "create_app"]
+__all__ = ["DEFAULT_MAX_UPLOAD", "ApiError", "check_joint_name", "create_app"]
