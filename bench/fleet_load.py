@@ -24,7 +24,8 @@ Usage::
     eval "$(bash tests/services/start.sh)"   # RVDIAG_TEST_POSTGRES
     PYTHONPATH=src python bench/fleet_load.py kill --db postgres --clients 8 --records 200
     PYTHONPATH=src python bench/fleet_load.py two --db postgres --clients 8 --records 200
-    PYTHONPATH=src python bench/fleet_load.py throughput --monitor MODEL_DIR --commission F1 F2 ... --records R1 ...
+    PYTHONPATH=src python bench/fleet_load.py throughput --monitor MODEL_DIR --commission F1 F2 ... --files R1 ... \\
+        --records 60 --clients 4 --servers 2 --load 50
 
 ``--db postgres`` creates a database of a random name on the server of ``$RVDIAG_TEST_POSTGRES`` and drops it
 afterwards.  ``serve`` (used by the scenarios, and by tests/test_fleet_browser.py) runs one server:
@@ -147,13 +148,15 @@ def serve(url: str, port: int, tiny: bool, host: str = "127.0.0.1") -> None:
 
 
 def start_server(url: str, port: int, tiny: bool = True, log: Path | None = None) -> subprocess.Popen:
-    """Start :func:`serve` in a new process and wait until it answers ``/api/health`` (30 s at most)."""
+    """Start a server process (:func:`serve` with :class:`TinyJudge` if ``tiny``, else ``rvdiag fleet serve``) and
+    wait until it answers ``/api/health`` (60 s at most)."""
     import httpx
 
     env = dict(os.environ, PYTHONPATH=str(REPO / "src") + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    cmd = [sys.executable, str(Path(__file__).resolve()), "serve", "--db", url, "--port", str(port)]
     if tiny:
-        cmd.append("--tiny-judge")
+        cmd = [sys.executable, str(Path(__file__).resolve()), "serve", "--db", url, "--port", str(port), "--tiny-judge"]
+    else:  # the service as users start it
+        cmd = [sys.executable, "-m", "rvdiag", "fleet", "serve", "--db", url, "--port", str(port)]
     out = open(log, "ab") if log else subprocess.DEVNULL
     proc = subprocess.Popen(cmd, env=env, stdout=out, stderr=out)
     deadline = time.monotonic() + 60
@@ -261,7 +264,8 @@ def check_store(url: str, sent: dict[str, list[bytes]]) -> dict:
 @contextmanager
 def database(spec: str, workdir: Path):
     """A fresh store URL: ``postgres`` -> a new database on ``$RVDIAG_TEST_POSTGRES``'s server (dropped at the
-    end); ``sqlite`` -> a file in ``workdir``; else ``spec`` itself."""
+    end; raw records in ``workdir/blobs`` unless ``$RVDIAG_FLEET_BLOBS`` says); ``sqlite`` -> a file in
+    ``workdir``; else ``spec`` itself."""
     if spec == "sqlite":
         yield f"sqlite:///{workdir / 'fleet.db'}"
         return
@@ -273,6 +277,7 @@ def database(spec: str, workdir: Path):
     base = os.environ.get("RVDIAG_TEST_POSTGRES")
     if not base:
         raise SystemExit('error: RVDIAG_TEST_POSTGRES is not set: eval "$(bash tests/services/start.sh)"')
+    os.environ.setdefault("RVDIAG_FLEET_BLOBS", str(workdir / "blobs"))  # raw records beside (servers inherit it)
     name = "rvdiag_load_" + secrets.token_hex(4)
     admin = sa.create_engine(base, isolation_level="AUTOCOMMIT")
     with admin.connect() as c:
@@ -339,6 +344,107 @@ def scenario(kind: str, db_spec: str, n_clients: int, n_records: int, kills: int
             "p95_ms": round(float(np.percentile(lat, 95)) * 1000, 1)}
 
 
+def variants(files: list[Path], n: int, seed: int = 0) -> list[tuple[str, bytes]]:
+    """``n`` distinct records from ``files`` (NPZ or NPY): the files themselves, then copies with noise of 1e-6 of
+    each channel's RMS added (distinct bytes, so the store does not take them for the same record; the judging work
+    is the same)."""
+    rng = np.random.default_rng(seed)
+    out = [(f.name, f.read_bytes()) for f in files[:n]]
+    i = 0
+    while len(out) < n:
+        f = files[i % len(files)]
+        i += 1
+        if f.suffix == ".npy":
+            x = np.load(f, allow_pickle=False)
+            buf = io.BytesIO()
+            np.save(buf, x + rng.normal(size=x.shape) * 1e-6 * np.sqrt(np.mean(x ** 2)))
+        else:
+            with np.load(f, allow_pickle=False) as z:
+                arrays = {k: z[k] for k in z.files}
+            for k, v in arrays.items():
+                if v.ndim >= 1 and v.dtype.kind == "f" and v.size > 1000:
+                    arrays[k] = v + rng.normal(size=v.shape) * 1e-6 * np.sqrt(np.mean(v ** 2))
+            buf = io.BytesIO()
+            np.savez(buf, **arrays)
+        out.append((f"v{len(out):04d}-{f.name}", buf.getvalue()))
+    return out
+
+
+def throughput(monitor: Path, commission: list[Path], records: list[Path], *, n: int, clients: int, servers: int,
+               n_cli: int, load: float, output_speed: float | None, workdir: Path) -> dict:
+    """Records/s sustained and latency through the HTTP API with the real monitor (after one warm-up record per
+    server), against ``rvdiag diagnose MODEL FILE --baseline BASE`` run as one process per record."""
+    import httpx
+
+    from rvdiag.fleet import Fleet, Reading
+
+    workdir.mkdir(parents=True, exist_ok=True)
+    url = f"sqlite:///{workdir / 'fleet.db'}"
+    joint = "plant/r1/j1"
+    fleet = Fleet.init(url)
+    fleet.add_joint(joint, monitor=monitor)
+    reading = Reading(load=load, output_speed=output_speed)
+    info = fleet.commission(joint, commission, reading, time=datetime(2024, 1, 1, tzinfo=timezone.utc))
+    token = fleet.create_token("bench", read_only=False)
+    fleet.close()
+    recs = variants(records, n + servers)
+    ports = [free_port() for _ in range(servers)]
+    procs = [start_server(url, p, tiny=False, log=workdir / "server.log") for p in ports]
+    bases = [f"http://127.0.0.1:{p}" for p in ports]
+    form = {"load": str(load)} | ({"output_speed": str(output_speed)} if output_speed is not None else {})
+    try:
+        for k, b in enumerate(bases):  # warm-up: the model and baseline loaded once per server process
+            r = httpx.post(f"{b}/api/joints/{joint}/records", headers={"Authorization": f"Bearer {token}"},
+                           files={"file": recs[k]}, data=form | {"time": "2024-02-01T00:00:00Z"}, timeout=300)
+            assert r.status_code == 201, r.text
+        queue = list(enumerate(recs[servers:]))
+        lock = threading.Lock()
+        lat, errors = [], []
+
+        def worker(w):
+            with httpx.Client(timeout=300) as http:
+                while True:
+                    with lock:
+                        if not queue:
+                            return
+                        i, (name, data) = queue.pop(0)
+                    t = time.perf_counter()
+                    r = http.post(f"{bases[w % servers]}/api/joints/{joint}/records",
+                                  headers={"Authorization": f"Bearer {token}"}, files={"file": (name, data)},
+                                  data=form | {"time": (datetime(2024, 2, 2, tzinfo=timezone.utc)
+                                                        + timedelta(minutes=i)).isoformat()})
+                    with lock:
+                        lat.append(time.perf_counter() - t)
+                        if r.status_code != 201:
+                            errors.append(f"{r.status_code} {r.text[:200]}")
+
+        t0 = time.perf_counter()
+        threads = [threading.Thread(target=worker, args=(w,)) for w in range(clients)]
+        for th in threads:
+            th.start()
+        for th in threads:
+            th.join()
+        wall = time.perf_counter() - t0
+    finally:
+        for p in procs:
+            stop(p)
+    assert not errors, errors[:3]
+    env = dict(os.environ, PYTHONPATH=str(REPO / "src") + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    cli = []
+    for f in records[:n_cli]:
+        cmd = [sys.executable, "-m", "rvdiag", "diagnose", str(monitor), str(f), "--baseline", info["baseline"],
+               "--load", str(load), "--json"] + (["--output-speed", str(output_speed)] if output_speed else [])
+        t = time.perf_counter()
+        subprocess.run(cmd, env=env, check=True, capture_output=True)
+        cli.append(time.perf_counter() - t)
+    lat = np.array(lat)
+    return {"scenario": "throughput", "servers": servers, "clients": clients, "records": len(lat),
+            "records_per_s": round(len(lat) / wall, 2), "p50_s": round(float(np.median(lat)), 3),
+            "p95_s": round(float(np.percentile(lat, 95)), 3),
+            "cli_s_per_record": round(float(np.mean(cli)), 2), "cli_records_per_s": round(1 / float(np.mean(cli)), 3),
+            "speedup": round(len(lat) / wall * float(np.mean(cli)), 1)}
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("scenario", choices=["load", "kill", "two", "serve", "throughput"])
@@ -350,16 +456,28 @@ def main(argv=None):
     ap.add_argument("--tiny-judge", action="store_true")
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--monitor", type=Path, help="throughput: the monitor model directory")
+    ap.add_argument("--commission", type=Path, nargs="+", help="throughput: the joint's commissioning files")
+    ap.add_argument("--files", type=Path, nargs="+", help="throughput: record files (NPZ/NPY; varied to --records)")
+    ap.add_argument("--servers", type=int, default=1, help="throughput: server processes on the one store")
+    ap.add_argument("--cli-records", type=int, default=5, help="throughput: records diagnosed by the CLI path")
+    ap.add_argument("--load", type=float, default=50.0, help="throughput: the records' load, N m")
+    ap.add_argument("--output-speed", type=float, default=None, help="throughput: the records' speed, deg/s")
     args = ap.parse_args(argv)
     if args.scenario == "serve":
         serve(args.db, args.port, args.tiny_judge)
         return
-    if args.scenario == "throughput":
-        raise SystemExit("error: the throughput scenario needs the application layer's monitor_record "
-                         "(branch app); not run yet")
     import tempfile
 
     workdir = args.workdir or Path(tempfile.mkdtemp(prefix="fleet-load-"))
+    if args.scenario == "throughput":
+        if not (args.monitor and args.commission and args.files):
+            raise SystemExit("error: throughput needs --monitor MODEL_DIR --commission FILE... --files FILE...")
+        out = throughput(args.monitor, args.commission, args.files, n=args.records, clients=args.clients,
+                         servers=args.servers, n_cli=args.cli_records, load=args.load,
+                         output_speed=args.output_speed, workdir=workdir)
+        print(json.dumps(out))
+        return
     out = scenario(args.scenario, args.db, args.clients, args.records, args.kills, workdir, args.seed)
     print(json.dumps(out))
 

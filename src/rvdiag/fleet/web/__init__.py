@@ -20,7 +20,7 @@ import json
 import math
 import shutil
 from dataclasses import dataclass, replace
-from datetime import datetime, timezone
+from datetime import datetime, timedelta, timezone
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -230,8 +230,13 @@ def _index_figure(history: list[dict], threshold: float | None, events: list[dic
             shapes.append({"type": "line", "yref": "paper", "y0": 0, "y1": 1, "x0": fmt_iso(ev["time"]),
                            "x1": fmt_iso(ev["time"]), "line": {"color": colours[ev["kind"]], "width": 1,
                                                                "dash": "dot"}})
+    xaxis = {"title": {"text": "record time (UTC)"}}
+    times = [_dt(h["time"]) for h in ok]
+    if times:  # the records' span (an event long before them, e.g. commissioning, would squeeze them)
+        pad = max((max(times) - min(times)) * 0.03, timedelta(hours=1))
+        xaxis["range"] = [fmt_iso(min(times) - pad), fmt_iso(max(times) + pad)]
     layout = {"margin": {"l": 55, "r": 15, "t": 10, "b": 40}, "height": 320, "hovermode": "closest",
-              "xaxis": {"title": {"text": "record time (UTC)"}}, "yaxis": {"title": {"text": "health index"}},
+              "xaxis": xaxis, "yaxis": {"title": {"text": "health index"}},
               "shapes": shapes, "annotations": annotations, "legend": {"orientation": "h", "y": 1.08}}
     return {"data": data, "layout": layout}
 
