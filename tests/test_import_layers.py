@@ -22,7 +22,10 @@ LAYERS = {
     "features": 5,
     "models": 6,
     "evaluation": 7,
-    "cli": 8, "__main__": 8, "fleet": 8,
+    "workflows": 8,  # the application layer: read a record, train, evaluate, diagnose (rvdiag.workflows)
+    "monitoring": 9,  # a joint against its own baseline; uses workflows' record reading and checks
+    "fleet": 10,  # many joints over time, on monitoring and workflows
+    "cli": 11, "__main__": 11,
 }
 
 

@@ -14,7 +14,14 @@ import threading
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+import numpy as np
+
 from rvdiag.errors import FleetError, ParameterError
+
+#: a record is clipped when more than this share of its samples sit at its two extremes (:func:`clipped_reason`)
+CLIP_SHARE = 0.01
+#: ... and it has more distinct values than this (a coarse quantiser's few levels are not a clipped sensor)
+CLIP_MIN_LEVELS = 64
 
 
 @dataclass(frozen=True)
@@ -135,6 +142,10 @@ class Judge:
         """The monitor's result for one record (``MonitorResult.to_dict()``)."""
         from rvdiag.monitoring import monitor_record
 
+        x = np.asarray(getattr(signal, "data", signal), dtype=np.float64)
+        clipped = clipped_reason(x)
+        if clipped is not None:
+            return not_recognised(clipped, self.describe(monitor)["alpha"], operating_point)
         res = monitor_record(self.model(monitor), signal, self.baseline(monitor, baseline),
                              output_speed=operating_point.get("output_speed_deg_s"),
                              load=operating_point.get("load_Nm"))
@@ -142,9 +153,39 @@ class Judge:
         return json.loads(json.dumps(out, default=_jsonable))
 
 
-def _jsonable(v):
-    import numpy as np
+def clipped_reason(x: np.ndarray) -> str | None:
+    """Why a record looks clipped (a saturated sensor or amplifier), or None: more than :data:`CLIP_SHARE` of its
+    samples at its minimum or maximum (within 1e-6 of its range), among more than :data:`CLIP_MIN_LEVELS` distinct
+    values.  A healthy record reaches its extremes in a handful of samples; a clipped one sits there.
 
+    >>> t = np.linspace(0, 20, 24000)
+    >>> clipped_reason(np.sin(t)) is None, clipped_reason(np.clip(np.sin(t), -0.5, 0.5))[:5]
+    (True, '66.0 ')
+    """
+    x = np.asarray(x, dtype=np.float64).ravel()
+    if x.size == 0 or not np.all(np.isfinite(x)):
+        return None
+    lo, hi = float(x.min()), float(x.max())
+    span = hi - lo
+    if span <= 0:
+        return None  # constant: the monitor's flat check says so
+    tol = 1e-6 * span
+    share = (np.count_nonzero(x >= hi - tol) + np.count_nonzero(x <= lo + tol)) / x.size
+    if share <= CLIP_SHARE or np.unique(x).size <= CLIP_MIN_LEVELS:
+        return None
+    return (f"{100 * share:.1f} % of the samples sit at the record's extremes ({lo:.4g}, {hi:.4g}): a clipped "
+            "(saturated) sensor or amplifier?")
+
+
+def not_recognised(reason: str, alpha: float | None, operating_point: dict) -> dict:
+    """The monitor's answer (``MonitorResult.to_dict()``'s keys) for a record the fleet's own checks refuse."""
+    return {"health_index": None, "p_value": None, "alarm": None, "false_alarm_rate": alpha, "threshold": None,
+            "state": None, "state_name": None, "probability": None, "probabilities": {}, "changes": [],
+            "recognised": False, "reason": reason, "operating_point": operating_point, "warnings": [],
+            "n_windows": 0, "windows": []}
+
+
+def _jsonable(v):
     if isinstance(v, np.generic):
         return v.item()
     if isinstance(v, np.ndarray):

@@ -23,7 +23,8 @@ must be at least ``1/alpha - 1`` for any alarm to be possible (:meth:`Rules.chec
 **Persistence, hysteresis, latching** (ISO 17359 alarm criteria; ThingsBoard / Grafana practice).  ``alert`` from
 the first alarming record; ``alarm`` when ``k`` of the last ``n`` recognised records alarm; an alert clears after
 ``m`` consecutive normal records.  An alarm latches: it stays ``alarm`` until acknowledged, and clears (event
-``cleared``) once acknowledged and ``m`` consecutive records are normal; while it is raised no second one is.
+``cleared``) once acknowledged and ``m`` consecutive records are normal; while it is raised no second one is, and
+once cleared the count of ``k`` of ``n`` starts afresh.
 
 **Sensor faults.**  A record that is not recognised (flat, clipped, no mesh line, out of distribution) shows the
 joint as ``sensor-fault`` until the next recognised one; it counts neither as an alarming nor as a normal record
@@ -168,9 +169,11 @@ def conformal_p_value(calibration, score: float) -> float:
     return float((1 + np.count_nonzero(c >= score)) / (c.size + 1))
 
 
-def replay(items, rules: Rules) -> list[Step]:
+def replay(items, rules: Rules, *, acknowledge_at_once: bool = False) -> list[Step]:
     """The joint's state after each item of one epoch, in time order (ties: records before acknowledgements, then
-    as given).  ``rules`` must be :meth:`Rules.resolved`.  Pure: the same items give the same steps."""
+    as given).  ``rules`` must be :meth:`Rules.resolved`.  Pure: the same items give the same steps.
+    ``acknowledge_at_once``: every alarm is taken as acknowledged when raised (as :func:`false_alarms_per_year`
+    states the rate; for simulations)."""
     if rules.alpha is None or rules.learning is None:
         raise ValueError("replay needs resolved rules (Rules.resolved)")
     order = sorted(range(len(items)), key=lambda i: (items[i].time, items[i].kind != "record", i))
@@ -190,6 +193,7 @@ def replay(items, rules: Rules) -> list[Step]:
                 events.append("acknowledged")
                 if normal_run >= rules.m:
                     in_alarm = False
+                    window.clear()
                     events.append("cleared")
         elif not it.recognised or it.health_index is None and it.monitor_alarm is None:
             sensor = True
@@ -206,10 +210,11 @@ def replay(items, rules: Rules) -> list[Step]:
             window.append(rec_alarm)
             normal_run = 0 if rec_alarm else normal_run + 1
             if not in_alarm and sum(window) >= rules.k:
-                in_alarm, acked = True, False
+                in_alarm, acked = True, acknowledge_at_once
                 events.append("raised")
             elif in_alarm and acked and normal_run >= rules.m:
                 in_alarm = False
+                window.clear()  # a fresh start: the alarms before the clear do not raise the next one
                 events.append("cleared")
         if sensor:
             state = "sensor-fault"
@@ -248,7 +253,7 @@ def _chain(rules: Rules):
                 if bit:
                     raise_on_alarm[i] = True
             elif a and c2 >= m:
-                a2 = 0
+                a2, w2 = 0, 0
             nxt[i, bit] = index[(w2, a2, c2)]
     return states, nxt, raise_on_alarm
 

@@ -175,13 +175,18 @@ class Fleet:
             return list(s.scalars(select(db.Joint.path).order_by(db.Joint.path)))
 
     # ------------------------------------------------------------------------------------------- epochs
-    def commission(self, joint: str, files: list[Path], reading: Reading, time: datetime | None = None) -> dict:
+    def commission(self, joint: str, files: list[Path], reading: Reading, time: datetime | None = None,
+                   operating_points: list[dict] | None = None) -> dict:
         """Make the joint's baseline from its commissioning records ``files`` (healthy, at the joint's operating
         points): a new epoch starting at ``time`` (default now); earlier epochs are kept.  Every file must read; a
-        bad one refuses the whole commissioning (nothing is stored)."""
+        bad one refuses the whole commissioning (nothing is stored).  Each file's operating point is ``reading``'s
+        (``output_speed``, ``load`` or ``meta_regex`` on its name), or the matching one of ``operating_points``
+        (``{"output_speed_deg_s", "load_Nm"}`` per file)."""
         files = [Path(f) for f in files]
         if not files:
             raise FleetError("commissioning needs at least one record file")
+        if operating_points is not None and len(operating_points) != len(files):
+            raise FleetError(f"{len(operating_points)} operating points for {len(files)} commissioning files")
         reading = reading or Reading()
         t = now() if time is None else _aware(time)
         with self._sessions() as s:
@@ -190,11 +195,13 @@ class Fleet:
             number = int(s.scalar(select(func.coalesce(func.max(db.Epoch.number), 0))
                                   .where(db.Epoch.joint_id == jid))) + 1
         signals, ops, kept = [], [], []
-        for f in files:
+        for i, f in enumerate(files):
             data = _read_bytes(f)
             try:
                 sig = self.judge.read(f, reading, monitor)
-                op = reading.operating_point(f.name)
+                op = reading.operating_point(f.name) if operating_points is None else \
+                    {"output_speed_deg_s": operating_points[i].get("output_speed_deg_s"),
+                     "load_Nm": operating_points[i].get("load_Nm")}
             except RvdiagError as exc:
                 raise FleetError(f"{f}: {exc}") from None
             if op["load_Nm"] is None:
@@ -261,16 +268,16 @@ class Fleet:
         else:
             raw, mtime, path = bytes(data), None, None
         filename = Path(str(filename or "record").replace("\\", "/")).name or "record"
-        if time is not None:
-            t = _aware(time)
-        elif reading.time_regex:
-            t = time_from_name(filename, reading.time_regex)
-        else:
-            t = mtime or now()
         digest = checksum(raw)
         with self._sessions() as s:
             j = self._joint(s, joint)
             jid, monitor = j.id, Path(j.monitor)
+            if time is not None:
+                t = _aware(time)
+            elif reading.time_regex:
+                t = time_from_name(filename, reading.time_regex)
+            else:
+                t = mtime or now()
             dup = s.scalar(select(db.Record).where(db.Record.joint_id == jid, db.Record.checksum == digest))
             if dup is not None:
                 return self._ingest_answer(s, j, dup, duplicate=True)
@@ -286,7 +293,9 @@ class Fleet:
             sig = self.judge.read(kept, reading, monitor)
             result = self.judge.judge(monitor, base, sig, reading, op)
         except RvdiagError as exc:
-            rejected = " ".join(str(exc).split()) or type(exc).__name__
+            # the reader read the kept copy: name the file as the user knows it
+            text = str(exc).replace(str(kept), filename).replace(kept.name, filename)
+            rejected = " ".join(text.split()) or type(exc).__name__
         rec = db.Record(joint_id=jid, epoch_id=ep_id, time=t, received=now(), checksum=digest, filename=filename,
                         client_id=client_id, reading=reading.to_dict(), rejected=rejected)
         if result is not None:
@@ -519,7 +528,8 @@ class Fleet:
         return R.Rules.from_dict(raw).resolved(alpha)
 
     def stated_false_alarms_per_year(self, joint: str, records_per_day: float | None = None) -> float:
-        """The joint's stated false alarms per joint-year after learning (:func:`rvdiag.fleet.rules.false_alarms_per_year`)."""
+        """The joint's stated false alarms per joint-year after learning
+        (:func:`rvdiag.fleet.rules.false_alarms_per_year`)."""
         return R.false_alarms_per_year(self.rules(joint), records_per_day)
 
 
