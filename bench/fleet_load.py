@@ -277,7 +277,8 @@ def database(spec: str, workdir: Path):
     base = os.environ.get("RVDIAG_TEST_POSTGRES")
     if not base:
         raise SystemExit('error: RVDIAG_TEST_POSTGRES is not set: eval "$(bash tests/services/start.sh)"')
-    os.environ.setdefault("RVDIAG_FLEET_BLOBS", str(workdir / "blobs"))  # raw records beside (servers inherit it)
+    blobs = os.environ.get("RVDIAG_FLEET_BLOBS")
+    os.environ["RVDIAG_FLEET_BLOBS"] = blobs or str(workdir / "blobs")  # raw records (the servers inherit it)
     name = "rvdiag_load_" + secrets.token_hex(4)
     admin = sa.create_engine(base, isolation_level="AUTOCOMMIT")
     with admin.connect() as c:
@@ -288,6 +289,8 @@ def database(spec: str, workdir: Path):
         with admin.connect() as c:
             c.execute(sa.text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
         admin.dispose()
+        if blobs is None:
+            del os.environ["RVDIAG_FLEET_BLOBS"]
 
 
 def run_clients(urls_of, token, sent, t0):

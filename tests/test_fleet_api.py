@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import io
 import json
+import os
 import pickle
 import re
 import sys
@@ -286,9 +287,24 @@ def test_snapshot_is_static_relative_and_replaces_only_a_snapshot(env, tmp_path)
 
 
 # ---------------------------------------------------------------------------------------------------- faults
-def test_a_server_killed_mid_run_loses_and_doubles_nothing(tmp_path):
-    """3 clients x 15 records through a real server process killed with SIGKILL once mid-run (bench/fleet_load.py
-    kill, small)."""
-    out = scenario("kill", "sqlite", n_clients=3, n_records=15, kills=1, workdir=tmp_path)
-    assert out["resent"] > 0  # the kill did interrupt the clients
-    assert out["kills"] == 1 and out["stored"] == 45 and out["lost"] == 0 and out["doubled"] == 0
+def _postgres():
+    if os.environ.get("RVDIAG_TEST_POSTGRES"):
+        return None
+    if os.environ.get("CI") == "true":
+        pytest.fail("RVDIAG_TEST_POSTGRES is not set: CI must start PostgreSQL (tests/services/start.sh)")
+    return 'no PostgreSQL: eval "$(bash tests/services/start.sh)"'
+
+
+@pytest.mark.parametrize("kind,db", [("kill", "sqlite"), ("two", "postgres")])
+def test_servers_killed_or_side_by_side_lose_and_double_nothing(tmp_path, kind, db):
+    """3 clients x 15 records through real server processes (bench/fleet_load.py, small): one killed with SIGKILL
+    mid-run and restarted, the clients resending what was not answered; or two servers on one PostgreSQL
+    database, the clients split between them."""
+    if db == "postgres" and (why := _postgres()):
+        pytest.skip(why)
+    out = scenario(kind, db, n_clients=3, n_records=15, kills=1, workdir=tmp_path)
+    if kind == "kill":
+        assert out["kills"] == 1 and out["resent"] > 0  # the kill did interrupt the clients
+    else:
+        assert out["servers"] == 2
+    assert out["stored"] == 45 and out["lost"] == 0 and out["doubled"] == 0
