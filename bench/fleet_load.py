@@ -9,6 +9,8 @@ Scenarios (each prints one line and appends nothing by itself; ``--history`` app
   none doubled, and the store consistent (every record's kept raw file present and of its checksum; every joint's
   state replays).
 - ``two``: two server processes on one database (PostgreSQL), the clients split between them.
+- ``scaling``: the store's cost per ingested record as a joint's history grows (in-process, ``--records N``),
+  and the time of ``status()``, ``history()`` and of the dashboard's pages at the end.
 - ``throughput``: records/s sustained and p95 latency for 1 s 48 kHz vibration records judged by the default
   monitor (``--monitor MODEL_DIR`` and its commissioning files), against the CLI's one-process-per-record path
   (``rvdiag diagnose MODEL FILE --baseline BASE``) in the same run.
@@ -24,6 +26,7 @@ Usage::
     eval "$(bash tests/services/start.sh)"   # RVDIAG_TEST_POSTGRES
     PYTHONPATH=src python bench/fleet_load.py kill --db postgres --clients 8 --records 200
     PYTHONPATH=src python bench/fleet_load.py two --db postgres --clients 8 --records 200
+    PYTHONPATH=src python bench/fleet_load.py scaling --records 1000
     PYTHONPATH=src python bench/fleet_load.py throughput --monitor MODEL_DIR --commission F1 F2 ... --files R1 ... \\
         --records 60 --clients 4 --servers 2 --load 50
 
@@ -448,9 +451,39 @@ def throughput(monitor: Path, commission: list[Path], records: list[Path], *, n:
             "speedup": round(len(lat) / wall * float(np.mean(cli)), 1)}
 
 
+def scaling(n: int, workdir: Path, checkpoints=(10, 100, 300, 1000, 3000)) -> dict:
+    """How the store's per-record cost grows with a joint's history: one joint, ``n`` records ingested in-process
+    with :class:`TinyJudge` (so the time is the store's), the mean ingest time of the 10 records before each
+    checkpoint, and at the end the time of ``status()``, ``history()`` and of rendering the fleet and joint pages."""
+    from rvdiag.fleet import Reading
+    from rvdiag.fleet import web
+
+    workdir.mkdir(parents=True, exist_ok=True)
+    joint = "plant/r1/j1"
+    fleet = make_fleet(f"sqlite:///{workdir / 'fleet.db'}", workdir, [joint])
+    rng = np.random.default_rng(0)
+    t0 = datetime(2024, 2, 1, tzinfo=timezone.utc)
+    times, out = [], {"scenario": "scaling", "ingest_ms": {}}
+    for i in range(n):
+        data = record_bytes(rng)
+        t = time.perf_counter()
+        fleet.ingest(joint, data, filename="r.npz", reading=Reading(load=50.0), time=t0 + timedelta(hours=i))
+        times.append(time.perf_counter() - t)
+        if i + 1 in checkpoints:
+            out["ingest_ms"][i + 1] = round(1000 * float(np.mean(times[-10:])), 1)
+    for name, call in (("status_ms", fleet.status), ("history_ms", lambda: fleet.history(joint)),
+                       ("fleet_page_ms", lambda: web.fleet_page(fleet)),
+                       ("joint_page_ms", lambda: web.joint_page(fleet, joint))):
+        t = time.perf_counter()
+        call()
+        out[name] = round(1000 * (time.perf_counter() - t), 1)
+    fleet.close()
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("scenario", choices=["load", "kill", "two", "serve", "throughput"])
+    ap.add_argument("scenario", choices=["load", "kill", "two", "serve", "throughput", "scaling"])
     ap.add_argument("--db", default="sqlite", help="sqlite (a file in --workdir), postgres, or a URL")
     ap.add_argument("--clients", type=int, default=8)
     ap.add_argument("--records", type=int, default=200)
@@ -480,6 +513,9 @@ def main(argv=None):
                          servers=args.servers, n_cli=args.cli_records, load=args.load,
                          output_speed=args.output_speed, workdir=workdir)
         print(json.dumps(out))
+        return
+    if args.scenario == "scaling":
+        print(json.dumps(scaling(args.records, workdir)))
         return
     out = scenario(args.scenario, args.db, args.clients, args.records, args.kills, workdir, args.seed)
     print(json.dumps(out))
