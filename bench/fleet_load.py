@@ -377,9 +377,11 @@ def variants(files: list[Path], n: int, seed: int = 0) -> list[tuple[str, bytes]
 
 
 def throughput(monitor: Path, commission: list[Path], records: list[Path], *, n: int, clients: int, servers: int,
-               n_cli: int, load: float, output_speed: float | None, workdir: Path) -> dict:
-    """Records/s sustained and latency through the HTTP API with the real monitor (after one warm-up record per
-    server), against ``rvdiag diagnose MODEL FILE --baseline BASE`` run as one process per record."""
+               n_cli: int, meta_regex: str, fs: float | None, workdir: Path) -> dict:
+    """Records/s sustained and latency through the HTTP API of ``servers`` ``rvdiag fleet serve`` processes on one
+    store with the real monitor (after one warm-up record per server), ``clients`` clients at a time, against
+    ``rvdiag diagnose MODEL FILE --baseline BASE`` run as one process per record.  Each file's operating point
+    comes from its name by ``meta_regex`` (groups ``output_speed_deg_s``, ``load_Nm``)."""
     import httpx
 
     from rvdiag.fleet import Fleet, Reading
@@ -389,7 +391,7 @@ def throughput(monitor: Path, commission: list[Path], records: list[Path], *, n:
     joint = "plant/r1/j1"
     fleet = Fleet.init(url)
     fleet.add_joint(joint, monitor=monitor)
-    reading = Reading(load=load, output_speed=output_speed)
+    reading = Reading(meta_regex=meta_regex, fs=fs)
     info = fleet.commission(joint, commission, reading, time=datetime(2024, 1, 1, tzinfo=timezone.utc))
     token = fleet.create_token("bench", read_only=False)
     fleet.close()
@@ -397,7 +399,7 @@ def throughput(monitor: Path, commission: list[Path], records: list[Path], *, n:
     ports = [free_port() for _ in range(servers)]
     procs = [start_server(url, p, tiny=False, log=workdir / "server.log") for p in ports]
     bases = [f"http://127.0.0.1:{p}" for p in ports]
-    form = {"load": str(load)} | ({"output_speed": str(output_speed)} if output_speed is not None else {})
+    form = {"meta_regex": meta_regex} | ({"fs": str(fs)} if fs else {})
     try:
         for k, b in enumerate(bases):  # warm-up: the model and baseline loaded once per server process
             r = httpx.post(f"{b}/api/joints/{joint}/records", headers={"Authorization": f"Bearer {token}"},
@@ -438,8 +440,10 @@ def throughput(monitor: Path, commission: list[Path], records: list[Path], *, n:
     env = dict(os.environ, PYTHONPATH=str(REPO / "src") + os.pathsep + os.environ.get("PYTHONPATH", ""))
     cli = []
     for f in records[:n_cli]:
+        op = reading.operating_point(f.name)
         cmd = [sys.executable, "-m", "rvdiag", "diagnose", str(monitor), str(f), "--baseline", info["baseline"],
-               "--load", str(load), "--json"] + (["--output-speed", str(output_speed)] if output_speed else [])
+               "--load", str(op["load_Nm"]), "--output-speed", str(op["output_speed_deg_s"]), "--json"] \
+            + (["--fs", str(fs)] if fs else [])
         t = time.perf_counter()
         subprocess.run(cmd, env=env, check=True, capture_output=True)
         cli.append(time.perf_counter() - t)
@@ -497,8 +501,9 @@ def main(argv=None):
     ap.add_argument("--files", type=Path, nargs="+", help="throughput: record files (NPZ/NPY; varied to --records)")
     ap.add_argument("--servers", type=int, default=1, help="throughput: server processes on the one store")
     ap.add_argument("--cli-records", type=int, default=5, help="throughput: records diagnosed by the CLI path")
-    ap.add_argument("--load", type=float, default=50.0, help="throughput: the records' load, N m")
-    ap.add_argument("--output-speed", type=float, default=None, help="throughput: the records' speed, deg/s")
+    ap.add_argument("--meta-regex", default=r"_s(?P<output_speed_deg_s>[0-9.]+)_l(?P<load_Nm>[0-9.]+)\.",
+                    help="throughput: the operating point in the file names")
+    ap.add_argument("--fs", type=float, default=None, help="throughput: the files' sampling rate, Hz")
     args = ap.parse_args(argv)
     if args.scenario == "serve":
         serve(args.db, args.port, args.tiny_judge)
@@ -510,8 +515,8 @@ def main(argv=None):
         if not (args.monitor and args.commission and args.files):
             raise SystemExit("error: throughput needs --monitor MODEL_DIR --commission FILE... --files FILE...")
         out = throughput(args.monitor, args.commission, args.files, n=args.records, clients=args.clients,
-                         servers=args.servers, n_cli=args.cli_records, load=args.load,
-                         output_speed=args.output_speed, workdir=workdir)
+                         servers=args.servers, n_cli=args.cli_records, meta_regex=args.meta_regex, fs=args.fs,
+                         workdir=workdir)
         print(json.dumps(out))
         return
     if args.scenario == "scaling":

@@ -32,12 +32,18 @@ def checksum(data: bytes) -> str:
 def safe_suffix(filename: str) -> str:
     """The file's suffixes (e.g. ``.csv.gz``) in lower case when they are plain letters and digits, else ``""``.
 
-    >>> safe_suffix("../../etc/x.CSV.gz"), safe_suffix("a.b c"), safe_suffix("noext")
-    ('.csv.gz', '', '')
+    The last suffixes that are plain are kept (a name with dots before them keeps its format's ending):
+
+    >>> safe_suffix("../../etc/x.CSV.gz"), safe_suffix("a.b c"), safe_suffix("noext"), safe_suffix("r_s44.7_l126.6.npy")
+    ('.csv.gz', '', '', '.6.npy')
     """
     name = Path(str(filename).replace("\\", "/")).name.lower()
-    suffix = "".join(Path(name).suffixes[-3:])
-    return suffix if _SUFFIX.match(suffix) else ""
+    suffix = ""
+    for part in reversed(Path(name).suffixes[-3:]):
+        if not _SUFFIX.match(part + suffix):
+            break
+        suffix = part + suffix
+    return suffix
 
 
 class BlobStore:
