@@ -27,8 +27,8 @@ Usage::
     PYTHONPATH=src python bench/fleet_load.py kill --db postgres --clients 8 --records 200
     PYTHONPATH=src python bench/fleet_load.py two --db postgres --clients 8 --records 200
     PYTHONPATH=src python bench/fleet_load.py scaling --records 1000
-    PYTHONPATH=src python bench/fleet_load.py throughput --monitor MODEL_DIR --commission F1 F2 ... --files R1 ... \\
-        --records 60 --clients 4 --servers 2 --load 50
+    PYTHONPATH=src python bench/fleet_load.py throughput --monitor out/demo-monitor --store out/demo-monitoring.zarr \\
+        --records 40 --clients 4 --servers 2 --cli-records 3   # or --commission FILE... --files FILE... [--fs HZ]
 
 ``--db postgres`` creates a database of a random name on the server of ``$RVDIAG_TEST_POSTGRES`` and drops it
 afterwards.  ``serve`` (used by the scenarios, and by tests/test_fleet_browser.py) runs one server:
@@ -376,6 +376,48 @@ def variants(files: list[Path], n: int, seed: int = 0) -> list[tuple[str, bytes]
     return out
 
 
+def export_joint(store_path: Path, out: Path) -> tuple[list[Path], list[Path]]:
+    """A joint's files from a paired library (``make demo``'s out/demo-monitoring.zarr): the first held-out
+    reducer's commissioning records (one NPY each) and 1 s monitored records, each two 0.5 s records of one load
+    group end to end (as bench/monitor_record_speed.py makes them); the operating point in each name
+    (``_s<deg/s>_l<N m>.npy``).  Returns (commissioning files, record files)."""
+    from rvdiag.datasets import SampleStore
+
+    store = SampleStore.open(store_path)
+    s = store.load(index=np.arange(store.n_samples))
+    meta = {k: np.asarray(v) for k, v in s.meta.items()}
+    test = np.flatnonzero(meta["split"].astype(str) == "test")
+    mine = meta["reducer"] == meta["reducer"][test[0]]
+    role = meta["role"].astype(str)
+    fs = int(store.fs)
+    out.mkdir(parents=True, exist_ok=True)
+
+    def rows(u):
+        return np.flatnonzero(meta["unit"] == u)
+
+    def point(units):
+        return (float(np.mean([meta["output_speed_deg_s"][rows(u)[0]] for u in units])),
+                float(np.mean([meta["load_Nm"][rows(u)[0]] for u in units])))
+
+    base, recs = [], []
+    for u in dict.fromkeys(meta["unit"][mine & (role == "baseline")].tolist()):
+        sp, ld = point([u])
+        base.append(out / f"base_u{u}_s{sp:.3f}_l{ld:.3f}.npy")
+        np.save(base[-1], np.concatenate([s.X[i] for i in rows(u)]).astype(np.float64))
+    groups: dict = {}
+    loads = meta["load_Nm"][mine]
+    for u in dict.fromkeys(meta["unit"][mine & (role == "monitored")].tolist()):
+        groups.setdefault(point([u])[1] > (loads.min() + loads.max()) / 2, []).append(u)
+    for units in groups.values():
+        for a, b in zip(units[::2], units[1::2]):
+            x = np.concatenate([s.X[i] for u in (a, b) for i in rows(u)]).astype(np.float64)[:fs]
+            if len(x) == fs:
+                sp, ld = point([a, b])
+                recs.append(out / f"rec{len(recs):02d}_s{sp:.3f}_l{ld:.3f}.npy")
+                np.save(recs[-1], x)
+    return base, recs
+
+
 def throughput(monitor: Path, commission: list[Path], records: list[Path], *, n: int, clients: int, servers: int,
                n_cli: int, meta_regex: str, fs: float | None, workdir: Path) -> dict:
     """Records/s sustained and latency through the HTTP API of ``servers`` ``rvdiag fleet serve`` processes on one
@@ -497,6 +539,7 @@ def main(argv=None):
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--monitor", type=Path, help="throughput: the monitor model directory")
+    ap.add_argument("--store", type=Path, help="throughput: a paired library to take the joint's files from")
     ap.add_argument("--commission", type=Path, nargs="+", help="throughput: the joint's commissioning files")
     ap.add_argument("--files", type=Path, nargs="+", help="throughput: record files (NPZ/NPY; varied to --records)")
     ap.add_argument("--servers", type=int, default=1, help="throughput: server processes on the one store")
@@ -512,8 +555,13 @@ def main(argv=None):
 
     workdir = args.workdir or Path(tempfile.mkdtemp(prefix="fleet-load-"))
     if args.scenario == "throughput":
+        if args.store:
+            args.commission, args.files = export_joint(args.store, workdir / "files")
+            args.fs = args.fs or float(__import__("rvdiag.datasets", fromlist=["SampleStore"])
+                                       .SampleStore.open(args.store).fs)
         if not (args.monitor and args.commission and args.files):
-            raise SystemExit("error: throughput needs --monitor MODEL_DIR --commission FILE... --files FILE...")
+            raise SystemExit("error: throughput needs --monitor MODEL_DIR and --store PAIRED.zarr or "
+                             "--commission FILE... --files FILE...")
         out = throughput(args.monitor, args.commission, args.files, n=args.records, clients=args.clients,
                          servers=args.servers, n_cli=args.cli_records, meta_regex=args.meta_regex, fs=args.fs,
                          workdir=workdir)

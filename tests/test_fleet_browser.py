@@ -57,7 +57,7 @@ def server(tmp_path_factory):
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=exe, headless=True, args=ARGS)
         try:
-            yield {"base": f"http://127.0.0.1:{port}", "token": token, "browser": browser, "tmp": tmp}
+            yield {"base": f"http://127.0.0.1:{port}", "token": token, "browser": browser, "tmp": tmp, "url": url}
         finally:
             browser.close()
             stop(proc)
@@ -136,3 +136,29 @@ def test_acknowledge_from_the_alarms_page(server, page):
     # the token stays for the tab: the next page still has it
     page.goto(server["base"] + "/")
     assert "kept" in page.locator("#token-state").inner_text()
+
+
+def test_the_snapshot_opens_from_files_with_no_server(server):
+    from fleet_load import TinyJudge
+
+    from rvdiag.fleet import Fleet
+    from rvdiag.fleet.web import snapshot
+
+    fleet = Fleet.open(server["url"], judge=TinyJudge())
+    try:
+        index = snapshot(fleet, server["tmp"] / "snapshot")
+    finally:
+        fleet.close()
+    ctx = server["browser"].new_context(viewport={"width": 1280, "height": 900})
+    pg = ctx.new_page()
+    urls, errors = [], []
+    pg.on("request", lambda r: urls.append(r.url))
+    pg.on("pageerror", lambda e: errors.append(str(e)))
+    pg.goto(index.as_uri())
+    pg.click(f'a.joint-link:text("{J1}")')
+    pg.wait_for_selector("#index-plot[data-drawn=yes]", timeout=30000)
+    assert pg.url.endswith(f"/joints/{J1}.html")
+    assert not pg.locator("form.write").count()  # nothing to write in a snapshot
+    ctx.close()
+    assert all(u.startswith("file://") or u.startswith("data:") for u in urls), urls
+    assert not errors, errors
