@@ -215,10 +215,6 @@ def create_app(fleet, *, max_upload: int | None = None, read_needs_token: bool |
     async def _api_error(request: Request, exc: ApiError):
         return error_response(request, exc.status, exc.message)
 
-    @app.exception_handler(AuthError)
-    async def _auth_error(request: Request, exc: AuthError):
-        return error_response(request, 401, str(exc))
-
     @app.exception_handler(RvdiagError)
     async def _rvdiag_error(request: Request, exc: RvdiagError):
         return error_response(request, _fleet_error_status(exc), str(exc))
@@ -268,33 +264,26 @@ def create_app(fleet, *, max_upload: int | None = None, read_needs_token: bool |
             raise ApiError(401, "the Authorization header must be 'Bearer TOKEN'")
         return token.strip()
 
+    def checked(token: str | None, write: bool, missing: str) -> str:
+        """The token's name: 401 without one (``missing`` says why) or for an unknown one, 403 for a read-only one
+        writing (:class:`AuthError`'s ``status``)."""
+        if not token:
+            raise ApiError(401, missing)
+        try:
+            return fleet.check_token(token, write=write)
+        except AuthError as exc:
+            raise ApiError(getattr(exc, "status", 401), str(exc)) from None
+
     def writer(authorization: str | None) -> str:
-        """The name of the read-write token in ``authorization``: 401 without one or for an unknown one, 403 for a
-        read-only one."""
-        token = bearer(authorization)
-        if token is None:
-            raise ApiError(401, "writing needs a token: send 'Authorization: Bearer TOKEN' "
-                                "(rvdiag fleet token create)")
-        try:
-            fleet.check_token(token, write=False)
-        except AuthError as exc:
-            raise ApiError(401, str(exc)) from None
-        try:
-            return fleet.check_token(token, write=True)
-        except AuthError as exc:
-            raise ApiError(403, str(exc)) from None
+        """The name of the read-write token in ``authorization``."""
+        return checked(bearer(authorization), True, "writing needs a token: send 'Authorization: Bearer TOKEN' "
+                                                    "(rvdiag fleet token create)")
 
     def reader(request: Request) -> None:
-        if not read_needs_token:
-            return
-        token = bearer(request.headers.get("authorization")) or request.cookies.get(TOKEN_COOKIE)
-        if not token:
-            raise ApiError(401, "reading this fleet needs a token: send 'Authorization: Bearer TOKEN' "
-                                "or enter it in the dashboard")
-        try:
-            fleet.check_token(token, write=False)
-        except AuthError as exc:
-            raise ApiError(401, str(exc)) from None
+        if read_needs_token:
+            checked(bearer(request.headers.get("authorization")) or request.cookies.get(TOKEN_COOKIE), False,
+                    "reading this fleet needs a token: send 'Authorization: Bearer TOKEN' or enter it in the "
+                    "dashboard")
 
     def known(joint: str) -> str:
         check_joint_name(joint)

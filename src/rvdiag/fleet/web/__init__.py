@@ -255,6 +255,7 @@ def _spectrum(sig, max_points: int = 1500) -> tuple[np.ndarray, np.ndarray, str]
     x = x[np.isfinite(x)]
     fs = getattr(sig, "fs", None) or 1.0
     f, p = welch(x - x.mean(), fs=fs, nperseg=min(4096, len(x)))
+    f, p = f[1:], p[1:]  # no 0 Hz on the log frequency axis
     db = 10 * np.log10(np.maximum(p, 1e-30))
     if len(f) > max_points:
         k = int(math.ceil(len(f) / max_points))
@@ -282,7 +283,8 @@ def _evidence(fleet, joint: str, history: list[dict]) -> tuple[dict | None, list
                      "x": f.tolist(), "y": [round(float(v), 2) for v in db],
                      "line": {"width": 1, "color": palette[k % len(palette)]}})
     layout = {"margin": {"l": 55, "r": 15, "t": 10, "b": 40}, "height": 300, "hovermode": "x",
-              "xaxis": {"title": {"text": xlabel}}, "yaxis": {"title": {"text": "power spectral density (dB)"}},
+              "xaxis": {"title": {"text": xlabel}, "type": "log"},
+              "yaxis": {"title": {"text": "power spectral density (dB)"}},
               "legend": {"orientation": "h", "y": 1.1}}
     return ({"data": data, "layout": layout} if data else None), list(reversed(last)), "; ".join(notes) or None
 
