@@ -136,7 +136,7 @@ def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", type=Path, default=Path("out/bench-fleet"))
     ap.add_argument("--healthy", type=int, default=34, help="healthy monitored records per unseen reducer")
-    ap.add_argument("--reducers", type=int, default=10, help="unseen reducers")
+    ap.add_argument("--reducers", type=int, default=6, help="unseen reducers")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json", type=Path)
     a = ap.parse_args(argv)

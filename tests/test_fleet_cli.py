@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from conftest import run_cli
@@ -131,3 +132,39 @@ def test_bad_input_is_one_error_line(env, capsys):
     eng.dispose()
     fail(["fleet", "status"], capsys, "has fleet schema 'f00d', newer than this rvdiag knows")
     fail(["fleet", "status", "--db", "postgresql+nodriver://x@/y"], capsys, "cannot open the fleet database")
+
+
+def test_the_watcher_picks_up_a_file_that_appears(env, capsys):
+    """The running watcher (watchdog): a file written under a temporary name and renamed is ingested once."""
+    import threading
+    import time
+
+    from rvdiag.fleet import Fleet, Reading
+    from rvdiag.fleet.watch import watch
+
+    setup_joint(env, capsys)
+    root = env["dir"] / "live"
+    folder = root / "plant" / "r1" / "j3"
+    folder.mkdir(parents=True)
+    fleet = Fleet.open(env["db"])
+    done, lines = threading.Event(), []
+    counts = {}
+
+    def run():
+        counts.update(watch(fleet, root, Reading(load=50.0), settle=0.2, report=lambda line, err: lines.append(line),
+                            stop=done.is_set))
+
+    t = threading.Thread(target=run)
+    t.start()
+    time.sleep(1.0)
+    tmp = folder / "new.npy.part"
+    with open(tmp, "wb") as fh:  # a writer copying under a temporary name, then renaming
+        np.save(fh, np.load(write_record(env["dir"] / "staging.npy", 0.1, seed=7)))
+    tmp.rename(folder / "new.npy")
+    deadline = time.time() + 20
+    while time.time() < deadline and not fleet.history(J):
+        time.sleep(0.2)
+    done.set()
+    t.join(timeout=10)
+    assert [r["filename"] for r in fleet.history(J)] == ["new.npy"]
+    assert counts["ingested"] == 1 and counts["refused"] == 0

@@ -154,3 +154,12 @@ def test_the_stated_rate_matches_the_replay_on_simulated_healthy_joints():
     stated = false_alarms_per_year(r, 1) / 365.25
     se = per_record.std(ddof=1) / math.sqrt(joints)
     assert abs(per_record.mean() - stated) < 4 * se, (per_record.mean(), stated, se)
+
+
+@pytest.mark.parametrize("module", ["rvdiag.fleet.rules", "rvdiag.fleet.blobs", "rvdiag.fleet.judge"])
+def test_the_docstring_examples_hold(module):
+    import doctest
+    import importlib
+
+    res = doctest.testmod(importlib.import_module(module))
+    assert res.attempted > 0 and res.failed == 0

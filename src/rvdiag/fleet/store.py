@@ -309,6 +309,8 @@ class Fleet:
             rec.recognised = bool(result.get("recognised", True))
             rec.reason = result.get("reason")
             rec.result = {k: v for k, v in result.items() if k not in _DROP}
+            if "file" in rec.result:
+                rec.result["file"] = filename  # the reader read the kept copy
         else:
             rec.operating_point = op
         try:
