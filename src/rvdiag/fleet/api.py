@@ -1,5 +1,6 @@
 """The fleet's HTTP API and dashboard server: :func:`create_app` wraps one :class:`rvdiag.fleet.Fleet` in a FastAPI
-application (served by ``rvdiag fleet serve``; its OpenAPI schema at ``/openapi.json``, browsable at ``/docs``).
+application (served by ``rvdiag fleet serve``; its OpenAPI schema at ``/openapi.json``; no ``/docs`` page, whose
+scripts would come from a CDN).
 
 The joint's name stands in the path with its slashes (``/api/joints/plant/r1/j3/history``).  Every route under
 ``/api`` answers JSON; an error is ``{"error": "one line"}`` with its status code: 400 bad input, 401 no or an
@@ -195,7 +196,7 @@ def create_app(fleet, *, max_upload: int | None = None, read_needs_token: bool |
     if read_needs_token is None:
         read_needs_token = os.environ.get(ENV_READ_TOKEN, "") in ("1", "true", "yes")
 
-    app = FastAPI(title="rvdiag fleet", version=__version__,
+    app = FastAPI(title="rvdiag fleet", version=__version__, docs_url=None, redoc_url=None,  # their pages load a CDN
                   description="Joints' states, records, alarms and acknowledgements of an rvdiag fleet store. "
                               "Writes need `Authorization: Bearer TOKEN` (a read-write token); reads "
                               + ("need a token too." if read_needs_token else "are open."))
