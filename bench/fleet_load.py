@@ -316,28 +316,31 @@ def scenario(kind: str, db_spec: str, n_clients: int, n_records: int, kills: int
         n_servers = 2 if kind == "two" else 1
         ports = [free_port() for _ in range(n_servers)]
         log = workdir / "server.log"
-        procs = [start_server(url, p, log=log) for p in ports]
-        bases = [f"http://127.0.0.1:{p}" for p in ports]
-        t0 = datetime(2024, 2, 1, tzinfo=timezone.utc)
-        start = time.perf_counter()
-        clients = run_clients(lambda i: bases[i % n_servers:] + bases[:i % n_servers], token, sent, t0)
-        killed = 0
-        if kind == "kill":
-            total = n_clients * n_records
-            for k in range(kills):
-                target = total * (k + 1) / (kills + 1)
-                while sum(len(c.answers) for c in clients) < target and any(c.is_alive() for c in clients):
-                    time.sleep(0.02)
-                procs[0].send_signal(signal.SIGKILL)
-                procs[0].wait()
-                killed += 1
-                time.sleep(0.5)
-                procs[0] = start_server(url, ports[0], log=log)
-        for c in clients:
-            c.join()
-        wall = time.perf_counter() - start
-        for p in procs:
-            stop(p)
+        procs = []
+        try:
+            procs += [start_server(url, p, log=log) for p in ports]
+            bases = [f"http://127.0.0.1:{p}" for p in ports]
+            t0 = datetime(2024, 2, 1, tzinfo=timezone.utc)
+            start = time.perf_counter()
+            clients = run_clients(lambda i: bases[i % n_servers:] + bases[:i % n_servers], token, sent, t0)
+            killed = 0
+            if kind == "kill":
+                total = n_clients * n_records
+                for k in range(kills):
+                    target = total * (k + 1) / (kills + 1)
+                    while sum(len(c.answers) for c in clients) < target and any(c.is_alive() for c in clients):
+                        time.sleep(0.02)
+                    procs[0].send_signal(signal.SIGKILL)
+                    procs[0].wait()
+                    killed += 1
+                    time.sleep(0.5)
+                    procs[0] = start_server(url, ports[0], log=log)
+            for c in clients:
+                c.join()
+            wall = time.perf_counter() - start
+        finally:
+            for p in procs:
+                stop(p)
         errors = [c.error for c in clients if c.error]
         assert not errors, errors
         counts = check_store(url, sent)
