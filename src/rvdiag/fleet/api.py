@@ -309,8 +309,7 @@ def create_app(fleet, *, max_upload: int | None = None, read_needs_token: bool |
     def joint_status(request: Request, joint: str):
         """One joint's status row."""
         reader(request)
-        known(joint)
-        return _json(next(row for row in fleet.status() if row["joint"] == joint))
+        return _json(fleet.status(known(joint))[0])
 
     @app.get("/api/joints/{joint:path}/history", tags=["read"])
     def history(request: Request, joint: str, limit: Annotated[int | None, Query(ge=1, le=100000)] = None):

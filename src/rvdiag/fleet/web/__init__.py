@@ -38,8 +38,7 @@ TEMPLATES = HERE / "templates"
 STATIC = HERE / "static"
 #: The joint states and the colour each is shown in (also in static/dashboard.css).
 STATES = ("no-baseline", "learning", "normal", "alert", "alarm", "sensor-fault")
-#: Records shown on the trend line of the fleet page, and in the joint page's table and evidence.
-TREND_RECORDS = 40
+#: Records shown in the joint page's table and evidence (the fleet page's trend: status()'s ``trend``).
 TABLE_RECORDS = 50
 EVIDENCE_RECORDS = 3
 #: The file that marks a folder as a snapshot written by :func:`snapshot` (which replaces only such a folder).
@@ -182,9 +181,9 @@ def sparkline(values: list, threshold: float | None, width: int = 140, height: i
     return "".join(parts)
 
 
-def _status_rows(fleet, now: datetime) -> list[dict]:
+def _status_rows(fleet, now: datetime, joint: str | None = None) -> list[dict]:
     rows = []
-    for row in fleet.status():
+    for row in fleet.status(joint):
         row = dict(row)
         since = _dt(row.get("state_since"))
         row["time_in_state"] = fmt_duration((now - since).total_seconds()) if since else "–"
@@ -300,9 +299,7 @@ def fleet_page(fleet, links: Links = Links(), now: datetime | None = None) -> st
     now = now or datetime.now(timezone.utc)
     rows = _status_rows(fleet, now)
     for row in rows:
-        hist = fleet.history(row["joint"], limit=TREND_RECORDS)
-        row["trend"] = sparkline([h.get("health_index") for h in hist if not h.get("rejected")],
-                                 row.get("threshold"))
+        row["trend"] = sparkline(row.get("trend") or [], row.get("threshold"))
     counts = {s: sum(r.get("state") == s for r in rows) for s in STATES}
     return _render("fleet.html", links, now, rows=rows, counts=counts,
                    open_alarms=sum(bool(r.get("open_alarm")) for r in rows))
@@ -311,9 +308,7 @@ def fleet_page(fleet, links: Links = Links(), now: datetime | None = None) -> st
 def joint_page(fleet, joint: str, links: Links = Links(), now: datetime | None = None) -> str:
     """The joint page's HTML: index over time with its threshold and events, state, what changed, evidence."""
     now = now or datetime.now(timezone.utc)
-    row = next((r for r in _status_rows(fleet, now) if r["joint"] == joint), None)
-    if row is None:
-        raise RvdiagError(f"unknown joint {joint!r}")
+    (row,) = _status_rows(fleet, now, joint)
     history = list(fleet.history(joint))
     events = list(fleet.events(joint))
     last_ok = next((h for h in reversed(history) if not h.get("rejected")), None)
@@ -365,8 +360,7 @@ def snapshot(fleet, out_dir: str | Path, now: datetime | None = None) -> Path:
         shutil.copyfile(plotly_js_path(), tmp / "static" / "plotly.min.js")
         (tmp / "index.html").write_text(fleet_page(fleet, links, now), encoding="utf-8")
         (tmp / "alarms.html").write_text(alarms_page(fleet, links, now), encoding="utf-8")
-        for row in fleet.status():
-            name = row["joint"]
+        for name in fleet.joints():
             page = tmp / "joints" / f"{name}.html"
             if not page.resolve().is_relative_to(tmp.resolve()):
                 raise RvdiagError(f"joint name {name!r} would leave the snapshot folder")
