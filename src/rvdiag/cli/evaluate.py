@@ -125,6 +125,7 @@ def _monitor(loaded, data, split, where, baseline, json_out, merge, others: dict
         if v:
             raise ParameterError(f"{flag} does not apply to a baseline-referenced model")
     from rvdiag.datasets import SampleStore
+    from rvdiag.workflows.evaluation import parse_merge
 
     merge_map = parse_merge(merge, loaded.card["classes"]) if merge is not None else None
     res = evaluate_monitor(loaded, SampleStore.open(data), data, split, where or (), baseline, merge_map)
