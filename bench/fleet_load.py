@@ -1,4 +1,4 @@
-"""The fleet service under load and faults (issue 34's goals), against real ``uvicorn`` servers on 127.0.0.1.
+"""The fleet service under load and faults, against real ``uvicorn`` servers on 127.0.0.1.
 
 Scenarios (each prints one line and appends nothing by itself; ``--history`` appends the run to bench/HISTORY.md):
 

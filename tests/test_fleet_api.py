@@ -1,7 +1,7 @@
 """The fleet's HTTP API (rvdiag.fleet.api) on a real fleet store (SQLite) judged by bench/fleet_load.py's
-TinyJudge: every route, the issue's kinds of bad input each refused with its reason and nothing else changed,
+TinyJudge: every route, eighteen kinds of bad input each refused with its reason and nothing else changed,
 the read token, the dashboard's pages (no external URL) and its static snapshot, and a server killed with SIGKILL
-mid-run with clients resending (none lost, none doubled)."""
+mid-run with clients resending, or two servers on one PostgreSQL database (none lost, none doubled)."""
 
 from __future__ import annotations
 
