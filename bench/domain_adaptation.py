@@ -48,7 +48,7 @@ DEEP = ("mlp", "deepcoral", "dann")
 
 def features(store, split: str, name: str, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """(features, labels) of a split, computed as ``rvdiag train --model svm --features NAME`` would."""
-    from rvdiag.cli.train import build_estimator
+    from rvdiag.workflows.training import build_estimator
     from rvdiag.features.combine import input_metadata, with_metadata
 
     est = build_estimator("svm", name, seed=seed, epochs=1, device="cpu", batch_size=32, lr=1e-3,

@@ -85,3 +85,6 @@ def test_every_declared_marker_is_used():
     declared = [m.split(":")[0] for m in PYPROJECT["tool"]["pytest"]["ini_options"].get("markers", [])]
     text = "".join(p.read_text() for p in (REPO / "tests").glob("test_*.py"))
     assert [m for m in declared if f"mark.{m}" not in text] == []
+    # the dashboard's templates and its own script and style (Plotly's comes from the plotly wheel)
+    assert {f"rvdiag/fleet/web/templates/{n}.html" for n in ("base", "fleet", "joint", "alarms", "error")} <= names
+    assert {f"rvdiag/fleet/web/static/{n}" for n in ("dashboard.css", "dashboard.js", "favicon.svg")} <= names

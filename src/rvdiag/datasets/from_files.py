@@ -19,9 +19,7 @@ Metadata columns of every sample:
 ``start``    the window's first sample index in the source signal
 ``<group>``  every named group of ``meta_regex`` (and of ``label_regex`` other than ``label``): numbers when
              every file's value parses as a number (int, else float), text otherwise; an optional group
-             that did not take part in a file's match gives "" (so the column is text); a group ``load``
-             is the column ``load_Nm`` (:data:`GROUP_COLUMNS`: one spelling of the load, which baseline
-             matching reads)
+             that did not take part in a file's match gives "" (so the column is text)
 ``<name>``   every ``scalars`` entry: the value of the file's one scalar matching the given regex
              (e.g. ``rpm`` from CWRU's ``X105RPM``)
 
@@ -60,25 +58,6 @@ from rvdiag.io import SUPPORTED_SUFFIXES, read_signal, window, window_starts
 
 #: The ways ``build_from_files`` can split (``--split-by``): by file (the default) or by window.
 SPLIT_BY = ("unit", "window")
-#: regex groups written under another column name: the load in N m has one spelling, ``load_Nm``, the column a
-#: baseline is matched by (:data:`rvdiag.monitoring.pairing.OPERATING_COLUMNS`)
-GROUP_COLUMNS = {"load": "load_Nm"}
-
-
-def group_columns(values: dict[str, Any], where: str = "--meta-regex") -> dict[str, Any]:
-    """The metadata columns of a file name's regex groups: each group under its name, ``load`` as ``load_Nm``
-    (:data:`GROUP_COLUMNS`); both spellings at once are refused.
-
-    >>> group_columns({"speed_dps": "30", "load": "50"})
-    {'speed_dps': '30', 'load_Nm': '50'}
-    """
-    out: dict[str, Any] = {}
-    for k, v in values.items():
-        col = GROUP_COLUMNS.get(k, k)
-        if col in out:
-            raise ParameterError(f"{where}: the groups {k} and {col} both name the column {col!r}: keep one")
-        out[col] = v
-    return out
 
 
 @dataclass
@@ -311,7 +290,7 @@ def build_from_files(
         "channel": np.asarray(cols["channel"], dtype=object),
         "start": np.asarray(cols["start"], dtype=np.int64),
     }
-    for k, v in group_columns(file_meta).items():
+    for k, v in file_meta.items():
         if k in meta or k == "split":
             raise ParameterError(f"metadata group name {k!r} is reserved; rename the regex group")
         meta[k] = _typed_column(v)

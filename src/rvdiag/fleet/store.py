@@ -36,6 +36,8 @@ from rvdiag.fleet.judge import Judge, Reading
 
 #: a part of a joint's name: letters, digits, ``_ . -``, not starting with a dot (never ``..``)
 _PART = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,99}$")
+#: how many of a joint's last records ``status()`` gives as its ``trend`` (the dashboard's trend line)
+TREND_RECORDS = 40
 #: the result keys kept in a record's ``result`` (the windows are left out: they are recomputed from the raw record)
 _DROP = ("windows",)
 
@@ -381,12 +383,17 @@ class Fleet:
                            f"{r.health_index:.3g})" if r.health_index is not None else None
                 s.add(db.Event(joint_id=j.id, kind=kind, time=st.time, record_id=rid, epoch_id=ep.id, note=note))
 
-    def status(self) -> list[dict]:
-        """One row per joint: ``joint, state, last_index, last_record_time, state_since, threshold, n_records,
-        last_fault_state, last_probability, open_alarm`` (and ``epoch``, ``signal``, ``learning_left``)."""
+    def status(self, joint: str | None = None) -> list[dict]:
+        """One row per joint (``joint``: that joint's only): ``joint, state, last_index, last_record_time,
+        state_since, threshold, n_records, last_fault_state, last_probability, open_alarm`` (and ``epoch``,
+        ``signal``, ``learning_left``, and ``trend``: the health indices of the current epoch's last
+        :data:`TREND_RECORDS` recognised records, oldest first)."""
         rows = []
         with self._sessions() as s:
-            for j in s.scalars(select(db.Joint).order_by(db.Joint.path)):
+            q = select(db.Joint).order_by(db.Joint.path)
+            if joint is not None:
+                q = q.where(db.Joint.id == self._joint(s, joint).id)
+            for j in s.scalars(q):
                 d = self._derive(s, j)
                 recs = sorted(d["records"].values(), key=lambda r: (r.time, r.id))
                 last = recs[-1] if recs else None
@@ -405,7 +412,7 @@ class Fleet:
                     "open_alarm": bool(d["steps"][-1].open_alarm) if d["steps"] and d["state"] != "no-baseline"
                     else False,
                     "epoch": None if d["epoch"] is None else d["epoch"].number, "signal": j.signal_kind,
-                    "learning_left": learn})
+                    "learning_left": learn, "trend": [r.health_index for r in judged[-TREND_RECORDS:]]})
         return rows
 
     def history(self, joint: str, limit: int | None = None) -> list[dict]:

@@ -66,8 +66,6 @@ class Baseline:
     operating_points: list[dict]
     fs: float
     samples: Any = field(repr=False, default=None)
-    #: per-process memo of the baseline side of the features (:mod:`rvdiag.monitoring.diagnosis`)
-    cache: dict = field(repr=False, default_factory=dict, compare=False)
 
     def to_dict(self) -> dict:
         """The baseline's description, JSON-ready."""
@@ -102,7 +100,7 @@ def open_baseline_store(path: Path, loaded, fs: float | None):
         if c not in s.meta:
             raise ParameterError(f"--baseline {path} has no metadata column {c!r} to match operating points by "
                                  "(build it with 'rvdiag dataset from-files --meta-regex' naming groups speed_dps "
-                                 "and load_Nm, or with --angle-channel)")
+                                 "and load_Nm (or load), or with --angle-channel)")
     return s, store
 
 

@@ -24,6 +24,22 @@ OPERATING_COLUMNS = ("output_speed_deg_s", "load_Nm")
 #: decides a file, and its alarm is calibrated and scored per record: the windows of one record share its run-to-run
 #: variation and are not exchangeable with each other's records
 RECORD_COLUMN = "unit"
+#: the other spelling of the load column: a store built with ``dataset from-files --meta-regex`` and a group ``load``
+#: (not ``load_Nm``) is matched by it, in the unit of its file names (matching compares relative distances)
+LOAD_ALIAS = "load"
+
+
+def with_load_column(meta: Mapping[str, Any]) -> dict:
+    """``meta`` with the load column ``load_Nm`` (:data:`OPERATING_COLUMNS`) taken from :data:`LOAD_ALIAS` when it
+    has only that spelling: one load for baseline matching, whichever way the store's file names spelled it.
+
+    >>> sorted(with_load_column({"load": [50.0]}))
+    ['load', 'load_Nm']
+    """
+    meta = dict(meta)
+    if OPERATING_COLUMNS[1] not in meta and LOAD_ALIAS in meta:
+        meta[OPERATING_COLUMNS[1]] = np.asarray(meta[LOAD_ALIAS], dtype=np.float64)
+    return meta
 #: default tolerances of :func:`match_baseline`: relative distance of the output speed and of the load
 SPEED_TOLERANCE = 0.05
 LOAD_TOLERANCE = 0.10
@@ -119,7 +135,8 @@ def baseline_records(store) -> Samples:
     """The ``role == "baseline"`` records of a store (all of a store without roles), loaded."""
     role = store.meta.get("role")
     idx = np.arange(store.n_samples) if role is None else np.flatnonzero(np.asarray(role).astype(str) == "baseline")
-    return store.load(index=idx)
+    s = store.load(index=idx)
+    return Samples(X=s.X, y=s.y, meta=with_load_column(s.meta), index=s.index)
 
 
 def paired_features(fx, mon: Samples, base: Samples, *, fs, baseline_fs, card_tolerances=None, where="the data"):
@@ -190,4 +207,4 @@ def per_record(D, s: Samples, where: str):
 
 __all__ = ["LOAD_TOLERANCE", "OPERATING_COLUMNS", "PAIRED_COLUMNS", "RECORD_COLUMN", "ROLES", "SPEED_TOLERANCE",
            "baseline_records", "is_paired", "match_baseline", "paired_features", "per_record", "record_means", "roles",
-           "subset"]
+           "subset", "with_load_column"]

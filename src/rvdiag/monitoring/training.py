@@ -24,8 +24,9 @@ import numpy as np
 
 from rvdiag.errors import ParameterError, StoreError
 from rvdiag.monitoring.baseline import open_baseline_store, teeth, reducer_type
+from rvdiag.datasets.store import Samples
 from rvdiag.monitoring.pairing import (RECORD_COLUMN, baseline_records, is_paired, paired_features, per_record,
-                                       roles, subset)
+                                       roles, subset, with_load_column)
 
 MONITOR_MODEL = "baseline-monitor"
 #: ``--features`` of a monitor -> (inner window features or "none", TSA change appended)
@@ -259,6 +260,7 @@ def evaluate_monitor(loaded, store, data, split: str, where=(), baseline: Path |
         raise ParameterError(f"the model {loaded.path} is baseline-referenced and {data} is not a paired store: "
                              "give --baseline BASE.zarr, a healthy store of the same machine")
     s = subset(s, roles(s, "monitored"))
+    s = Samples(X=s.X, y=s.y, meta=with_load_column(s.meta), index=s.index)
     if not len(s.y):
         raise StoreError(f"the split {split!r} of {data} holds no monitored records"
                          + (f" where {' and '.join(where)}" if where else ""))

@@ -14,6 +14,9 @@ from typing import Any
 from rvdiag.errors import ParameterError
 from rvdiag.io.readers import MeasuredSignal
 
+#: groups of a file name's ``--meta-regex`` read as another name: the load in N m, ``load_Nm`` (the column a baseline
+#: is matched by), may be spelled ``load`` as in a store's file names
+LOAD_GROUPS = {"load": "load_Nm"}
 #: ``--meta`` names that give the speed for the indicators: output deg/s, input rev/min.
 SPEED_META = ("output_speed_deg_s", "input_speed_rpm")
 
@@ -21,8 +24,8 @@ SPEED_META = ("output_speed_deg_s", "input_speed_rpm")
 @dataclass
 class Record(MeasuredSignal):
     """One channel of a measured file (:class:`rvdiag.io.readers.MeasuredSignal`) with what the reading options
-    say of it: ``metadata``, the numeric groups of ``meta_regex`` in its name (``load`` as ``load_Nm``,
-    :func:`rvdiag.datasets.from_files.group_columns`), and ``angle``, the angle source
+    say of it: ``metadata``, the groups of ``meta_regex`` in its name (numbers where they parse; a group ``load`` is
+    the load ``load_Nm``, :data:`LOAD_GROUPS`), and ``angle``, the angle source
     (:class:`rvdiag.io.angles.AngleSpec`, or None) that gives its speed, as ``dataset from-files`` reads them."""
 
     metadata: dict[str, Any] = field(default_factory=dict)
@@ -54,7 +57,6 @@ def read_record(path, *, channel: str | None = None, fs: float | None = None, an
     """
     import re
 
-    from rvdiag.datasets.from_files import group_columns
     from rvdiag.errors import DataFileError
     from rvdiag.io import read_signal
     from rvdiag.io.angles import SPEED_GROUPS, AngleSpec
@@ -72,11 +74,16 @@ def read_record(path, *, channel: str | None = None, fs: float | None = None, an
         if m is None:
             raise DataFileError(f"{path}: the name does not match --meta-regex {meta_regex!r}")
         speed_groups = bool(set(SPEED_GROUPS) & {k for k, v in m.groupdict().items() if v})
-        for k, v in group_columns({k: v for k, v in m.groupdict().items() if v not in (None, "")}).items():
+        for k, v in m.groupdict().items():
+            if v in (None, ""):
+                continue
+            col = LOAD_GROUPS.get(k, k)
+            if col in metadata:
+                raise ParameterError(f"--meta-regex: the groups {k} and {col} both give {col!r}: keep one")
             try:
-                metadata[k] = float(v)
+                metadata[col] = float(v)
             except ValueError:
-                metadata[k] = v
+                metadata[col] = v
     angle = None
     if angle_channel is not None or tacho_channel is not None or ppr is not None or speed_groups:
         angle = AngleSpec(angle_channel=angle_channel, tacho_channel=tacho_channel, ppr=ppr,
