@@ -15,11 +15,12 @@ monitor's 5 %, alarm on 3 of 3, clear after 3, learning 19 records); its records
 a dead (constant), a clipped (at a fifth of its peak) and a disconnected (noise at 1 % of its RMS) version of
 themselves.  Measured:
 
-- false alarms per joint-year on the healthy records after learning (and including the learning period), with
-  the joint-years covered and the 95 % Poisson interval, beside the stated figure (:meth:`Fleet.stated_false_alarms_per_year`); the per-record alarm
-  rates with their Clopper-Pearson intervals: the joint's own rank (its record alarm) against the monitor's own
-  cross-reducer alarm on the same records (the baseline: the same rules fed the monitor's alarm instead of the
-  joint's rank, replayed by :func:`rvdiag.fleet.rules.replay`);
+- false alarms per joint-year on the healthy records after learning (and including the learning period), with the
+  joint-years covered and the 95 % Poisson interval, beside the stated figure
+  (:meth:`Fleet.stated_false_alarms_per_year`); the per-record alarm rates with their Clopper-Pearson intervals: the
+  joint's own rank (its record alarm) against the monitor's own cross-reducer alarm on the same records (the
+  baseline: the same rules fed the monitor's alarm instead of the joint's rank, replayed by
+  :func:`rvdiag.fleet.rules.replay`);
 - the broken tooth: the share of joints whose alarm is raised within 3 records of its appearance;
 - the sensor faults: the share of dead / clipped / disconnected records shown ``sensor-fault``, and whether any
   counted as a gear fault;
@@ -241,11 +242,17 @@ def _judge_joint(joint, h, history, rules, Item, Rules, replay) -> dict:
         """Alarms raised on the healthy records, acknowledged at once (the stated figure's assumption), replayed
         from the stored results: (after the learning period, over all healthy records).  ``use_monitor``: the
         same rules fed the monitor's own alarm throughout (no learning period, no rank within the joint)."""
-        rl = rules if not use_monitor else Rules(alpha=rules.alpha, k=rules.k, n=rules.n, m=rules.m,
-                                                  learning=10 ** 9)
         items = [Item(time=datetime.fromisoformat(h[i]["time"]), key=i, health_index=h[i]["health_index"],
                       monitor_alarm=h[i]["monitor_alarm"], recognised=bool(h[i]["recognised"]))
                  for i, x in enumerate(history) if x["state"] == "T1"]
+        rl = rules
+        if use_monitor:  # one calibration score of 0.5, and each record's score 1 when the monitor alarms, else 0:
+            # at alpha 0.5 the replay's record alarm is then the monitor's, from the first record on
+            rl = Rules(alpha=0.5, k=rules.k, n=rules.n, m=rules.m, learning=1)
+            first = min(it.time for it in items) - timedelta(seconds=1)
+            items = [Item(time=first, key=-1, health_index=0.5, recognised=True)] + [
+                Item(time=it.time, key=it.key, recognised=it.recognised,
+                     health_index=float(bool(it.monitor_alarm)) if it.recognised else None) for it in items]
         steps = replay(items, rl, acknowledge_at_once=True)
         after = sum("raised" in st.events for st in steps if st.key in set(judged))
         return after, sum("raised" in st.events for st in steps)

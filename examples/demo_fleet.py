@@ -32,7 +32,7 @@ RECORDS_PER_DAY = 2
 #: which library reducer is which joint, and what happens to it
 JOINTS = {0: ("plant/r1/j1", "healthy"), 1: ("plant/r1/j2", "degrades"), 2: ("plant/r2/j1", "dead sensor")}
 #: the records of the dead-sensor joint that read a constant (monitored records, counted from 0)
-DEAD = range(20, 24)
+DEAD = range(12, 16)
 NAME = "{time}_{speed:.4f}dps_{load:.4f}Nm.npy"
 META_REGEX = r"_(?P<speed_dps>[\d.]+)dps_(?P<load_Nm>[\d.]+)Nm"
 TIME_REGEX = r"^\d{8}T\d{6}"

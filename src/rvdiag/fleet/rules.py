@@ -13,13 +13,13 @@ after commissioning (the learning period; they are taken to be healthy) are its 
 
     p = (1 + #{i : s_i >= s}) / (N + 1)
 
-and alarms when ``p <= alpha``.  If the joint's healthy records are exchangeable, ``P(p <= alpha) <= alpha`` for
-that joint, whatever its reducer.  During the learning period the record alarm is the monitor's own (its
-cross-reducer p-value), and it can raise an ``alert`` but never an ``alarm``: its rate is not this joint's
-(bench/fleet_alarms.py measured 25 % on healthy records of unseen reducers at a stated 5 %).  The two are not combined after learning: the joint's ranking replaces the monitor's
-cross-reducer calibration, whose rate is not that joint's; the health index itself is the monitor's.  ``alpha``
-defaults to the monitor's.  With ``N`` calibration records the smallest p-value is ``1/(N+1)``, so ``learning``
-must be at least ``1/alpha - 1`` for any alarm to be possible (:meth:`Rules.check`).
+and alarms when ``p <= alpha``. If the joint's healthy records are exchangeable, ``P(p <= alpha) <= alpha`` for that
+joint, whatever its reducer. During the learning period the record alarm is the monitor's own (its cross-reducer
+p-value), and it can raise an ``alert`` but never an ``alarm``: its rate is not this joint's (bench/fleet_alarms.py
+measured 20 % on healthy records of unseen reducers at a stated 5 %). The two are not combined after learning: the
+joint's ranking replaces the monitor's cross-reducer calibration, whose rate is not that joint's; the health index
+itself is the monitor's. ``alpha`` defaults to the monitor's. With ``N`` calibration records the smallest p-value is
+``1/(N+1)``, so ``learning`` must be at least ``1/alpha - 1`` for any alarm to be possible (:meth:`Rules.check`).
 
 **Persistence, hysteresis, latching** (ISO 17359 alarm criteria; ThingsBoard / Grafana practice).  ``alert`` from
 the first alarming record; ``alarm`` when ``k`` of the last ``n`` recognised records alarm; an alert clears after
