@@ -164,3 +164,16 @@ def test_the_docstring_examples_hold(module):
 
     res = doctest.testmod(importlib.import_module(module))
     assert res.attempted > 0 and res.failed == 0
+
+
+def test_the_stated_rates_in_docs_fleet_md_are_the_functions():
+    import re
+
+    from conftest import REPO
+
+    text = (REPO / "docs" / "fleet.md").read_text()
+    rows = re.findall(r"\| alpha (\d+) %, (\d) of (\d), clear after (\d), learning (\d+)[^|]*\| ([\d.]+) \|", text)
+    assert len(rows) == 3
+    for a, k, n, m, N, stated in rows:
+        r = Rules(alpha=int(a) / 100, k=int(k), n=int(n), m=int(m), learning=int(N))
+        assert f"{false_alarms_per_year(r, 4):.{len(stated.split('.')[1])}f}" == stated

@@ -320,18 +320,19 @@ class Fleet:
                 j = self._joint(s, joint, lock=True)
                 s.add(rec)
                 s.flush()
-                self._derive_events(s, j)
+                state = self._derive_events(s, j)
         except IntegrityError:  # the same file, ingested at the same time by another process
             with self._sessions() as s:
                 j = self._joint(s, joint)
                 dup = s.scalar(select(db.Record).where(db.Record.joint_id == jid, db.Record.checksum == digest))
                 return self._ingest_answer(s, j, dup, duplicate=True)
-        with self._sessions() as s:
-            return self._ingest_answer(s, self._joint(s, joint), rec, duplicate=False)
+        return self._ingest_answer(None, None, rec, duplicate=False, state=state)
 
-    def _ingest_answer(self, s, j: db.Joint, rec: db.Record, duplicate: bool) -> dict:
+    def _ingest_answer(self, s, j: db.Joint | None, rec: db.Record, duplicate: bool, state: str | None = None) -> dict:
+        if state is None:
+            state = self._derive(s, j)["state"]
         return {"record_id": rec.id, "duplicate": duplicate, "rejected": rec.rejected, "result": rec.result,
-                "joint_state": self._derive(s, j)["state"], "time": _iso(rec.time), "checksum": rec.checksum}
+                "joint_state": state, "time": _iso(rec.time), "checksum": rec.checksum}
 
     # ------------------------------------------------------------------------------------------- the state
     def _derive(self, s, j: db.Joint) -> dict:
@@ -363,13 +364,13 @@ class Fleet:
             out["threshold"] = calib[-jrank]  # a record alarms when its index exceeds this (conformal rank)
         return out
 
-    def _derive_events(self, s, j: db.Joint) -> None:
+    def _derive_events(self, s, j: db.Joint) -> str:
         """Append the ``raised`` / ``cleared`` events the replay shows beyond those already stored for the epoch
-        (an out-of-order record may move an alarm; stored events are never rewritten)."""
+        (an out-of-order record may move an alarm; stored events are never rewritten); returns the joint's state."""
         d = self._derive(s, j)
         ep = d["epoch"]
         if ep is None:
-            return
+            return d["state"]
         for kind in ("raised", "cleared"):
             derived = [st for st in d["steps"] if kind in st.events]
             stored = s.scalar(select(func.count()).select_from(db.Event)
@@ -382,6 +383,7 @@ class Fleet:
                     note = f"{d['rules'].k} of the last {d['rules'].n} records alarmed (health index " \
                            f"{r.health_index:.3g})" if r.health_index is not None else None
                 s.add(db.Event(joint_id=j.id, kind=kind, time=st.time, record_id=rid, epoch_id=ep.id, note=note))
+        return d["state"]
 
     def status(self, joint: str | None = None) -> list[dict]:
         """One row per joint (``joint``: that joint's only): ``joint, state, last_index, last_record_time,
@@ -451,7 +453,9 @@ class Fleet:
         """``(rules, records, steps)`` of one epoch: its judged records and acknowledgements replayed
         (:func:`rvdiag.fleet.rules.replay`); a record's step has its id as ``key``."""
         rl = R.Rules.from_dict(j.rules).resolved(ep.alpha if ep.alpha is not None else R.FALLBACK_ALPHA)
-        recs = list(s.scalars(select(db.Record).where(db.Record.epoch_id == ep.id, db.Record.rejected.is_(None))))
+        cols = (db.Record.id, db.Record.time, db.Record.health_index, db.Record.record_alarm, db.Record.recognised,
+                db.Record.fault_state, db.Record.probability)  # what the state and status need: no JSON columns
+        recs = s.execute(select(*cols).where(db.Record.epoch_id == ep.id, db.Record.rejected.is_(None))).all()
         acks = list(s.scalars(select(db.Event).where(db.Event.epoch_id == ep.id, db.Event.kind == "acknowledged")))
         items = [R.Item(time=r.time, key=r.id, health_index=r.health_index, monitor_alarm=r.record_alarm,
                         recognised=bool(r.recognised)) for r in recs]
