@@ -30,9 +30,9 @@ CONFIG = ROOT / "configs" / "demo-fleet.toml"
 START = datetime(2026, 11, 1, tzinfo=timezone.utc)
 RECORDS_PER_DAY = 2
 #: which library reducer is which joint, and what happens to it
-JOINTS = {0: ("plant/r1/j1", "healthy"), 1: ("plant/r1/j2", "degrades"), 2: ("plant/r2/j1", "dead sensor")}
+JOINTS = {2: ("plant/r1/j1", "healthy"), 1: ("plant/r1/j2", "degrades"), 0: ("plant/r2/j1", "dead sensor")}
 #: the records of the dead-sensor joint that read a constant (monitored records, counted from 0)
-DEAD = range(12, 16)
+DEAD = range(14, 18)
 NAME = "{time}_{speed:.4f}dps_{load:.4f}Nm.npy"
 META_REGEX = r"_(?P<speed_dps>[\d.]+)dps_(?P<load_Nm>[\d.]+)Nm"
 TIME_REGEX = r"^\d{8}T\d{6}"

@@ -309,3 +309,14 @@ def test_the_stated_rate_follows_the_rules(fleet, tmp_path):
     assert fleet.stated_false_alarms_per_year(J) <= 1.0
     assert fleet.stated_false_alarms_per_year(J, records_per_day=8) == pytest.approx(
         2 * fleet.stated_false_alarms_per_year(J))
+
+
+def test_a_maintenance_ends_the_epoch_it_was_recorded_in(fleet, tmp_path):
+    """Maintenance recorded now, the new baseline's time given earlier (a late entry): the new epoch holds."""
+    commission(fleet, tmp_path)
+    fleet.maintenance(J, "cy", "bearing replaced")  # now, 2026-11-28 or later
+    commission(fleet, tmp_path, time=T0 + timedelta(days=2), n=4)
+    assert fleet.status()[0]["state"] == "learning" and fleet.status()[0]["epoch"] == 2
+    assert feed(fleet, tmp_path, [0.1], start=10)[0]["joint_state"] == "learning"  # 2.5 days in: epoch 2
+    with pytest.raises(FleetError, match="a new baseline must start later"):
+        commission(fleet, tmp_path, time=T0 + timedelta(days=1))

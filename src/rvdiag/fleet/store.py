@@ -194,8 +194,11 @@ class Fleet:
         with self._sessions() as s:
             j = self._joint(s, joint)
             jid, monitor = j.id, Path(j.monitor)
-            number = int(s.scalar(select(func.coalesce(func.max(db.Epoch.number), 0))
-                                  .where(db.Epoch.joint_id == jid))) + 1
+            eps = self._epochs(s, jid)
+            number = eps[-1].number + 1 if eps else 1
+            if eps and t <= eps[-1].started:
+                raise FleetError(f"{joint}'s epoch {eps[-1].number} started at {_iso(eps[-1].started)}: a new "
+                                 f"baseline must start later (--time), not at {_iso(t)}")
         signals, ops, kept = [], [], []
         for i, f in enumerate(files):
             data = _read_bytes(f)
@@ -239,18 +242,19 @@ class Fleet:
     def _epochs(self, s, jid: int) -> list[db.Epoch]:
         return list(s.scalars(select(db.Epoch).where(db.Epoch.joint_id == jid).order_by(db.Epoch.number)))
 
-    def _maintenances(self, s, jid: int) -> list[datetime]:
-        return list(s.scalars(select(db.Event.time).where(db.Event.joint_id == jid, db.Event.kind == "maintenance")
+    def _maintenances(self, s, ep: db.Epoch) -> list[datetime]:
+        """The times of the maintenance events that ended the epoch ``ep`` (recorded while it was current)."""
+        return list(s.scalars(select(db.Event.time).where(db.Event.epoch_id == ep.id, db.Event.kind == "maintenance")
                               .order_by(db.Event.time)))
 
     def _epoch_at(self, s, jid: int, t: datetime) -> db.Epoch | None:
         """The epoch whose baseline judges a record of time ``t``: the last commissioned at or before ``t``, unless
-        a maintenance lies between (then none: the joint awaits its new baseline)."""
+        the maintenance that ended it lies before ``t`` (then none: the joint awaited its new baseline)."""
         eps = [e for e in self._epochs(s, jid) if e.started <= t]
         if not eps:
             return None
         ep = eps[-1]
-        if any(ep.started <= m <= t for m in self._maintenances(s, jid)):
+        if any(m <= t for m in self._maintenances(s, ep)):
             return None
         return ep
 
@@ -344,7 +348,7 @@ class Fleet:
         if not eps:
             return out
         ep = eps[-1]
-        maint = [m for m in self._maintenances(s, j.id) if m >= ep.started]
+        maint = self._maintenances(s, ep)
         rl, recs, steps = self._replay_epoch(s, j, ep)
         out.update(epoch=ep, rules=rl, steps=steps, records={r.id: r for r in recs}, since=ep.started)
         if maint:
