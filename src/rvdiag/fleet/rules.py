@@ -36,6 +36,7 @@ The joint-level false-alarm rate these rules imply is :func:`false_alarms_per_ye
 
 from __future__ import annotations
 
+import functools
 import math
 from collections import deque
 from dataclasses import asdict, dataclass, field, replace
@@ -283,6 +284,14 @@ def raise_probability_per_record(rules: Rules, f: float) -> float:
 
 
 def false_alarms_per_year(rules: Rules, records_per_day: float | None = None) -> float:
+    """The joint's stated false alarms per year (:func:`_false_alarms_per_year`, remembered per rules: a page that
+    shows it for every joint computes it once)."""
+    R = float(records_per_day if records_per_day is not None else rules.records_per_day)
+    return _false_alarms_per_year(rules, R)
+
+
+@functools.lru_cache(maxsize=256)
+def _false_alarms_per_year(rules: Rules, records_per_day: float) -> float:
     """The joint's stated false alarms per year: alarms raised on a healthy joint after its learning period.
 
     Derivation.  Let the joint's healthy records be exchangeable with continuous scores, and its ``N`` learning
