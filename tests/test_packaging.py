@@ -79,12 +79,12 @@ def test_wheel_ships_the_configs_and_the_version(tmp_path):
     assert {f"rvdiag/configs/{n}.toml" for n in SHIPPED} <= names
     assert "rvdiag/params/rv20e.toml" in names
     assert {"rvdiag/fleet/migrations/env.py", "rvdiag/fleet/migrations/versions/0001_fleet_store.py"} <= names
+    # the dashboard's templates and its own script and style (Plotly's comes from the plotly wheel)
+    assert {f"rvdiag/fleet/web/templates/{n}.html" for n in ("base", "fleet", "joint", "alarms", "error")} <= names
+    assert {f"rvdiag/fleet/web/static/{n}" for n in ("dashboard.css", "dashboard.js", "favicon.svg")} <= names
 
 
 def test_every_declared_marker_is_used():
     declared = [m.split(":")[0] for m in PYPROJECT["tool"]["pytest"]["ini_options"].get("markers", [])]
     text = "".join(p.read_text() for p in (REPO / "tests").glob("test_*.py"))
     assert [m for m in declared if f"mark.{m}" not in text] == []
-    # the dashboard's templates and its own script and style (Plotly's comes from the plotly wheel)
-    assert {f"rvdiag/fleet/web/templates/{n}.html" for n in ("base", "fleet", "joint", "alarms", "error")} <= names
-    assert {f"rvdiag/fleet/web/static/{n}" for n in ("dashboard.css", "dashboard.js", "favicon.svg")} <= names
