@@ -11,6 +11,9 @@ Steps, each an ordinary ``rvdiag`` command printed before it runs, so you can re
 6. a small paired library: each reducer healthy at commissioning, then later -> out/demo-monitoring.zarr
 7. train a baseline-referenced monitor on it (rvdiag train on a paired store) -> out/demo-monitor/
 8. evaluate it on held-out reducers, per record, with the false alarms' interval -> out/monitoring.json
+9-12. a small simulated fleet watched by that monitor (examples/demo_fleet.py)  -> out/fleet.db, the state table,
+   three joints over two weeks: one healthy, one degrading (its alarm raised and acknowledged), one with a dead
+   sensor for a while; a static snapshot of the dashboard                     -> out/fleet-dashboard/
 
 Re-running resumes: a finished library is reused, an interrupted one is completed.
 """
@@ -138,6 +141,11 @@ def main() -> None:
           + f"; false-alarm rate {mon['false_alarm_rate']:.3f} ({mon['n_false_alarms']} of "
           f"{mon['n_healthy_records']} healthy records, 95 % interval {lo:.3f}-{hi:.3f}; stated "
           f"{mon['alarm']['alpha']:g} per record)")
+    import demo_fleet  # noqa: E402  (examples/demo_fleet.py)
+
+    t_fleet = time.perf_counter()
+    demo_fleet.run(out, monitor_dir, step)
+    print(f"   (the fleet steps: {time.perf_counter() - t_fleet:.0f} s)")
     print(f"\nDemo finished in {time.perf_counter() - t_start:.0f} s. Report: {report.resolve()}")
 
 

@@ -15,7 +15,7 @@ import rvdiag
 from rvdiag.library.config import LibraryConfig, builtin_config_path, builtin_configs
 
 PYPROJECT = tomllib.loads((REPO / "pyproject.toml").read_text())
-SHIPPED = {"demo", "demo-monitoring", "mcsa", "mcsa-study", "monitoring", "monitoring-current", "paper", "independent", "transfer", "experiments/snr", "experiments/independent20",
+SHIPPED = {"demo", "demo-fleet", "demo-monitoring", "mcsa", "mcsa-study", "monitoring", "monitoring-current", "paper", "independent", "transfer", "experiments/snr", "experiments/independent20",
            "experiments/independent-speed"}
 
 
@@ -79,6 +79,10 @@ def test_wheel_ships_the_configs_and_the_version(tmp_path):
     names = set(zipfile.ZipFile(wheel).namelist())
     assert {f"rvdiag/configs/{n}.toml" for n in SHIPPED} <= names
     assert "rvdiag/params/rv20e.toml" in names
+    assert {"rvdiag/fleet/migrations/env.py", "rvdiag/fleet/migrations/versions/0001_fleet_store.py"} <= names
+    # the dashboard's templates and its own script and style (Plotly's comes from the plotly wheel)
+    assert {f"rvdiag/fleet/web/templates/{n}.html" for n in ("base", "fleet", "joint", "alarms", "error")} <= names
+    assert {f"rvdiag/fleet/web/static/{n}" for n in ("dashboard.css", "dashboard.js", "favicon.svg")} <= names
 
 
 def test_every_declared_marker_is_used():

@@ -42,6 +42,20 @@ class ModelFileError(RvdiagError, ValueError):
     """A saved model directory is missing, corrupt, or does not match the data."""
 
 
+class FleetError(RvdiagError):
+    """The fleet store refuses an action: an unknown joint, a joint without a baseline, a database of a newer
+    schema, a name that is not site/robot/joint (:mod:`rvdiag.fleet`)."""
+
+
+class AuthError(FleetError):
+    """A write to the fleet without a token, with an unknown one, or with a read-only one.  ``status`` is the HTTP
+    status that fits: 401 (missing or unknown) or 403 (read-only)."""
+
+    def __init__(self, message: str, status: int = 401):
+        super().__init__(message)
+        self.status = status
+
+
 class RvdiagWarning(UserWarning):
     """Base class of rvdiag's warnings: the result is computed, but the user should know a caveat."""
 
