@@ -177,7 +177,7 @@ def test_operating_points_are_listed(base):
 
 
 def test_diagnose_reads_the_record_as_dataset_from_files(paired, monitor, loaded, base, tmp_path, capsys):  # noqa: F811
-    """``diagnose --angle-channel --meta-regex`` (issue 37): the speed from the encoder angle, the load from the file
+    """``diagnose --angle-channel --meta-regex``: the speed from the encoder angle, the load from the file
     name's group ``load``, as ``dataset from-files`` reads them; the same answer as the API."""
     from rvdiag.params import ReducerParams
 

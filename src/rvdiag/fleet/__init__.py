@@ -1,4 +1,4 @@
-"""Watching a fleet of robot joints over their life (issue 34; docs/fleet.md).
+"""Watching a fleet of robot joints over their life (docs/fleet.md).
 
 - :mod:`rvdiag.fleet.store`: :class:`Fleet`, the one code path of the CLI (``rvdiag fleet ...``), the folder
   watcher and the HTTP API: joints, commissioning (epochs), ingest, status, history, events, acknowledgement,

@@ -5,7 +5,7 @@ period not yet full), ``normal``, ``alert``, ``alarm``, ``sensor-fault``.
 
 **The record alarm.**  Each recognised record has the monitor's health index ``s`` (its change against the joint's
 baseline; higher is further from it) and the monitor's own alarm at its stated per-record rate ``alpha``, calibrated
-across reducers.  That calibration does not hold for every reducer (issue 34: the worst held-out reducer alarmed on
+across reducers.  That calibration does not hold for every reducer (at a 10 dB floor, docs/monitoring.md: the worst held-out reducer alarmed on
 6.2 % of its healthy records at a stated 1 %), so a joint calibrates itself (Vovk, Gammerman & Shafer, *Algorithmic
 Learning in a Random World*, 2005, ch. 2; the inductive conformal p-value): its first ``learning`` recognised records
 after commissioning (the learning period; they are taken to be healthy) are its own calibration scores

@@ -1,4 +1,4 @@
-"""The fleet: joints watched over their life, each against its own baseline (issue 34; docs/fleet.md).
+"""The fleet: joints watched over their life, each against its own baseline (docs/fleet.md).
 
 :class:`Fleet` is the one code path behind ``rvdiag fleet ...``, the folder watcher (:mod:`rvdiag.fleet.watch`) and
 the HTTP API (:mod:`rvdiag.fleet.api`).  What it keeps is in :mod:`rvdiag.fleet.db`; a joint's state is derived
