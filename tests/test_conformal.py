@@ -210,3 +210,108 @@ def test_card_round_trip(tmp_path):
         from_card({"classes": ["T1", "T2"], "prediction_sets": ps.to_card()})
     with pytest.raises(ModelFileError):
         from_card({"classes": CLASSES, "prediction_sets": {"classes": CLASSES}})
+
+
+# --- train -> evaluate -> diagnose (a small classical model on a store of tones, whole reducers per unit) ---
+
+FS, L = 1000.0, 128
+
+
+def _tone(c: int, rng) -> np.ndarray:
+    t = np.arange(L) / FS
+    return np.sin(2 * np.pi * (60 + 40 * c) * t + rng.uniform(0, 6)) + 0.8 * rng.standard_normal(L)
+
+
+@pytest.fixture(scope="module")
+def tone_store(tmp_path_factory):
+    from rvdiag.datasets import write_store
+
+    rng = np.random.default_rng(0)
+    X, y, split, unit = [], [], [], []
+    for c in range(3):
+        for r in range(44):  # 40 training reducers and 4 test reducers per state, 2 windows each
+            for _ in range(2):
+                X.append(_tone(c, rng))
+                y.append(f"T{c + 1}")
+                split.append("test" if r >= 40 else "train")
+                unit.append(c * 1000 + r)
+    p = tmp_path_factory.mktemp("conformal") / "tones.zarr"
+    write_store(p, np.asarray(X, np.float32), y, meta={"split": split, "unit": unit},
+                kind="simulated", fs=FS, config={"name": "tones"})
+    return p
+
+
+@pytest.fixture(scope="module")
+def tone_model(tone_store, tmp_path_factory):
+    from rvdiag.cli import main
+
+    out = tmp_path_factory.mktemp("conformal") / "model"
+    try:
+        main([str(a) for a in ["train", tone_store, "--model", "svm", "--features", "spectrum", "--out", out,
+                               "--seed", "0", "--quiet", "--calibration-fraction", "0.25"]])
+    except SystemExit as exc:  # pragma: no cover - a failure shows here
+        assert exc.code == 0
+    return out
+
+
+def test_train_calibrates_on_held_out_training_reducers(tone_model, tone_store):
+    from rvdiag.datasets import SampleStore
+
+    card = read_card(tone_model)
+    ps = from_card(card)
+    assert ps.coverage == {"T1": 0.95, "T2": 0.9, "T3": 0.9}
+    assert ps.n_groups == {c: 10 for c in ("T1", "T2", "T3")} and ps.n_calibration == {c: 20 for c in ps.classes}
+    assert not ps.too_few() and ps.source["refit"] is False
+    store = SampleStore.open(tone_store)
+    units = np.asarray(store.meta["unit"])
+    held = {int(u) for us in ps.source["held_out_reducers"].values() for u in us}
+    assert held <= set(units[np.asarray(store.meta["split"]) == "train"].tolist())
+    assert card["training_store"]["n_train"] == 3 * 30 * 2  # the fit saw the other 30 reducers of each state
+
+
+def test_evaluate_and_diagnose_give_sets(tone_model, tone_store, tmp_path, capsys):
+    from conftest import run_cli as run
+
+    from rvdiag.evaluation.report import sets_section
+
+    code, out, err = run(["evaluate", tone_model, tone_store, "--json"], capsys)
+    assert code == 0, err
+    sets = json.loads(out)["sets"]
+    assert set(sets["per_state"]) == {"T1", "T2", "T3"} and sets["n"] == 24
+    for v in sets["per_state"].values():
+        assert set(v) >= {"stated_coverage", "coverage", "mean_size"} and 0.0 <= v["mean_size"] <= 3.0
+    assert math.isclose(sets["stated_coverage"], (0.95 + 0.9 + 0.9) / 3)
+    html = sets_section(sets, None)
+    assert "Prediction sets" in html and "mean set size" in html and html.count("<tr") == 5  # head, 3 states, all
+    assert "trained before" in sets_section(None, "no prediction sets: trained before")
+    code, out, err = run(["evaluate", tone_model, tone_store], capsys)
+    assert code == 0 and "prediction sets: coverage" in out
+    x = np.concatenate([_tone(1, np.random.default_rng(s)) for s in range(4)])
+    f = tmp_path / "rec.npy"
+    np.save(f, x)
+    code, out, err = run(["diagnose", tone_model, str(f), "--fs", str(FS), "--json"], capsys)
+    assert code == 0, err
+    res = json.loads(out)
+    assert res["set"] and res["set_coverage"] == 0.9 and res["set_coverage_per_state"]["T1"] == 0.95
+    assert res["set_state"] == (res["set"][0] if len(res["set"]) == 1 else None)
+    assert all("set" in w for w in res["windows"]) and "90 % set" in res["set_text"]
+
+
+def test_a_model_without_calibration_says_so(tone_model, tone_store, tmp_path, capsys):
+    import shutil
+
+    from conftest import run_cli as run
+
+    old = tmp_path / "old"
+    shutil.copytree(tone_model, old)
+    card = json.loads((old / "card.json").read_text())
+    del card["prediction_sets"]
+    (old / "card.json").write_text(json.dumps(card))
+    code, out, err = run(["evaluate", old, tone_store, "--json"], capsys)
+    assert code == 0, err
+    m = json.loads(out)
+    assert m["sets"] is None and "before rvdiag stored a conformal calibration" in m["sets_note"]
+    f = tmp_path / "rec.npy"
+    np.save(f, _tone(0, np.random.default_rng(1)))
+    code, out, err = run(["diagnose", old, str(f), "--fs", str(FS)], capsys)
+    assert code == 0 and "no prediction set" in out, err

@@ -35,8 +35,8 @@ import numpy as np
 import typer
 
 from rvdiag.cli import _options as opt
-from rvdiag.cli._record import (SPEED_META, flat_reason, not_recognised_line, recognition,  # noqa: F401
-                                 record_speed, state_name)
+from rvdiag.cli._record import (SPEED_META, fault_name, flat_reason, not_recognised_line,  # noqa: F401
+                                 recognition, record_speed, state_name)
 from rvdiag.errors import DataFileError, ParameterError
 
 MAX_ROWS = 40
@@ -181,6 +181,33 @@ def trust_warnings(loaded, res: dict, speed: dict, load: float | None, fs: float
     return out
 
 
+def record_set(loaded, res: dict) -> dict:
+    """The prediction set of the record (:mod:`rvdiag.models.conformal`, applied to the windows' mean probability,
+    as the diagnosis is) and of each window: ``set`` (the states, most probable first), ``set_coverage`` (the
+    smallest stated coverage of the model's states: the set holds the true state at least this often, whatever it
+    is), ``set_coverage_per_state``, ``set_state`` (the one state when the set has one, else None), ``set_text``
+    (in words); or None and ``set_note`` (no calibration, or a record not recognised)."""
+    from rvdiag.models import conformal
+
+    ps = conformal.from_card(loaded.card)
+    empty = {"set": None, "set_coverage": None, "set_coverage_per_state": None, "set_state": None,
+             "set_text": None}
+    if ps is None:
+        note = (f"no prediction set: {loaded.card['prediction_sets_note']}" if loaded.card.get("prediction_sets_note")
+                else conformal.NOT_CALIBRATED)
+        return {**empty, "set_note": note}
+    if res.get("probabilities") is None:
+        return {**empty, "set_note": "no prediction set: the record is not recognised"}
+    states = ps.prediction_set([res["probabilities"][c] for c in ps.classes])[0]
+    cover = min(ps.coverage.values())
+    for w in res["windows"]:
+        w["set"] = ps.prediction_set([w["probabilities"][c] for c in ps.classes])[0]
+    name = (lambda c: fault_name(c) or c)
+    return {"set": states, "set_coverage": cover, "set_coverage_per_state": dict(ps.coverage),
+            "set_state": states[0] if len(states) == 1 else None,
+            "set_text": conformal.describe_set(states, cover, name), "set_note": None}
+
+
 def build_diagnosis(loaded, sig, values: dict, *, is_current: bool, output_speed: float | None = None,
                     load: float | None = None) -> dict:
     """The whole answer of ``rvdiag diagnose`` for one record (the dict of ``--json``), apart from its printing:
@@ -214,6 +241,7 @@ def build_diagnosis(loaded, sig, values: dict, *, is_current: bool, output_speed
     else:
         res["state"] = state_name(res["diagnosis"])
         res["model_recall"] = class_limits(loaded.card.get("metrics")).get("recall", {}).get(res["diagnosis"])
+    res.update(record_set(loaded, res))
     res["operating_point"] = {"output_speed_deg_s": speed.get("output_speed_deg_s"),
                               "speed_source": speed.get("detail") or speed.get("error"), "load_Nm": load}
     res["warnings"] += trust_warnings(loaded, res, speed, load, sig.fs, x)
@@ -349,6 +377,8 @@ def _print(res: dict) -> None:
     con.print(f"diagnosis: [bold]{res['state']}[/bold] (mean probability {p:.3f} over {res['n_windows']} windows"
               + ("" if recall is None else f"; the model recognises {100 * recall:.0f} % of its held-out "
                                            f"{res['diagnosis']} samples") + ")", soft_wrap=True)
+    con.print(f"prediction set: [bold]{res['set_text']}[/bold]" if res.get("set_text") else res.get("set_note"),
+              soft_wrap=True)
     if res.get("current_lines"):
         cl = res["current_lines"]
         lt = Table(title=f"motor-current lines (output speed {cl['output_speed_deg_s']:.4g} deg/s from "

@@ -59,7 +59,7 @@ def register(app: typer.Typer) -> None:
         from rvdiag.datasets import SampleStore
         from rvdiag.datasets import parse_condition
         from rvdiag.evaluation.evaluate import (accuracy_against_snr, accuracy_by, evaluate_on_store, merged_metrics,
-                                                record_metrics, report_html)
+                                                record_metrics, report_html, set_metrics_of)
         from rvdiag.evaluation.report import write_report
         from rvdiag.models.persistence import load_model
 
@@ -87,6 +87,7 @@ def register(app: typer.Typer) -> None:
             curve = accuracy_against_snr(loaded, ev, levels, seed) if levels else None
         merged = merged_metrics(ev, merge_map, loaded.card["classes"]) if merge_map else None
         by_record = record_metrics(loaded, ev, "unit", merge_map) if records else None
+        sets, sets_note = set_metrics_of(loaded, ev)
         for w in ev.warnings:
             typer.echo(w, err=True)
         if report is not None:
@@ -101,6 +102,9 @@ def register(app: typer.Typer) -> None:
                 out["merged"] = merged
             if by_record is not None:
                 out["records"] = by_record
+            out["sets"] = sets
+            if sets is None:
+                out["sets_note"] = sets_note
             if curve is not None:
                 out["snr"] = curve
             if bounds:
@@ -108,6 +112,7 @@ def register(app: typer.Typer) -> None:
             typer.echo(json.dumps(out, indent=2))
         else:
             _print(ev, loaded, data)
+            typer.echo(sets_line(sets, sets_note))
             if merged is not None:
                 typer.echo(f"merged {','.join(f'{a}={b}' for a, b in merge_map.items())}: {headline(merged)}; "
                            + ", ".join(f"{c} recall {100 * v['recall']:.1f} %" for c, v in merged["per_class"].items()))
@@ -144,6 +149,16 @@ def _monitor(loaded, data, split, where, baseline, json_out, merge, others: dict
     else:
         _baseline.print_evaluation(res, loaded, data)
     return True
+
+
+def sets_line(sets: dict | None, note: str | None) -> str:
+    """The prediction sets' coverage and size in one line, per state; or why there are none."""
+    if sets is None:
+        return note or "no prediction sets"
+    per = "; ".join(f"{c} {100 * v['coverage']:.1f} % of {100 * v['stated_coverage']:g} % (size {v['mean_size']:.2f})"
+                    for c, v in sets["per_state"].items())
+    return (f"prediction sets: coverage {100 * sets['coverage']:.1f} % (stated {100 * sets['stated_coverage']:.1f} %), "
+            f"mean size {sets['mean_size']:.2f}, {100 * sets['singletons']:.1f} % of one state; per state: {per}")
 
 
 def _print_records(r: dict) -> None:

@@ -40,6 +40,7 @@ from rvdiag.cli import _options as opt
 from rvdiag.cli._progress import bar_columns, progress_bars, stderr_console
 from rvdiag.cli._store_info import signal_info, training_store_info
 from rvdiag.errors import ParameterError, StoreError
+from rvdiag.models.conformal import FAULT_COVERAGE, HEALTHY_COVERAGE
 from rvdiag.registry import CLASSICAL_MODELS, CNN_MODELS, OLD_MODEL_NAMES, RECOMMENDED_TRAINING
 
 #: Python parameters of :class:`rvdiag.models.torch_estimator.CNNClassifier` -> the options that set them.
@@ -266,6 +267,14 @@ def register(app: typer.Typer) -> None:
         alpha: float = typer.Option(None, "--alpha",
                                     help="baseline-monitor: the alarm's false-alarm rate per healthy record "
                                          "(default 0.01; docs/monitoring.md)."),
+        calibration_fraction: float = typer.Option(
+            DEFAULT_CALIBRATION_FRACTION, "--calibration-fraction",
+            help="Share of each state's training reducers (metadata column unit) held out of the fit to calibrate "
+                 "the prediction sets (docs/models.md); 0: no sets."),
+        healthy_coverage: float = typer.Option(HEALTHY_COVERAGE, "--healthy-coverage",
+                                               help="Stated coverage of the healthy state (T1) in the sets."),
+        fault_coverage: float = typer.Option(FAULT_COVERAGE, "--fault-coverage",
+                                             help="Stated coverage of each fault state in the sets."),
     ) -> None:
         """Train a classifier on the train split of a store and save it as a model directory.
 
@@ -278,6 +287,11 @@ def register(app: typer.Typer) -> None:
         model = opt.renamed("--model", model, OLD_MODEL_NAMES)
         if repeat < 1:
             raise ParameterError(f"--repeat must be >= 1, got {repeat}")
+        if not 0.0 <= calibration_fraction < 1.0:
+            raise ParameterError(f"--calibration-fraction must lie in [0, 1), got {calibration_fraction}")
+        from rvdiag.models.conformal import stated_coverages
+
+        stated_coverages([], healthy_coverage=healthy_coverage, fault_coverage=fault_coverage)  # checked now
         if epochs < 1:
             raise ParameterError(f"--epochs must be >= 1, got {epochs}")
         if out.exists() and not out.is_dir():
@@ -332,24 +346,37 @@ def register(app: typer.Typer) -> None:
         stream = _streaming_choice(streaming, model, snr_db, store)
         where = f"the store {data}"
         if stream:
-            from rvdiag.models.streaming import DEFAULT_BUFFER_SAMPLES, StoreSamples, predict_store
+            from rvdiag.models.streaming import DEFAULT_BUFFER_SAMPLES, StoreSamples, predict_proba_store, predict_store
 
             tr = StoreSamples(store, train_idx, meta_cols, where=where)
             te = StoreSamples(store, store.indices("test"), meta_cols, where=where) if "test" in store.splits() else None
-            Xtr = Xte = None
+            held, cal_note = calibration_split(tr, calibration_fraction, seed)
+            cal = None
+            if held is not None:
+                cal = StoreSamples(store, tr.index[held], meta_cols, where=where)
+                tr = StoreSamples(store, tr.index[~held], meta_cols, where=where)
+            Xtr = Xte = Xcal = None
         else:
             tr = store.load(index=train_idx) if conditions else store.load("train")
             te = store.load("test") if "test" in store.splits() else None
+            held, cal_note = calibration_split(tr, calibration_fraction, seed)
+            cal = None
+            if held is not None:
+                tr, cal = subset(tr, ~held), subset(tr, held)
             if snr_db is not None:
                 tr, te = _with_noise(tr, snr_db, [seed, 0]), (None if te is None else _with_noise(te, snr_db, [seed, 1]))
+                cal = None if cal is None else _with_noise(cal, snr_db, [seed, 3])
             Xtr = with_metadata(tr.X, tr.meta, meta_cols, where=where)
             Xte = None if te is None else with_metadata(te.X, te.meta, meta_cols, where=where)
+            Xcal = None if cal is None else with_metadata(cal.X, cal.meta, meta_cols, where=where)
         labels = [c for c in store.classes if c in set(tr.y.tolist())]
         if len(labels) < 2:
             raise StoreError(f"{data}: the train split holds fewer than 2 classes")
         echo = (lambda *a, **k: None) if json_out else (lambda msg: typer.echo(msg, err=True))
         echo(f"{data}: {len(tr.y)} training samples of {store.length} points, {len(labels)} classes"
              + (f", {len(te.y)} test samples" if te is not None else ", no test split")
+             + (f"; {len(cal.y)} samples of {_n_groups(cal)} held-out training reducers calibrate the prediction sets"
+                if cal is not None else f"; no prediction sets ({cal_note})")
              + (f"; streamed from the store, {DEFAULT_BUFFER_SAMPLES} samples at a time" if stream else ""))
 
         runs, first = [], None
@@ -378,11 +405,31 @@ def register(app: typer.Typer) -> None:
             if r == 0:
                 first = (est, metrics)
         est, metrics = first
+        extra: dict = {}
+        if cal is not None:
+            from rvdiag.evaluation.evaluate import predict_in_chunks
+            from rvdiag.models.conformal import PredictionSets
+
+            P = predict_proba_store(est, cal) if stream else predict_in_chunks(est, Xcal, method="predict_proba")
+            from rvdiag.evaluation.metrics import healthy_class
+
+            classes = [str(c) for c in est.classes_]
+            sets = PredictionSets.calibrate(
+                P, cal.y, classes, stated_coverages(classes, healthy=healthy_class(classes),
+                                                    healthy_coverage=healthy_coverage, fault_coverage=fault_coverage),
+                groups=cal.meta["unit"], source=calibration_source(cal, calibration_fraction, seed))
+            extra["prediction_sets"] = sets.to_card()
+            if sets.too_few():
+                echo(f"note: too few held-out samples of {', '.join(sets.too_few())} for the stated coverage: "
+                     "in every prediction set")
+        else:
+            extra["prediction_sets"] = None
+            extra["prediction_sets_note"] = cal_note
         novelty, op_range = _novelty_and_range(est, store, train_idx, tr, te, Xtr, Xte, meta_cols, seed, stream,
                                                where)
         store_info = training_store_info(store, data, len(tr.y))
-        extra = {} if snr_db is None else {"added_noise": {"snr_db": float(snr_db), "seed": [seed, 0],
-                                                           "applies_to": "train and test splits"}}
+        extra.update({} if snr_db is None else {"added_noise": {"snr_db": float(snr_db), "seed": [seed, 0],
+                                                                "applies_to": "train and test splits"}})
         extra["operating_range"] = op_range
         if conditions:
             extra["train_where"] = conditions
@@ -405,6 +452,50 @@ def register(app: typer.Typer) -> None:
         if summary is not None:
             _print_repeat(summary, seed, repeat)
         echo(f"saved model to {out}" + (" (the first seed's model; repeat.json holds the summary)" if repeat > 1 else ""))
+
+
+#: share of each state's training reducers held out of the fit to calibrate the prediction sets
+DEFAULT_CALIBRATION_FRACTION = 0.2
+
+
+def calibration_split(tr, fraction: float, seed: int):
+    """The training samples held out to calibrate the prediction sets (:func:`rvdiag.models.conformal.split_by_group`:
+    whole reducers, the metadata column ``unit``, ``fraction`` of each state's, drawn with ``[seed, 4]``), as a
+    boolean mask, and None; or None and the reason there are none (``fraction`` 0, no ``unit`` column, no state
+    with two reducers)."""
+    from rvdiag.models.conformal import split_by_group
+
+    if fraction <= 0:
+        return None, "--calibration-fraction 0"
+    units = tr.meta.get("unit")
+    if units is None:
+        return None, "the store has no reducer column (unit) to hold whole reducers out of the fit"
+    held = split_by_group(tr.y, units, fraction, [seed, 4])
+    if not held.any():
+        return None, "no state has two reducers (units) in the training split: none can be held out"
+    return held, None
+
+
+def calibration_source(cal, fraction: float, seed: int) -> dict:
+    """Where the calibration samples came from, for the card."""
+    held = {str(c): sorted({str(u) for u in np.asarray(cal.meta["unit"])[np.asarray(cal.y) == c]})
+            for c in np.unique(np.asarray(cal.y))}
+    return {"method": "split", "refit": False, "fraction": float(fraction), "seed": [int(seed), 4],
+            "what": "whole training reducers (metadata column unit) held out of the fit, per state",
+            "held_out_reducers": held}
+
+
+def subset(samples, mask):
+    """The loaded samples (:class:`rvdiag.datasets.store.Samples`) where ``mask`` holds."""
+    import dataclasses
+
+    return dataclasses.replace(samples, X=samples.X[mask], y=np.asarray(samples.y)[mask],
+                               meta={k: np.asarray(v)[mask] for k, v in samples.meta.items()},
+                               index=np.asarray(samples.index)[mask])
+
+
+def _n_groups(cal) -> int:
+    return int(len({(str(c), str(u)) for c, u in zip(cal.y, cal.meta["unit"])}))
 
 
 #: at most this many training (and test) samples fit and calibrate the out-of-distribution check

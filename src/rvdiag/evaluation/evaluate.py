@@ -25,6 +25,7 @@ class Evaluation:
     X : ndarray, the evaluated samples
     meta : dict of metadata columns of the evaluated samples
     warnings : list of str (fs mismatch...)
+    sets, sets_note : the prediction sets' metrics, or why there are none (:func:`set_metrics_of` fills them)
     """
 
     metrics: dict
@@ -34,6 +35,8 @@ class Evaluation:
     meta: dict
     split: str
     warnings: list[str] = field(default_factory=list)
+    sets: dict | None = None
+    sets_note: str | None = None
 
 
 def check_store_matches(card: dict, store) -> list[str]:
@@ -204,10 +207,34 @@ def report_html(loaded, store, ev: Evaluation, max_tsne: int = 600, seed: int = 
         "config": store.attrs.get("config"), "config_hash": store.attrs.get("config_hash"),
     }
     title = f"rvdiag evaluation: {loaded.card.get('model')} on {Path(store.path).name} ({ev.split})"
+    sets, sets_note = set_metrics_of(loaded, ev)
     return render_report(title=title, metrics=ev.metrics, card=loaded.card, store_info=store_info,
                          examples=examples, fs=store.fs, frequencies=freqs, embedding=emb,
                          embedding_labels=ev.y_true[pick], notes=notes,
-                         indicators=indicators_by_class(ev, store.fs, seed=seed, notes=notes))
+                         indicators=indicators_by_class(ev, store.fs, seed=seed, notes=notes),
+                         sets=sets, sets_note=sets_note)
+
+
+def set_metrics_of(loaded, ev: Evaluation) -> tuple[dict | None, str | None]:
+    """The prediction sets' coverage and size on the evaluated samples (``rvdiag evaluate --json`` key ``sets``:
+    :func:`rvdiag.models.conformal.set_metrics` with ``calibration``, where the model's calibration came from), and
+    None; or None and why there are none (a model trained before rvdiag stored a calibration, or trained with
+    ``--calibration-fraction 0``).  Computed once per evaluation and kept on it."""
+    from rvdiag.models import conformal
+
+    if ev.sets is not None or ev.sets_note is not None:
+        return ev.sets, ev.sets_note
+    ps = conformal.from_card(loaded.card)
+    if ps is None:
+        ev.sets_note = (f"no prediction sets: {loaded.card['prediction_sets_note']}"
+                        if loaded.card.get("prediction_sets_note") else conformal.NOT_CALIBRATED)
+        return None, ev.sets_note
+    X = loaded.inputs(ev.X, ev.meta, where="the evaluated samples")
+    P = predict_in_chunks(loaded.estimator, X, method="predict_proba").astype(float)
+    ev.sets = {**conformal.set_metrics(ps.contains(P), ev.y_true, ps.classes, ps.coverage),
+               "calibration": {"n_calibration": ps.n_calibration, "n_reducers": ps.n_groups,
+                               "method": ps.source.get("method"), "refit": ps.source.get("refit")}}
+    return ev.sets, None
 
 
 def merged_metrics(ev: Evaluation, merge: dict[str, str], labels) -> dict:

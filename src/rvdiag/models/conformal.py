@@ -98,9 +98,10 @@ def min_calibration_samples(coverage: float) -> int:
     return math.ceil(1.0 / (1.0 - float(coverage)) - 1e-9) - 1
 
 
-def stated_coverages(classes, healthy: str = HEALTHY, healthy_coverage: float = HEALTHY_COVERAGE,
+def stated_coverages(classes, healthy: str | None = HEALTHY, healthy_coverage: float = HEALTHY_COVERAGE,
                      fault_coverage: float = FAULT_COVERAGE) -> dict[str, float]:
-    """The stated coverage of each class: ``healthy_coverage`` for ``healthy``, ``fault_coverage`` for the others."""
+    """The stated coverage of each class: ``healthy_coverage`` for ``healthy`` (None: no class is the healthy
+    one), ``fault_coverage`` for the others; :class:`ParameterError` unless both lie in (0, 1)."""
     for name, v in (("healthy coverage", healthy_coverage), ("fault coverage", fault_coverage)):
         if not 0.0 < float(v) < 1.0:
             raise ParameterError(f"the {name} must lie strictly between 0 and 1, got {v}")
