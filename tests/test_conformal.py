@@ -266,7 +266,7 @@ def test_train_calibrates_on_held_out_training_reducers(tone_model, tone_store):
     units = np.asarray(store.meta["unit"])
     held = {int(u) for us in ps.source["held_out_reducers"].values() for u in us}
     assert held <= set(units[np.asarray(store.meta["split"]) == "train"].tolist())
-    assert card["training_store"]["n_train"] == 3 * 30 * 2  # the fit saw the other 30 reducers of each state
+    assert card["training_store"]["n_train"] == 3 * 40 * 2  # the training split; the fit saw 30 reducers a state
 
 
 def test_evaluate_and_diagnose_give_sets(tone_model, tone_store, tmp_path, capsys):

@@ -427,7 +427,7 @@ def register(app: typer.Typer) -> None:
             extra["prediction_sets_note"] = cal_note
         novelty, op_range = _novelty_and_range(est, store, train_idx, tr, te, Xtr, Xte, meta_cols, seed, stream,
                                                where)
-        store_info = training_store_info(store, data, len(tr.y))
+        store_info = training_store_info(store, data, len(tr.y) + (0 if cal is None else len(cal.y)))
         extra.update({} if snr_db is None else {"added_noise": {"snr_db": float(snr_db), "seed": [seed, 0],
                                                                 "applies_to": "train and test splits"}})
         extra["operating_range"] = op_range
@@ -481,6 +481,7 @@ def calibration_source(cal, fraction: float, seed: int) -> dict:
     held = {str(c): sorted({str(u) for u in np.asarray(cal.meta["unit"])[np.asarray(cal.y) == c]})
             for c in np.unique(np.asarray(cal.y))}
     return {"method": "split", "refit": False, "fraction": float(fraction), "seed": [int(seed), 4],
+            "n_calibration": int(len(cal.y)),
             "what": "whole training reducers (metadata column unit) held out of the fit, per state",
             "held_out_reducers": held}
 
