@@ -4,8 +4,8 @@ raises the alarm) per state, its smallest and largest, and the records per reduc
 
 The detection and false-alarm rates themselves are ``rvdiag evaluate MODEL PAIRED.zarr --split test --json``; this
 adds the margin, which a rate from a few dozen records cannot show (18 of 18 has a 95 % lower bound of 81 %).
-The same records and the same computation as ``evaluate`` (:func:`rvdiag.cli._baseline.paired_features`, one row
-per record, :func:`rvdiag.cli._baseline.record_means`), so both agree on every alarm.
+The same records and the same computation as ``evaluate`` (:func:`rvdiag.monitoring.pairing.paired_features`, one row
+per record, :func:`rvdiag.monitoring.pairing.record_means`), so both agree on every alarm.
 
 With ``--pair K`` (a ``current-lines`` monitor) it also gives, per joint, the level of its own f_e +- K f1 pair in its
 baseline records (log10 over the supply line, the mean of the two lines) and the mean change of that pair over its
@@ -22,7 +22,7 @@ import json
 
 import numpy as np
 
-from rvdiag.cli._baseline import _baseline_records, _per_record, _roles, _subset, paired_features
+from rvdiag.monitoring.pairing import baseline_records, paired_features, per_record, roles, subset
 from rvdiag.datasets import SampleStore
 from rvdiag.models.persistence import load_model
 
@@ -38,9 +38,9 @@ def main() -> None:
     m = load_model(args.model).estimator
     store = SampleStore.open(args.store)
     mon = store.load(args.split)
-    mon = _subset(mon, _roles(mon, "monitored"))
-    D, _ = paired_features(m.features, mon, _baseline_records(store), fs=store.fs, baseline_fs=store.fs)
-    D, y, reducers, _ = _per_record(D, mon, args.store)
+    mon = subset(mon, roles(mon, "monitored"))
+    D, _ = paired_features(m.features, mon, baseline_records(store), fs=store.fs, baseline_fs=store.fs)
+    D, y, reducers, _ = per_record(D, mon, args.store)
     hi = m.health_index(D)
     out = {"threshold": float(m.threshold_), "alpha": float(m.alpha), "states": {}}
     for s in sorted(set(y.tolist())):
@@ -76,7 +76,7 @@ def _pair(k: int, m, store, D, y, reducers) -> dict:
         raise SystemExit(f"error: --pair {k} needs a current-lines monitor with the f_e +- {k} f1 lines")
     cols = [all_names.index(n) for n in names]
     inner = m.features.features_
-    base = _baseline_records(store)
+    base = baseline_records(store)
     Fb = inner.transform(base.X)[:, [list(inner.get_feature_names_out()).index(n[2:]) for n in names]].mean(axis=1)
     rb = np.asarray(base.meta["reducer"])
     rows = []

@@ -4,7 +4,7 @@
 For a paired store (``rvdiag library build`` of a ``[baseline]`` config) it computes once the per-record
 baseline-referenced features of every monitored record (``rvdiag train``'s features: the TSA change, each record
 the mean change of its windows against its reducer's baseline at the nearest operating point), then fits
-:class:`rvdiag.models.monitoring.BaselineMonitor` on the training reducers with each ``calibration`` and scores the
+:class:`rvdiag.monitoring.BaselineMonitor` on the training reducers with each ``calibration`` and scores the
 held-out reducers:
 
 - on the store's own split (what ``rvdiag train`` / ``evaluate`` give, with the default ``calibration``): the
@@ -43,7 +43,7 @@ CRACK_FREE = {"T4": "T1", "T6": "T5"}
 def keep_first_per_point(base, points, n: int):
     """The baseline samples of the first ``n`` commissioning records (by unit) of each reducer at each operating
     point (``points``: the config's ``[speed, load]`` pairs; each record is assigned its nearest)."""
-    from rvdiag.cli._baseline import _subset
+    from rvdiag.monitoring.pairing import subset
 
     P = np.asarray(points, dtype=np.float64)
     op = np.stack([np.asarray(base.meta["output_speed_deg_s"], float), np.asarray(base.meta["load_Nm"], float)], 1)
@@ -56,27 +56,27 @@ def keep_first_per_point(base, points, n: int):
             rows = np.flatnonzero((red == r) & (near == p))
             first = np.unique(unit[rows])[:n]
             keep[rows[np.isin(unit[rows], first)]] = True
-    return _subset(base, keep)
+    return subset(base, keep)
 
 
 def record_features(store_path: Path, records_per_point: int | None):
     """Per monitored record: ``(D, labels, reducers, split, windows_per_record)`` (``rvdiag train``'s features)."""
-    from rvdiag.cli._baseline import (DEFAULT_MONITOR_FEATURES, _baseline_records, _first_row, _per_record, _roles,
-                                      _subset, monitor_features, paired_features)
+    from rvdiag.monitoring.pairing import baseline_records, paired_features, per_record, roles, subset
+    from rvdiag.monitoring.training import DEFAULT_MONITOR_FEATURES, first_row, monitor_features
     from rvdiag.datasets import SampleStore
 
     store = SampleStore.open(store_path)
-    base = _baseline_records(store)
+    base = baseline_records(store)
     if records_per_point:
         points = store.attrs["config"]["baseline"]["operating_points"]
         base = keep_first_per_point(base, points, records_per_point)
     allm = store.load(index=np.arange(store.n_samples))
-    mon = _subset(allm, _roles(allm, "monitored"))
+    mon = subset(allm, roles(allm, "monitored"))
     fx = monitor_features(DEFAULT_MONITOR_FEATURES, store.fs)
-    fx.fit(_first_row(mon, fx))
+    fx.fit(first_row(mon, fx))
     D, _ = paired_features(fx, mon, base, fs=store.fs, baseline_fs=store.fs, where=str(store_path))
-    D, y, red, counts = _per_record(D, mon, str(store_path))
-    from rvdiag.cli._baseline import record_means
+    D, y, red, counts = per_record(D, mon, str(store_path))
+    from rvdiag.monitoring.pairing import record_means
 
     _, first, _ = record_means(np.zeros((len(mon.y), 1)), mon.meta)
     split = np.asarray(mon.meta["split"]).astype(str)[first]
@@ -86,7 +86,7 @@ def record_features(store_path: Path, records_per_point: int | None):
 
 def score(m, D, y, red, healthy: str = "T1", alarm=None) -> dict:
     """Alarm and state figures of a fitted monitor on records ``D`` (labels ``y``, reducers ``red``)."""
-    from rvdiag.cli._baseline import binomial_interval
+    from rvdiag.monitoring.training import binomial_interval
     from rvdiag.evaluation.metrics import classification_metrics, merged_classification_metrics
 
     a = m.alarm(D) if alarm is None else alarm
@@ -112,7 +112,7 @@ MODES = {"split": {"calibration": "split"}, "cv+": {"calibration": "cv+"}}
 
 
 def fit(D, y, red, mode: str, alpha: float, seed: int):
-    from rvdiag.models.monitoring import BaselineMonitor
+    from rvdiag.monitoring import BaselineMonitor
 
     return BaselineMonitor(alpha=alpha, random_state=seed, **MODES[mode]).fit(D, y, groups=red)
 

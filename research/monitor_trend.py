@@ -3,7 +3,7 @@
 
 For every monitored record of a paired store's ``test`` split, the index ``BaselineMonitor.health_index`` of its
 windows' mean change against its reducer's baseline, formed as ``rvdiag evaluate`` forms it
-(``rvdiag.cli._baseline.paired_features``, ``record_means``).  Prints, as JSON: Spearman's rank correlation of the
+(``rvdiag.monitoring.pairing.paired_features``, ``record_means``).  Prints, as JSON: Spearman's rank correlation of the
 index with each severity column per state; the false alarms of each held-out reducer (alarms, healthy records);
 and each T2 / T3 / T4 record as (severity, index, alarm), sorted by severity.
 
@@ -20,7 +20,7 @@ import sys
 import numpy as np
 from scipy.stats import spearmanr
 
-from rvdiag.cli import _baseline as B
+from rvdiag.monitoring import pairing as B
 from rvdiag.datasets import SampleStore
 from rvdiag.models.persistence import load_model
 
@@ -32,8 +32,8 @@ def main(model: str, path: str) -> dict:
     m = loaded.estimator
     store = SampleStore.open(path)
     s = store.load(index=store.indices("test", ()))
-    s = B._subset(s, B._roles(s, "monitored"))
-    D, _ = B.paired_features(m.features, s, B._baseline_records(store), fs=store.fs, baseline_fs=store.fs,
+    s = B.subset(s, B.roles(s, "monitored"))
+    D, _ = B.paired_features(m.features, s, B.baseline_records(store), fs=store.fs, baseline_fs=store.fs,
                              card_tolerances=loaded.card.get("baseline"))
     means, first, _ = B.record_means(D, s.meta)
     y = np.asarray(s.y).astype(str)[first]

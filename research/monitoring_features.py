@@ -98,7 +98,7 @@ def main() -> None:
 
 
 def cross_validate(F, y, reducer, names, folds: int = 4, alpha: float = 0.05) -> str:
-    from rvdiag.models.monitoring import BaselineMonitor
+    from rvdiag.monitoring import BaselineMonitor
 
     ok = np.all(np.isfinite(F), axis=1)
     reds = np.unique(reducer)

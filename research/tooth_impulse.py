@@ -167,7 +167,8 @@ def pairs_features(paths) -> dict:
 
 
 def store_features(path) -> dict:
-    from rvdiag.datasets.store import SampleStore, match_baseline
+    from rvdiag.datasets.store import SampleStore
+    from rvdiag.monitoring.pairing import match_baseline
 
     st = SampleStore.open(path)
     s = st.load("all")
@@ -221,7 +222,7 @@ def per_record(d):
 
 
 def evaluate(F, y, red, split, names, classes=None, folds=4, alpha=0.05):
-    from rvdiag.models.monitoring import BaselineMonitor
+    from rvdiag.monitoring import BaselineMonitor
 
     keep = np.all(np.isfinite(F), axis=1) & (np.isin(y, classes) if classes is not None else True)
     if np.any(split != ""):
@@ -247,7 +248,7 @@ def evaluate(F, y, red, split, names, classes=None, folds=4, alpha=0.05):
 
 def confusion(F, y, red, split, names, merge, alpha=0.05, folds=4):
     """Crack-free confusion with T6 counted as T5 (rows true T1 T2 T3 T5, cols predicted)."""
-    from rvdiag.models.monitoring import BaselineMonitor
+    from rvdiag.monitoring import BaselineMonitor
 
     y = np.where(y == "T6", "T5", y) if merge else y
     classes = ["T1", "T2", "T3", "T5"]

@@ -19,7 +19,7 @@ Features per record (absolute) and of the change since the same reducer's baseli
 operating point (mean of their aligned TSAs, as :func:`rvdiag.features.relative.tsa_change_features`); see
 :func:`absolute_features` and :func:`change_features` for the list.  Prints AUCs pooled over the reducers (max(a,
 1-a)) of T5 vs T2, T6 vs T2, T3 vs T1, T2 vs T1, T5 vs T1 for each feature, and leave-3-reducers-out figures of
-:class:`rvdiag.models.monitoring.BaselineMonitor` on the TSA change features with and without the best of these
+:class:`rvdiag.monitoring.BaselineMonitor` on the TSA change features with and without the best of these
 added.
 """
 
@@ -236,7 +236,7 @@ PAIRS = (("T5", "T2"), ("T6", "T2"), ("T3", "T1"), ("T2", "T1"), ("T5", "T1"))
 
 def cross_validate(F, y, reducer, names, folds=4, alpha=0.05, classes=None) -> str:
     folds = min(folds, np.unique(reducer).size)
-    from rvdiag.models.monitoring import BaselineMonitor
+    from rvdiag.monitoring import BaselineMonitor
 
     keep = np.all(np.isfinite(F), axis=1) & (np.isin(y, classes) if classes is not None else True)
     reds = np.unique(reducer)

@@ -150,7 +150,7 @@ def test_diagnose_estimates_the_speed_without_one(tmp_path, capsys, orders_model
     """A waveform model reads no metadata: the indicators' speed comes from the stage-1 mesh peak, when the
     cycloid-pin mesh (order 13 of the sun relative to the carrier) confirms it; without that line it is refused
     (speed unknown rather than indicators at a wrong speed)."""
-    from rvdiag.cli.diagnose import file_indicators, record_speed
+    from rvdiag.workflows.diagnosis import file_indicators, record_speed
     from rvdiag.io import read_signal
 
     f = tmp_path / "mesh.npy"

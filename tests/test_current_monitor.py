@@ -121,7 +121,7 @@ def test_train_on_a_current_store_with_the_current_lines_tells_the_broken_tooth(
 
 
 def test_a_current_store_defaults_to_the_order_spectrum_change(current_store, capsys):
-    from rvdiag.cli._baseline import DEFAULT_MONITOR_FEATURES, default_monitor_features
+    from rvdiag.monitoring.training import DEFAULT_MONITOR_FEATURES, default_monitor_features
     from rvdiag.datasets import SampleStore
 
     assert default_monitor_features(SampleStore.open(current_store / "paired.zarr")) == "orders"

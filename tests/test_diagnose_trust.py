@@ -218,7 +218,7 @@ def test_the_true_speed_is_confirmed_and_its_harmonics_and_subharmonics_are_refu
 def test_an_unsure_answer_warns_with_the_windows_split():
     """A record whose answer the other classes together outweigh (a T5 record with wear beyond the training
     range gave T6 at 0.39, windows 5 T5 / 4 T6 / 2 T2) says so, whatever the held-out test."""
-    from rvdiag.cli.diagnose import state_name
+    from rvdiag.workflows.records import state_name
     from rvdiag.models.conditions import record_warnings
 
     p = {"T2": 0.2, "T5": 0.38, "T6": 0.42}

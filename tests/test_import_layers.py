@@ -22,7 +22,10 @@ LAYERS = {
     "features": 5,
     "models": 6,
     "evaluation": 7,
-    "cli": 8, "__main__": 8,
+    "workflows": 8,  # the application layer: read a record, train, evaluate, diagnose (rvdiag.workflows)
+    "monitoring": 9,  # a joint against its own baseline; uses workflows' record reading and checks
+    "fleet": 10,  # many joints over time, on monitoring and workflows
+    "cli": 11, "__main__": 11,
 }
 
 
@@ -86,6 +89,32 @@ def test_no_import_circle_between_subpackages():
 
     circles = sorted(f"{a} <-> {b}" for a in graph for b in graph[a] if reaches(b, a))
     assert not circles, circles
+
+
+#: the tests of the command line's own machinery (its option vocabulary, its warning lines)
+CLI_TESTS = ("test_cli_basics.py", "test_cli_options.py", "test_warning_lines.py")
+
+
+def test_nothing_outside_the_cli_imports_its_private_modules():
+    """``rvdiag.cli._*`` are the command line's own; the rest of the package, the tests, benchmarks, research scripts
+    and examples use the public API (rvdiag.workflows, rvdiag.monitoring).  The command line's own unit tests
+    (:data:`CLI_TESTS`) may test its private parts."""
+    root = SRC.parents[1]
+    bad = []
+    for folder in (SRC, root / "tests", root / "bench", root / "research", root / "examples"):
+        for f in sorted(folder.rglob("*.py")) if folder.is_dir() else ():
+            if f.is_relative_to(SRC / "cli") or f == Path(__file__).resolve() or f.name in CLI_TESTS:
+                continue
+            tree = ast.parse(f.read_text(), filename=str(f))
+            for node in ast.walk(tree):
+                names = []
+                if isinstance(node, ast.Import):
+                    names = [a.name for a in node.names]
+                elif isinstance(node, ast.ImportFrom) and node.module:
+                    names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+                bad += [f"{f.relative_to(root)}:{node.lineno}: {n}" for n in names
+                        if n.startswith("rvdiag.cli._")]
+    assert not bad, "\n".join(bad)
 
 
 def test_the_checker_sees_deferred_and_from_imports(tmp_path):

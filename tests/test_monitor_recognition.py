@@ -1,4 +1,4 @@
-""""Not recognised" for a baseline monitor, judged against the machine's own baseline (rvdiag.cli._baseline):
+""""Not recognised" for a baseline monitor, judged against the machine's own baseline (rvdiag.monitoring.diagnosis):
 the mesh-line check counts only where the baseline shows the lines, and a record far outside the baseline's level
 is refused."""
 
@@ -8,9 +8,9 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from rvdiag.cli._baseline import LEVEL_FACTOR, level_check_against_baseline, mesh_check_against_baseline
 from rvdiag.features.mesh_lines import mesh_lines
 from rvdiag.kinematics import characteristic_frequencies
+from rvdiag.monitoring.diagnosis import LEVEL_FACTOR, level_check_against_baseline, mesh_check_against_baseline
 from rvdiag.params import ReducerParams
 
 FS, L, SPEED = 48000.0, 12000, 30.0

@@ -8,12 +8,12 @@ import math
 import numpy as np
 import pytest
 
-from rvdiag.datasets.store import is_paired, match_baseline
+from rvdiag.monitoring.pairing import is_paired, match_baseline
 from rvdiag.errors import ParameterError
 from rvdiag.features.orders import shaft_frequency
 from rvdiag.features.relative import BaselineReferencedFeatures, relative_features, tsa_change_features
 from rvdiag.features.timedomain import TimeDomainFeatures
-from rvdiag.models.monitoring import BaselineMonitor, conformal_threshold, save_monitor
+from rvdiag.monitoring.detector import BaselineMonitor, conformal_threshold, save_monitor
 
 FS = 4000.0
 
@@ -108,7 +108,8 @@ def test_per_record_calibration_keeps_the_stated_rate_per_record():
     spread.  A record is decided on its windows' mean change (as ``diagnose`` decides a file).  Calibrated on record
     means (``rvdiag train``), the alarm keeps its stated rate on new records, within the binomial interval;
     calibrated on windows, the same records raise it about 70 times less often than stated."""
-    from rvdiag.cli._baseline import binomial_interval, record_means
+    from rvdiag.monitoring.pairing import record_means
+    from rvdiag.monitoring.training import binomial_interval
 
     rng = np.random.default_rng(3)
     k, windows, alpha = 3, 4, 0.10
@@ -130,7 +131,7 @@ def test_per_record_calibration_keeps_the_stated_rate_per_record():
 
 
 def test_record_means_keep_the_order_records_first_appear():
-    from rvdiag.cli._baseline import record_means
+    from rvdiag.monitoring.pairing import record_means
 
     D = np.arange(10.0).reshape(5, 2)
     m, first, n = record_means(D, {"unit": np.array([9, 4, 9, 4, 1])})

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from rvdiag.datasets import SampleStore
-from rvdiag.datasets.store import is_paired, match_baseline
+from rvdiag.monitoring.pairing import is_paired, match_baseline
 from rvdiag.errors import ConfigError
 from rvdiag.library import LibraryConfig, build_library, make_plan
 from rvdiag.library.paired import VARIATION_KEYS, apply_variation, draw_variation

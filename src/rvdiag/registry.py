@@ -48,7 +48,7 @@ _BUILTIN: frozenset[str] = frozenset({
     "rvdiag.features.baseline.HealthyBaselineFeatures",
     "rvdiag.features.relative.BaselineReferencedFeatures",
     "rvdiag.features.current.CurrentLineFeatures",
-    "rvdiag.models.monitoring.BaselineMonitor",
+    "rvdiag.monitoring.detector.BaselineMonitor",
     "sklearn.covariance._shrunk_covariance.LedoitWolf",
     "sklearn.covariance._elliptic_envelope.EllipticEnvelope",
     "rvdiag.models.cnn_features.CNNFeatures",
@@ -87,6 +87,12 @@ _BUILTIN: frozenset[str] = frozenset({
     "builtins.NoneType",
 })
 
+#: Types that moved to another module: the skops name a model saved before the move holds -> the name now.  A saved
+#: model is read with these names replaced (:func:`rvdiag.models.pipelines.load_classical`), so it loads as before.
+MOVED_TYPES: dict[str, str] = {
+    "rvdiag.models.monitoring.BaselineMonitor": "rvdiag.monitoring.detector.BaselineMonitor",
+}
+
 #: Types a saved classical model may contain (skops type names); nothing else is loaded.
 TRUSTED_TYPES: set[str] = set(_BUILTIN)
 
@@ -102,4 +108,4 @@ def register_trusted_type(name: str) -> None:
     TRUSTED_TYPES.add(name)
 
 
-__all__ = ["CLASSICAL_MODELS", "CNN_MODELS", "OLD_MODEL_NAMES", "RECOMMENDED_TRAINING", "TRUSTED_TYPES", "register_trusted_type"]
+__all__ = ["CLASSICAL_MODELS", "CNN_MODELS", "MOVED_TYPES", "OLD_MODEL_NAMES", "RECOMMENDED_TRAINING", "TRUSTED_TYPES", "register_trusted_type"]

@@ -1,7 +1,9 @@
 """``rvdiag evaluate MODEL_DIR DATA.zarr [--split test|train|all] [--where COND]... [--merge A=B,...] [--records] [--json]
 [--report FILE.html] [--snr-db=LEVELS [--plot FILE.png] [--bound BOUND.json]] [--baseline BASE.zarr]``.
 
-A baseline-referenced model (card ``needs_baseline``) is scored by :func:`rvdiag.cli._baseline.evaluate_monitor`."""
+A classifier is scored by :func:`rvdiag.workflows.evaluate`, a baseline-referenced model (card ``needs_baseline``)
+by :func:`rvdiag.monitoring.evaluate_monitor`; this module parses the options and prints (``--json``: the result's
+``to_dict()``)."""
 
 from __future__ import annotations
 
@@ -56,12 +58,11 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Score a saved model on a split of a sample store (progress with an ETA on stderr; -q: none)."""
         from rvdiag.cli._progress import progress_bars
-        from rvdiag.datasets import SampleStore
-        from rvdiag.datasets import parse_condition
-        from rvdiag.evaluation.evaluate import (accuracy_against_snr, accuracy_by, evaluate_on_store, merged_metrics,
-                                                record_metrics, report_html, set_metrics_of)
+        from rvdiag.datasets import SampleStore, parse_condition
+        from rvdiag.evaluation.evaluate import report_html
         from rvdiag.evaluation.report import write_report
-        from rvdiag.models.persistence import load_model
+        from rvdiag.workflows import load_model
+        from rvdiag.workflows.evaluation import evaluate as evaluate_model, parse_merge, read_bound
 
         if report is not None and (report.is_dir() or (report.parent.exists() and not report.parent.is_dir())):
             raise ParameterError(f"--report {report}: not a writable file path")
@@ -82,73 +83,34 @@ def register(app: typer.Typer) -> None:
         merge_map = parse_merge(merge, loaded.card["classes"]) if merge is not None else None
         store = SampleStore.open(data)
         with progress_bars(quiet):
-            ev = evaluate_on_store(loaded, store, split, where or ())
-            groups = accuracy_by(ev, by) if by else None
-            curve = accuracy_against_snr(loaded, ev, levels, seed) if levels else None
-        merged = merged_metrics(ev, merge_map, loaded.card["classes"]) if merge_map else None
-        by_record = record_metrics(loaded, ev, "unit", merge_map) if records else None
-        sets, sets_note = set_metrics_of(loaded, ev)
-        for w in ev.warnings:
+            res = evaluate_model(loaded, store, split=split, where=where or (), by=by, snr_db=levels, seed=seed,
+                                 merge=merge_map, records=records, bounds=bounds)
+        ev = res.details
+        for w in res.warnings:
             typer.echo(w, err=True)
         if report is not None:
             write_report(report, report_html(loaded, store, ev))
         if plot is not None:
-            _write_plot(plot, curve, bounds, f"{loaded.card.get('model')} on {Path(data).name} [{ev.split}]")
+            opt.save_plot(res.plot(title=f"{loaded.card.get('model')} on {Path(data).name} [{ev.split}]"), plot)
         if json_out:
-            out = dict(ev.metrics)
-            if groups is not None:
-                out["by"] = {"column": by, "groups": groups}
-            if merged is not None:
-                out["merged"] = merged
-            if by_record is not None:
-                out["records"] = by_record
-            out["sets"] = sets
-            if sets is None:
-                out["sets_note"] = sets_note
-            if curve is not None:
-                out["snr"] = curve
-            if bounds:
-                out["bound"] = bounds
-            typer.echo(json.dumps(out, indent=2))
+            typer.echo(json.dumps(res.to_dict(), indent=2))
         else:
             _print(ev, loaded, data)
-            typer.echo(sets_line(sets, sets_note))
-            if merged is not None:
-                typer.echo(f"merged {','.join(f'{a}={b}' for a, b in merge_map.items())}: {headline(merged)}; "
-                           + ", ".join(f"{c} recall {100 * v['recall']:.1f} %" for c, v in merged["per_class"].items()))
-            if by_record is not None:
-                _print_records(by_record)
-            if groups is not None:
-                _print_by(by, groups)
-            if curve is not None:
-                _print_snr(curve)
+            typer.echo(sets_line(res.sets, res.sets_note))
+            if res.merged is not None:
+                typer.echo(f"merged {','.join(f'{a}={b}' for a, b in merge_map.items())}: {headline(res.merged)}; "
+                           + ", ".join(f"{c} recall {100 * v['recall']:.1f} %"
+                                       for c, v in res.merged["per_class"].items()))
+            if res.records is not None:
+                _print_records(res.records)
+            if res.by is not None:
+                _print_by(by, res.by["groups"])
+            if res.snr is not None:
+                _print_snr(res.snr)
         if report is not None:
             typer.echo(f"report: {report.resolve()}", err=json_out)
         if plot is not None:
             typer.echo(f"plot: {plot.resolve()}", err=json_out)
-
-
-def _monitor(loaded, data, split, where, baseline, json_out, merge, others: dict) -> bool:
-    """Score a baseline-referenced model (:mod:`rvdiag.cli._baseline`; always per record, ``--merge`` as for any
-    model) and say True; False for any other model."""
-    from rvdiag.cli import _baseline
-
-    if not _baseline.needs_baseline(loaded):
-        if baseline is not None:
-            raise ParameterError(f"--baseline applies to a baseline-referenced model; {loaded.path} is not one")
-        return False
-    for flag, v in others.items():
-        if v:
-            raise ParameterError(f"{flag} does not apply to a baseline-referenced model")
-    from rvdiag.datasets import SampleStore
-
-    merge_map = parse_merge(merge, loaded.card["classes"]) if merge is not None else None
-    res = _baseline.evaluate_monitor(loaded, SampleStore.open(data), data, split, where or (), baseline, merge_map)
-    if json_out:
-        typer.echo(json.dumps(res, indent=2))
-    else:
-        _baseline.print_evaluation(res, loaded, data)
-    return True
 
 
 def sets_line(sets: dict | None, note: str | None) -> str:
@@ -161,6 +123,31 @@ def sets_line(sets: dict | None, note: str | None) -> str:
             f"mean size {sets['mean_size']:.2f}, {100 * sets['singletons']:.1f} % of one state; per state: {per}")
 
 
+def _monitor(loaded, data, split, where, baseline, json_out, merge, others: dict) -> bool:
+    """Score a baseline-referenced model (:func:`rvdiag.monitoring.evaluate_monitor`; always per record, ``--merge``
+    as for any model) and say True; False for any other model."""
+    from rvdiag.monitoring import evaluate_monitor, needs_baseline
+
+    if not needs_baseline(loaded):
+        if baseline is not None:
+            raise ParameterError(f"--baseline applies to a baseline-referenced model; {loaded.path} is not one")
+        return False
+    for flag, v in others.items():
+        if v:
+            raise ParameterError(f"{flag} does not apply to a baseline-referenced model")
+    from rvdiag.datasets import SampleStore
+
+    merge_map = parse_merge(merge, loaded.card["classes"]) if merge is not None else None
+    res = evaluate_monitor(loaded, SampleStore.open(data), data, split, where or (), baseline, merge_map)
+    if json_out:
+        typer.echo(json.dumps(res, indent=2))
+    else:
+        from rvdiag.cli._baseline import print_evaluation
+
+        print_evaluation(res, loaded, data)
+    return True
+
+
 def _print_records(r: dict) -> None:
     lo, hi = r["windows_per_record"]
     windows = f"{lo}" if lo == hi else f"{lo}-{hi}"
@@ -169,43 +156,6 @@ def _print_records(r: dict) -> None:
     if "merged" in r:
         line += f"; merged: {headline(r['merged'])}"
     typer.echo(line)
-
-
-def parse_merge(text: str, classes) -> dict[str, str]:
-    """``{"T4": "T1", "T6": "T5"}`` from ``--merge T4=T1,T6=T5``; both names must be classes of the model."""
-    out: dict[str, str] = {}
-    known = [str(c) for c in classes]
-    for part in str(text).split(","):
-        a, eq, b = (x.strip() for x in part.partition("="))
-        if not (eq and a and b):
-            raise ParameterError(f"--merge {text}: expected CLASS=CLASS pairs joined by ',' (e.g. T4=T1,T6=T5)")
-        for c in (a, b):
-            if c not in known:
-                raise ParameterError(f"--merge {text}: {c!r} is not a class of the model ({', '.join(known)})")
-        out[a] = b
-    if any(b in out for b in out.values()):
-        raise ParameterError(f"--merge {text}: a class merged into is itself merged away")
-    return out
-
-
-def read_bound(path: Path) -> dict:
-    """A separability bound written by ``rvdiag separability --out`` (checked: pair, snr_db, accuracy_bound)."""
-    try:
-        b = json.loads(Path(path).read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ParameterError(f"--bound {path}: not a readable JSON file ({exc})") from None
-    ok = (isinstance(b, dict) and isinstance(b.get("pair"), list) and isinstance(b.get("snr_db"), list)
-          and isinstance(b.get("accuracy_bound"), list) and len(b["snr_db"]) == len(b["accuracy_bound"]) > 0
-          and all(isinstance(v, (int, float)) for v in b["snr_db"] + b["accuracy_bound"]))
-    if not ok:
-        raise ParameterError(f"--bound {path}: not the JSON of 'rvdiag separability' (pair, snr_db, accuracy_bound)")
-    return b
-
-
-def _write_plot(path: Path, curve: list[dict], bounds: list[dict], title: str) -> None:
-    from rvdiag.evaluation.plots import plot_snr_curve
-
-    opt.save_plot(plot_snr_curve(curve, bounds, title=title), path)
 
 
 def _print(ev, loaded, data) -> None:

@@ -38,7 +38,7 @@ import typer
 
 from rvdiag.cli import _options as opt
 from rvdiag.cli._progress import bar_columns, progress_bars, stderr_console
-from rvdiag.cli._store_info import signal_info, training_store_info
+from rvdiag.workflows.training_store import signal_info, training_store_info
 from rvdiag.errors import ParameterError, StoreError
 from rvdiag.models.conformal import FAULT_COVERAGE, HEALTHY_COVERAGE
 from rvdiag.registry import CLASSICAL_MODELS, CNN_MODELS, OLD_MODEL_NAMES, RECOMMENDED_TRAINING
@@ -297,12 +297,12 @@ def register(app: typer.Typer) -> None:
         if out.exists() and not out.is_dir():
             raise ParameterError(f"--out {out} exists and is not a directory")
         opt.refuse_existing(out, overwrite)
-        from rvdiag.cli import _baseline
+        from rvdiag.monitoring.training import train_monitor, wants_monitor
 
-        if _baseline.wants_monitor(data, model, alpha, repeat=repeat, snr_db=snr_db, multilabel=multilabel,
+        if wants_monitor(data, model, alpha, repeat=repeat, snr_db=snr_db, multilabel=multilabel,
                                    streaming=streaming):
             echo = (lambda *a, **k: None) if json_out else (lambda msg: typer.echo(msg, err=True))
-            res = _baseline.train_monitor(SampleStore.open(data), data, out, features=features, alpha=alpha,
+            res = train_monitor(SampleStore.open(data), data, out, features=features, alpha=alpha,
                                           seed=seed, conditions=conditions or (), echo=echo,
                                           warn=lambda msg: typer.echo(msg, err=True))
             if json_out:

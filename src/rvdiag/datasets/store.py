@@ -26,8 +26,9 @@ Readers use :class:`SampleStore` only.
 
 Paired stores (monitoring a reducer against its own baseline, docs/monitoring.md): every sample also carries
 ``reducer`` (int, which simulated or real reducer it was recorded on) and ``role`` (``"baseline"``: a healthy
-commissioning record; ``"monitored"``: a later record in some state).  :func:`is_paired` tells one;
-:func:`match_baseline` gives each monitored sample its reducer's baseline samples at the nearest operating point.
+commissioning record; ``"monitored"``: a later record in some state).  :func:`rvdiag.monitoring.pairing.is_paired`
+tells one; :func:`rvdiag.monitoring.pairing.match_baseline` gives each monitored sample its reducer's baseline samples
+at the nearest operating point.
 """
 
 from __future__ import annotations
@@ -567,81 +568,3 @@ class _ColumnKind:
 #: metadata columns of a paired store (module docstring) and the values of ``role``
 PAIRED_COLUMNS = ("reducer", "role")
 ROLES = ("baseline", "monitored")
-#: default tolerances of :func:`match_baseline`: relative distance of the output speed and of the load
-SPEED_TOLERANCE = 0.05
-LOAD_TOLERANCE = 0.10
-
-
-def is_paired(meta: Mapping[str, Any]) -> bool:
-    """Whether metadata ``meta`` (a store's or a selection's columns) has the paired columns :data:`PAIRED_COLUMNS`
-    with both roles present."""
-    if not all(c in meta for c in PAIRED_COLUMNS):
-        return False
-    return set(np.asarray(meta["role"]).astype(str).tolist()) >= set(ROLES)
-
-
-def _operating_point(meta: Mapping[str, Any], columns: tuple[str, str], where: str) -> np.ndarray:
-    missing = [c for c in columns if c not in meta]
-    if missing:
-        raise ParameterError(f"{where} has no metadata column {missing[0]!r} to match operating points by")
-    v = np.column_stack([np.asarray(meta[c], dtype=np.float64) for c in columns])
-    if not np.all(np.isfinite(v)) or np.any(v <= 0):
-        raise ParameterError(f"{where}: the operating-point columns {list(columns)} must be finite and > 0")
-    return v
-
-
-def match_baseline(monitored: Mapping[str, Any], baseline: Mapping[str, Any], *, fs: float | None = None,
-                   baseline_fs: float | None = None, speed_tolerance: float = SPEED_TOLERANCE,
-                   load_tolerance: float = LOAD_TOLERANCE,
-                   columns: tuple[str, str] = ("output_speed_deg_s", "load_Nm")) -> list[np.ndarray]:
-    """Each monitored sample's baseline samples: those of its reducer at the operating point nearest to its own.
-
-    Parameters
-    ----------
-    monitored, baseline : mappings of metadata columns (e.g. :attr:`Samples.meta`), one row per sample
-        Both need the operating-point ``columns`` (output speed, load).  When both have ``reducer``, a monitored
-        sample is matched only with baseline samples of the same reducer (a paired store); a baseline without it
-        (a healthy store of one machine) serves every monitored sample.
-    fs, baseline_fs : sampling rates of the two; refused when they differ (by more than 1e-9 relative).
-    speed_tolerance, load_tolerance : float
-        Largest relative distance |v - v_b| / v_b of the speed and of the load.
-
-    Returns
-    -------
-    list of int arrays, one per monitored sample: row indices into ``baseline``.  The nearest baseline sample
-    (by max(|dv| / (speed_tolerance v_b), |dL| / (load_tolerance L_b))) defines the operating point; every baseline
-    sample of the reducer within both tolerances of that sample's speed and load belongs to it (the run-to-run
-    scatter of the records of one operating point).
-
-    Raises
-    ------
-    ParameterError
-        When the rates differ, or no baseline sample of the reducer lies within the tolerances (the message names
-        them and the nearest operating point).
-    """
-    if fs is not None and baseline_fs is not None and abs(float(fs) - float(baseline_fs)) > 1e-9 * float(fs):
-        raise ParameterError(f"the baseline is sampled at {float(baseline_fs):g} Hz, the monitored samples at "
-                             f"{float(fs):g} Hz: a baseline must have the same sampling rate")
-    if not (speed_tolerance > 0 and load_tolerance > 0):
-        raise ParameterError(f"tolerances must be > 0, got speed {speed_tolerance!r} and load {load_tolerance!r}")
-    m = _operating_point(monitored, columns, "the monitored data")
-    b = _operating_point(baseline, columns, "the baseline")
-    tol = np.array([speed_tolerance, load_tolerance], dtype=np.float64)
-    paired = "reducer" in monitored and "reducer" in baseline
-    mr = np.asarray(monitored["reducer"]) if paired else None
-    br = np.asarray(baseline["reducer"]) if paired else None
-    out = []
-    for i in range(m.shape[0]):
-        rows = np.flatnonzero(br == mr[i]) if paired else np.arange(b.shape[0])
-        if rows.size == 0:
-            raise ParameterError(f"monitored sample {i} (reducer {mr[i]}) has no baseline samples of its reducer")
-        dist = np.max(np.abs(m[i] - b[rows]) / (tol * b[rows]), axis=1)
-        k = rows[int(np.argmin(dist))]
-        if dist.min() > 1.0:
-            raise ParameterError(
-                f"no baseline within {100 * speed_tolerance:g} % of speed and {100 * load_tolerance:g} % of load of "
-                f"sample {i} ({columns[0]} {m[i, 0]:g}, {columns[1]} {m[i, 1]:g}); the nearest is at "
-                f"{b[k, 0]:g}, {b[k, 1]:g}")
-        near = np.all(np.abs(b[rows] - b[k]) <= tol * b[k], axis=1)
-        out.append(rows[near])
-    return out

@@ -25,7 +25,7 @@ machine by the trend of its own indicators against its commissioning baseline.  
   broken tooth (T5 against T2), which the changes above, dominated by the broken tooth's impacts, do not.
 
 This module knows nothing of stores or models: it takes arrays.  Matching a sample with its baseline windows is
-:func:`rvdiag.datasets.store.match_baseline`; the health index and the alarm are in :mod:`rvdiag.models.monitoring`.
+:func:`rvdiag.monitoring.pairing.match_baseline`; the health index and the alarm are in :mod:`rvdiag.monitoring.detector`.
 """
 
 from __future__ import annotations
@@ -189,7 +189,7 @@ class BaselineReferencedFeatures(TransformerMixin, BaseEstimator):
     Rows of ``X`` and of ``baseline`` follow :mod:`rvdiag.features.combine`: a window's points, then the metadata
     columns of :meth:`input_metadata` (the inner transformer's, then ``speed_column`` when ``tsa_change`` needs it).
     :meth:`transform` takes, besides ``X``, the baseline rows and ``groups``: for each row of ``X`` the indices of
-    its baseline rows (:func:`rvdiag.datasets.store.match_baseline`).  The baseline rows' features are computed once.
+    its baseline rows (:func:`rvdiag.monitoring.pairing.match_baseline`).  The baseline rows' features are computed once.
 
     Parameters
     ----------

@@ -10,8 +10,6 @@ feature_names             every ``features`` name of the pipelines (signal featu
 KELMClassifier            kernel extreme learning machine (Huang et al. 2012)
 TunedKELM                 KELM with (C, sigma) tuned by MPA, GA or PSO
 CompoundFaultClassifier   three binary classifiers (broken, worn, cracked) decoded to T1..T6 (--multilabel)
-BaselineMonitor           health index, alarm at a stated false-alarm rate and state of a record against its
-                          reducer's own baseline (docs/monitoring.md); save_monitor writes it
 CNNClassifier             1-D CNN classifier with the scikit-learn API (cnn1d, cnn1d-lean, spectrum-cnn)
 CNNFeatures               the ``cnn`` feature set: a CNN's last hidden layer as features
 save_model, load_model    model directories (card.json + model.safetensors | model.skops)
@@ -24,8 +22,6 @@ from __future__ import annotations
 import importlib
 
 _EXPORTS = {
-    "BaselineMonitor": "rvdiag.models.monitoring",
-    "save_monitor": "rvdiag.models.monitoring",
     "CNNClassifier": "rvdiag.models.torch_estimator",
     "CNNFeatures": "rvdiag.models.cnn_features",
     "CompoundFaultClassifier": "rvdiag.models.multilabel",

@@ -69,7 +69,7 @@ def conformal_threshold(scores, alpha: float) -> float:
     """The split-conformal threshold of calibration ``scores`` for a miscoverage (false-alarm) rate ``alpha``: their
     ceil((n + 1)(1 - alpha))-th smallest value (Lei et al., "Distribution-free predictive inference for
     regression", JASA 113 (2018), Eq. 2); ``inf`` when that exceeds n (too few calibration samples for this
-    ``alpha``).  The one home of this quantile: the monitor's alarm (:mod:`rvdiag.models.monitoring`) and the
+    ``alpha``).  The one home of this quantile: the monitor's alarm (:mod:`rvdiag.monitoring.detector`) and the
     prediction sets here use it.
 
     >>> conformal_threshold(np.arange(1.0, 100.0), 0.01)  # n = 99: the 99th smallest

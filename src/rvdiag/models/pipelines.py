@@ -178,6 +178,39 @@ def save_classical(model, directory, metadata: dict | None = None) -> Path:
     return d
 
 
+def _moved_types(data: bytes) -> bytes:
+    """A skops archive with the type names of :data:`rvdiag.registry.MOVED_TYPES` replaced by their names now (the
+    ``__module__`` of each object of its ``schema.json``); the archive as it is when it names none."""
+    import io
+    import json
+    import zipfile
+
+    from rvdiag.registry import MOVED_TYPES
+
+    old = {name.rpartition(".")[0] for name in MOVED_TYPES}
+    with zipfile.ZipFile(io.BytesIO(data)) as z:
+        schema = z.read("schema.json")
+        if not any(m.encode() in schema for m in old):
+            return data
+        members = {i: z.read(i) for i in z.infolist()}
+
+    def rename(node):
+        if isinstance(node, dict):
+            mod, cls = node.get("__module__"), node.get("__class__")
+            if isinstance(mod, str) and isinstance(cls, str) and f"{mod}.{cls}" in MOVED_TYPES:
+                node = {**node, "__module__": MOVED_TYPES[f"{mod}.{cls}"].rpartition(".")[0]}
+            return {k: rename(v) for k, v in node.items()}
+        if isinstance(node, list):
+            return [rename(v) for v in node]
+        return node
+
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w", compression=zipfile.ZIP_DEFLATED) as z:
+        for info, body in members.items():
+            z.writestr(info, json.dumps(rename(json.loads(body))).encode() if info.filename == "schema.json" else body)
+    return out.getvalue()
+
+
 def load_classical(directory):
     """Load a pipeline saved by :func:`save_classical`; only :data:`TRUSTED_TYPES` are accepted.
 
@@ -194,7 +227,7 @@ def load_classical(directory):
     if not p.is_file():
         raise ModelFileError(f"{directory}: no model.skops")
     try:
-        data = p.read_bytes()
+        data = _moved_types(p.read_bytes())
         untrusted = sio.get_untrusted_types(data=data)
     except Exception as exc:  # skops raises many kinds on a corrupt archive
         raise ModelFileError(f"{p}: not a readable skops model file ({type(exc).__name__}: {exc})") from None

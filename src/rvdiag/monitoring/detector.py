@@ -6,7 +6,7 @@ change of its windows, as ``rvdiag train``, ``evaluate`` and ``diagnose`` give i
 and the windows of one record, sharing its run-to-run variation, are not exchangeable records): what
 changed since the same reducer's baseline at the nearest operating point
 (:class:`rvdiag.features.relative.BaselineReferencedFeatures`; pairing by
-:func:`rvdiag.datasets.store.match_baseline`).  :meth:`BaselineMonitor.fit` takes the rows of a paired library,
+:func:`rvdiag.monitoring.pairing.match_baseline`).  :meth:`BaselineMonitor.fit` takes the rows of a paired library,
 healthy pairs (label ``healthy``) and faulty ones.
 
 Health index
@@ -362,7 +362,7 @@ def save_monitor(monitor: BaselineMonitor, directory, *, model: str = "baseline-
     tolerances a baseline must meet (``baseline``), and the alarm's ``alpha``, threshold, calibration size and
     ``record_windows`` (the windows of a calibration record, whose mean change is one row; ``alarm``); ``card_fields`` go to :func:`rvdiag.models.persistence.base_card` (``fs``, ``training_store``...).
     """
-    from rvdiag.datasets.store import LOAD_TOLERANCE, SPEED_TOLERANCE
+    from rvdiag.monitoring.pairing import LOAD_TOLERANCE, SPEED_TOLERANCE
     from rvdiag.models.card import jsonable
     from rvdiag.models.persistence import base_card
     from rvdiag.models.pipelines import save_classical

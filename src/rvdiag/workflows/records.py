@@ -1,15 +1,104 @@
-"""What a record is, for ``rvdiag diagnose`` and its baseline flow (:mod:`rvdiag.cli._baseline`): its speed and
-where it came from, whether it is flat, whether it looks like the reducer the model knows, and a state's name.
-One home below both commands, so that neither imports the other."""
+"""What a record is: reading it as ``rvdiag dataset from-files`` reads a file (:func:`read_record`), its speed and
+where it came from (:func:`record_speed`), whether it is flat (:func:`flat_reason`), whether it looks like the
+reducer the model knows (:func:`recognition`), and a state's name (:func:`state_name`).  One home below the
+diagnosis of a classifier (:mod:`rvdiag.workflows.diagnosis`) and of a monitor (:mod:`rvdiag.monitoring`)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from rvdiag.errors import ParameterError
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
+from rvdiag.errors import ParameterError
+from rvdiag.io.readers import MeasuredSignal
+
+#: groups of a file name's ``--meta-regex`` read as another name: the load in N m, ``load_Nm`` (the column a baseline
+#: is matched by), may be spelled ``load`` as in a store's file names
+LOAD_GROUPS = {"load": "load_Nm"}
 #: ``--meta`` names that give the speed for the indicators: output deg/s, input rev/min.
 SPEED_META = ("output_speed_deg_s", "input_speed_rpm")
+
+
+@dataclass
+class Record(MeasuredSignal):
+    """One channel of a measured file (:class:`rvdiag.io.readers.MeasuredSignal`) with what the reading options
+    say of it: ``metadata``, the groups of ``meta_regex`` in its name (numbers where they parse; a group ``load`` is
+    the load ``load_Nm``, :data:`LOAD_GROUPS`), and ``angle``, the angle source
+    (:class:`rvdiag.io.angles.AngleSpec`, or None) that gives its speed, as ``dataset from-files`` reads them."""
+
+    metadata: dict[str, Any] = field(default_factory=dict)
+    angle: Any = None
+
+
+def read_record(path, *, channel: str | None = None, fs: float | None = None, angle_channel: str | None = None,
+                tacho_channel: str | None = None, ppr: int | None = None, meta_regex: str | None = None) -> Record:
+    """Read one record as ``rvdiag dataset from-files`` reads a file of a store.
+
+    Parameters
+    ----------
+    path : path of the file (CSV/CSV.gz, MAT, NPY, NPZ, WAV, TDMS; :func:`rvdiag.io.read_signal`)
+    channel : regex matching exactly one channel (None: the file's only one)
+    fs : sampling rate in Hz (None: the file's)
+    angle_channel, tacho_channel, ppr : the input shaft's angle or tachometer channel and its pulses (counts) per
+        revolution (:class:`rvdiag.io.angles.AngleSpec`), from which :func:`record_speed` measures the speed
+    meta_regex : regex whose named groups, searched in the file name, give metadata (``speed_dps``, ``rpm``,
+        ``load`` or ``load_Nm``, ...); a group ``rpm`` or ``speed_dps`` states the speed
+
+    Returns
+    -------
+    Record
+
+    Raises
+    ------
+    DataFileError, ParameterError
+        An unreadable file, no such channel, a name that does not match ``meta_regex``, two angle sources.
+    """
+    import re
+
+    from rvdiag.errors import DataFileError
+    from rvdiag.io import read_signal
+    from rvdiag.io.angles import SPEED_GROUPS, AngleSpec
+
+    path = Path(path)
+    sig = read_signal(path, channel_regex=channel, fs=fs)
+    metadata: dict[str, Any] = {}
+    speed_groups = False
+    if meta_regex is not None:
+        try:
+            pat = re.compile(meta_regex)
+        except re.error as exc:
+            raise ParameterError(f"invalid --meta-regex {meta_regex!r}: {exc}") from None
+        m = pat.search(path.name)
+        if m is None:
+            raise DataFileError(f"{path}: the name does not match --meta-regex {meta_regex!r}")
+        speed_groups = bool(set(SPEED_GROUPS) & {k for k, v in m.groupdict().items() if v})
+        for k, v in m.groupdict().items():
+            if v in (None, ""):
+                continue
+            col = LOAD_GROUPS.get(k, k)
+            if col in metadata:
+                raise ParameterError(f"--meta-regex: the groups {k} and {col} both give {col!r}: keep one")
+            try:
+                metadata[col] = float(v)
+            except ValueError:
+                metadata[col] = v
+    angle = None
+    if angle_channel is not None or tacho_channel is not None or ppr is not None or speed_groups:
+        angle = AngleSpec(angle_channel=angle_channel, tacho_channel=tacho_channel, ppr=ppr,
+                          meta_regex=meta_regex if speed_groups and angle_channel is None and tacho_channel is None
+                          else None).validate()
+    return Record(data=sig.data, fs=sig.fs, channel=sig.channel, path=sig.path, format=sig.format,
+                  scalars=sig.scalars, attrs=sig.attrs, metadata=metadata, angle=angle)
+
+
+def load_model(model_dir):
+    """The model of a directory that ``rvdiag train`` wrote (card + estimator;
+    :func:`rvdiag.models.persistence.load_model`): load it once and pass it to every record's diagnosis."""
+    from rvdiag.models.persistence import load_model as _load
+
+    return _load(model_dir)
 
 
 def record_speed(sig, meta: dict[str, float] | None = None, params=None) -> dict:
@@ -35,7 +124,10 @@ def record_speed(sig, meta: dict[str, float] | None = None, params=None) -> dict
     try:
         if not sig.fs:
             raise ParameterError("the file states no sampling rate: give --fs")
-        got = input_revolutions(sig, AngleSpec(output_speed_deg_s=out_speed, input_speed_rpm=in_speed), p)
+        spec = getattr(sig, "angle", None)
+        if spec is None or out_speed is not None or in_speed is not None:
+            spec = AngleSpec(output_speed_deg_s=out_speed, input_speed_rpm=in_speed)
+        got = input_revolutions(sig, spec, p)
     except RvdiagError as exc:
         return {**unknown, "error": str(exc)}
     speed = float(got.rev_per_s) * 360.0 / p.ratio
@@ -123,12 +215,3 @@ def recognition(loaded, x: np.ndarray, fs: float | None, res: dict, speed: dict,
                               f"(Mahalanobis distance of the model's features above {ood['threshold']:.4g}, which "
                               f"{100 * ood['rate']:g} % of held-out training windows exceed)"}
     return {"recognised": True, "reason": None, "checks": checks}
-
-
-def not_recognised_line(res: dict) -> str | None:
-    """The line that says a record is not recognised, with its reason (rich markup), or None when it is: one
-    wording for ``diagnose`` and its baseline flow."""
-    if res["recognised"]:
-        return None
-    return (f"{res['file']} [{res['channel']}]: [bold]not recognised[/bold]: this record does not look like the "
-            f"reducer the model knows: {res['reason']}")

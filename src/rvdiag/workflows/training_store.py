@@ -1,5 +1,5 @@
 """What a model card says of the store it was trained on (``training_store``): one home for ``rvdiag train`` and
-its baseline flow (:mod:`rvdiag.cli._baseline`)."""
+the monitor's (:mod:`rvdiag.monitoring.training`)."""
 
 from __future__ import annotations
 

@@ -1,0 +1,72 @@
+"""Monitoring a joint against its own healthy baseline: the one home of monitoring (docs/monitoring.md).
+
+Use::
+
+    from rvdiag.workflows import load_model, read_record
+    from rvdiag.monitoring import make_baseline, open_baseline, monitor_record
+
+    model = load_model("monitor")                        # a monitor that ``rvdiag train`` wrote, loaded once
+    base = open_baseline("joint3-baseline.zarr", model)  # the joint's commissioning records, opened once
+    # or: base = make_baseline([read_record(f) for f in files], model=model, out="joint3-baseline.zarr",
+    #                          operating_points=[{"output_speed_deg_s": 30.0, "load_Nm": 50.0}] * len(files))
+    res = monitor_record(model, read_record("joint3/2026-11-28.npy"), base, load=50.0)
+    res.alarm, res.health_index, res.state_name, res.to_dict(), res.plot()
+
+Modules
+-------
+========================  ==================================================================================
+``detector``              :class:`BaselineMonitor`: health index, alarm at a stated false-alarm rate (conformal,
+                          CV+), most probable state and what changed; :func:`save_monitor` writes it
+``pairing``               which store is paired, each monitored record's baseline records at the nearest
+                          operating point (:func:`match_baseline`), the features of the pairs, one row per record
+``baseline``              :class:`Baseline`, :func:`open_baseline`, :func:`make_baseline`: a joint's baseline,
+                          checked against the model
+``diagnosis``             :func:`monitor_record` -> :class:`MonitorResult`: one record against its baseline, with
+                          the checks that it is recognised
+``training``              :func:`train_monitor`, :func:`evaluate_monitor` on a paired store
+========================  ==================================================================================
+
+The baseline-referenced *features* (:class:`rvdiag.features.relative.BaselineReferencedFeatures`, the TSA change,
+the motor-current lines) stay in :mod:`rvdiag.features`: they are signal features that take arrays and know
+nothing of stores or models, :mod:`rvdiag.features` is a lower layer than this package (a feature set of the
+classifiers could use them too), and saved monitors name them by their module (skops type names, the trusted list
+of :mod:`rvdiag.registry`).  This package sits above :mod:`rvdiag.models`, :mod:`rvdiag.datasets` and
+:mod:`rvdiag.workflows` (whose :func:`rvdiag.workflows.read_record` and record checks it uses), below the command
+line.  A monitor saved when :class:`BaselineMonitor` lived in ``rvdiag.models.monitoring`` loads as before
+(:data:`rvdiag.registry.MOVED_TYPES`).
+"""
+
+from __future__ import annotations
+
+import importlib
+
+_EXPORTS = {
+    "BaselineMonitor": "rvdiag.monitoring.detector",
+    "save_monitor": "rvdiag.monitoring.detector",
+    "Baseline": "rvdiag.monitoring.baseline",
+    "make_baseline": "rvdiag.monitoring.baseline",
+    "open_baseline": "rvdiag.monitoring.baseline",
+    "needs_baseline": "rvdiag.monitoring.baseline",
+    "reducer_type": "rvdiag.monitoring.baseline",
+    "MonitorResult": "rvdiag.monitoring.diagnosis",
+    "monitor_record": "rvdiag.monitoring.diagnosis",
+    "is_paired": "rvdiag.monitoring.pairing",
+    "match_baseline": "rvdiag.monitoring.pairing",
+    "paired_features": "rvdiag.monitoring.pairing",
+    "record_means": "rvdiag.monitoring.pairing",
+    "train_monitor": "rvdiag.monitoring.training",
+    "evaluate_monitor": "rvdiag.monitoring.training",
+}
+
+
+def __getattr__(name: str):
+    if name in _EXPORTS:
+        return getattr(importlib.import_module(_EXPORTS[name]), name)
+    raise AttributeError(f"module 'rvdiag.monitoring' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(list(globals()) + list(_EXPORTS))
+
+
+__all__ = sorted(_EXPORTS)

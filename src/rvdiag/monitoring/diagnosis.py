@@ -1,0 +1,233 @@
+"""Judging one record against its machine's baseline: :func:`monitor_record` -> :class:`MonitorResult` (the health
+index, the alarm at the monitor's stated false-alarm rate, the most probable state and what changed; or "not
+recognised" with the reason).  ``rvdiag diagnose --baseline`` prints it; a service calls it in-process with the
+model and the baseline loaded once (:func:`rvdiag.workflows.load_model`, :func:`rvdiag.monitoring.open_baseline`).
+
+The record is cut into adjacent windows of the model's input length; each window's change against the baseline
+records at the record's operating point (:func:`rvdiag.monitoring.pairing.paired_features`) is one row, and the
+record is decided on the mean of its rows, as the alarm was calibrated.  Before that the record must be recognised:
+not flat, with the reducer's mesh lines where the baseline shows them (:func:`mesh_check_against_baseline`), at a
+level within :data:`LEVEL_FACTOR` of the baseline's (:func:`level_check_against_baseline`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from rvdiag.errors import ParameterError
+from rvdiag.monitoring.baseline import Baseline
+from rvdiag.monitoring.pairing import OPERATING_COLUMNS, paired_features
+
+
+@dataclass
+class MonitorResult:
+    """One record judged against its machine's baseline (:func:`monitor_record`).
+
+    ``health_index`` is the distance of the record's mean change from the healthy changes over the alarm's
+    threshold, so the alarm (``alarm``) is ``health_index > threshold`` with ``threshold`` 1 (None when the monitor's
+    calibration records are too few for any alarm); ``p_value`` its conformal p-value, at most ``false_alarm_rate``
+    (the monitor's ``alpha``) when the alarm is raised.  ``state``/``state_name``/``probability``/``probabilities``:
+    the most probable state and every state's probability; ``changes``: what changed, in words.  A record that is not
+    ``recognised`` (``reason``) gets none of these (None, empty).  ``windows``: each window's ``start`` and
+    ``health_index``.  :meth:`to_dict` is what ``rvdiag diagnose --baseline --json`` prints.
+    """
+
+    health_index: float | None = None
+    alarm: bool | None = None
+    false_alarm_rate: float = 0.0
+    p_value: float | None = None
+    threshold: float | None = None
+    state: str | None = None
+    state_name: str | None = None
+    probability: float | None = None
+    changes: list[str] = field(default_factory=list)
+    n_windows: int = 0
+    window_length: int = 0
+    fs: float | None = None
+    windows: list[dict] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    unused_points: int = 0
+    recognised: bool = False
+    reason: str | None = None
+    checks: dict = field(default_factory=dict)
+    operating_point: dict = field(default_factory=dict)
+    probabilities: dict = field(default_factory=dict)
+    #: the baseline records the record was compared with: path, n_records, their mean speed and load
+    baseline: dict | None = None
+    file: str | None = None
+    channel: str | None = None
+    model: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The result as JSON-ready values (``rvdiag diagnose --baseline --json``)."""
+        return asdict(self)
+
+    def plot(self, ax=None):
+        """The windows' health index against the alarm's threshold (matplotlib); returns the axes."""
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            _, ax = plt.subplots(figsize=(6, 3))
+        t = [w["start"] / self.fs if self.fs else w["start"] for w in self.windows if "health_index" in w]
+        h = [w["health_index"] for w in self.windows if "health_index" in w]
+        ax.plot(t, h, "o-", label="window health index")
+        if self.health_index is not None:
+            ax.axhline(self.health_index, color="k", lw=1, label=f"record {self.health_index:.3g}")
+        if self.threshold is not None:
+            ax.axhline(self.threshold, color="r", ls="--", label=f"alarm threshold ({100 * self.false_alarm_rate:g} %"
+                                                                   " false alarms)")
+        ax.set_xlabel("window start (s)" if self.fs else "window start (points)")
+        ax.set_ylabel("health index")
+        title = f"{self.file or 'record'}: " + ("ALARM" if self.alarm else "no alarm" if self.recognised
+                                                else f"not recognised ({self.reason})")
+        ax.set_title(title, fontsize="small")
+        ax.legend(fontsize="small")
+        return ax
+
+
+def monitor_record(model, rec, base: Baseline, *, output_speed: float | None = None, load: float | None = None,
+                   metadata: dict | None = None) -> MonitorResult:
+    """Judge one record against its machine's baseline (module docstring).
+
+    Parameters
+    ----------
+    model : the loaded monitor (:func:`rvdiag.workflows.load_model`), loaded once
+    rec : the record (:func:`rvdiag.workflows.read_record`, or any :class:`rvdiag.io.readers.MeasuredSignal`)
+    base : the machine's baseline (:func:`rvdiag.monitoring.open_baseline` of the same ``model``), opened once
+    output_speed : the output speed in deg/s (None: the record's ``metadata``, its angle source, the speed a
+        simulated record states, or the confirmed stage-1 mesh peak; :func:`rvdiag.workflows.records.record_speed`)
+    load : the output torque in N m (None: the record's ``metadata["load_Nm"]``)
+    metadata : further values such as ``--meta NAME=VALUE`` (``output_speed_deg_s``, ``input_speed_rpm``,
+        ``load_Nm``), over the record's own
+
+    Returns
+    -------
+    MonitorResult
+
+    Raises
+    ------
+    ParameterError
+        A record of another sampling rate, shorter than a window, without a load, or with no baseline records at
+        its operating point.
+    """
+    from rvdiag.datasets.store import Samples
+    from rvdiag.workflows.records import SPEED_META, flat_reason, recognition, record_speed, state_name
+
+    if not isinstance(base, Baseline):
+        raise ParameterError(f"monitor_record needs a Baseline (rvdiag.monitoring.open_baseline), got "
+                             f"{type(base).__name__}")
+    est = model.estimator
+    if not rec.fs:
+        raise ParameterError("the file states no sampling rate: give --fs")
+    if model.fs and abs(float(rec.fs) - model.fs) > 1e-9 * model.fs:
+        raise ParameterError(f"the record is sampled at {float(rec.fs):g} Hz, the model and its baseline at "
+                             f"{model.fs:g} Hz")
+    L = model.input_length
+    x = np.asarray(rec.data, dtype=np.float64)
+    k = x.size // L
+    if k < 1:
+        raise ParameterError(f"the signal has {x.size} points, shorter than one window of {L} points (the model's "
+                             "input length)")
+    values = {**(getattr(rec, "metadata", None) or {}), **(metadata or {})}
+    values = {c: v for c, v in values.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
+    if output_speed is not None:
+        values = {**values, SPEED_META[0]: float(output_speed)}
+    load = values.get(OPERATING_COLUMNS[1]) if load is None else float(load)
+    alpha = float((model.card.get("alarm") or {}).get("alpha", est.alpha))
+    threshold = 1.0 if math.isfinite(float(getattr(est, "threshold_", math.inf))) else None
+    res = MonitorResult(false_alarm_rate=alpha, threshold=threshold, n_windows=k, window_length=L,
+                        fs=float(rec.fs), unused_points=int(x.size - k * L),
+                        file=None if getattr(rec, "path", None) is None else str(rec.path),
+                        channel=getattr(rec, "channel", None), model=str(model.path))
+    n_cal = (model.card.get("alarm") or {}).get("record_windows")
+    if n_cal and int(n_cal) != k:
+        res.warnings.append(f"warning: the alarm's rate is calibrated on records of {int(n_cal)} window(s) of "
+                            f"{L} points, decided on their mean change; this record has {k}: the stated rate "
+                            f"holds for records of {int(n_cal)}")
+    if load is None:
+        raise ParameterError("the record's load is needed to find its baseline: give --load N_M (output torque)")
+    speed = record_speed(rec, values)
+    flat = flat_reason(x, L)
+    rec_ok = recognition(model, x, rec.fs, {"novelty": None}, speed, False) if flat is None else \
+        {"recognised": False, "reason": flat, "checks": {}}
+    bs = base.samples
+    rec_ok = mesh_check_against_baseline(rec_ok, x, bs, float(rec.fs), speed, L)
+    rec_ok = level_check_against_baseline(rec_ok, x, bs)
+    res.recognised, res.reason, res.checks = rec_ok["recognised"], rec_ok["reason"], rec_ok["checks"]
+    res.operating_point = {"output_speed_deg_s": speed.get("output_speed_deg_s"),
+                           "speed_source": speed.get("detail") or speed.get("error"), "load_Nm": load}
+    if not res.recognised:
+        return res
+    if speed.get("output_speed_deg_s") is None:
+        raise ParameterError(f"the record's speed is needed to find its baseline: {speed.get('error')}")
+    X = x[: k * L].reshape(k, L)
+    meta = {OPERATING_COLUMNS[0]: np.full(k, float(speed["output_speed_deg_s"])), OPERATING_COLUMNS[1]: np.full(k, load)}
+    mon = Samples(X=X, y=np.array(["?"] * k), meta=meta, index=np.arange(k))
+    D, groups = paired_features(est.features, mon, bs, fs=float(rec.fs), baseline_fs=base.fs,
+                                card_tolerances=model.card.get("baseline"), where="the record")
+    mean = D.mean(axis=0, keepdims=True)
+    d = est.diagnose(mean)[0]
+    res.health_index, res.alarm, res.p_value = d["health_index"], d["alarm"], d["p_value"]
+    res.state, res.state_name, res.probability = d["state"], state_name(d["state"]), d["probability"]
+    res.probabilities = {str(c): float(p) for c, p in zip(est.classes_, est.predict_proba(mean)[0])}
+    res.changes = d["changed"]
+    res.windows = [{"start": i * L, "health_index": float(h)} for i, h in enumerate(est.health_index(D))]
+    res.baseline = {"path": str(base.path), "n_records": int(len(groups[0])),
+                    "output_speed_deg_s": float(np.mean(bs.meta[OPERATING_COLUMNS[0]][groups[0]])),
+                    "load_Nm": float(np.mean(bs.meta[OPERATING_COLUMNS[1]][groups[0]]))}
+    return res
+
+
+def mesh_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float, speed: dict, L: int) -> dict:
+    """The mesh-line check of :func:`rvdiag.workflows.records.recognition`, judged against the machine's own baseline: a
+    record without the reducer's mesh lines is "not recognised" only when the baseline shows them at the nearest
+    operating point.  Both are read on windows of the model's ``L`` points (the same resolution): the record's
+    first window against the baseline window nearest its speed.  Where the baseline shows no line either (a quiet
+    mesh behind a noisy path or a sensor floor, as on a machine whose baseline is what it is), the lines say
+    nothing about this machine and the record goes on to its health index (``checks["mesh_lines"]["baseline"]``
+    says so)."""
+    from rvdiag.features.mesh_lines import mesh_lines
+    from rvdiag.params import ReducerParams
+
+    lines = rec.get("checks", {}).get("mesh_lines")
+    if rec["recognised"] or lines is None or lines["present"]:
+        return rec
+    v = float(speed["output_speed_deg_s"])
+    near = int(np.argmin(np.abs(np.asarray(base.meta[OPERATING_COLUMNS[0]], dtype=float) - v)))
+    p = ReducerParams.default()
+    in_base = mesh_lines(np.asarray(base.X[near], dtype=np.float64), fs, p, v)["present"]
+    in_record = mesh_lines(x[:L], fs, p, v)["present"]
+    checks = {**rec["checks"], "mesh_lines": {**lines, "baseline": in_base, "record_window": in_record}}
+    if in_base and not in_record:
+        return {**rec, "checks": checks, "reason": rec["reason"] + f"; the machine's baseline shows {', '.join(in_base)}"}
+    return {"recognised": True, "reason": None, "checks": checks}
+
+
+#: a record whose RMS lies more than this factor above or below every baseline window's is "not recognised"
+LEVEL_FACTOR = 10.0
+
+
+def level_check_against_baseline(rec: dict, x: np.ndarray, base) -> dict:
+    """A record whose level (RMS) lies more than :data:`LEVEL_FACTOR` outside the range of the baseline windows'
+    is not this machine's signal as the baseline records it (another sensor, gain or unit, a loose mount): "not
+    recognised", with the factor.  The alarm judges smaller changes."""
+    if not rec["recognised"]:
+        return rec
+    rms = float(np.sqrt(np.mean(np.square(x))))
+    b = np.sqrt(np.mean(np.square(np.asarray(base.X, dtype=np.float64)), axis=1))
+    lo, hi = float(b.min()), float(b.max())
+    checks = {**rec.get("checks", {}), "level": {"rms": rms, "baseline_rms": [lo, hi], "factor": LEVEL_FACTOR}}
+    if lo > 0 and not (lo / LEVEL_FACTOR <= rms <= hi * LEVEL_FACTOR):
+        ratio = rms / hi if rms > hi else lo / rms if rms > 0 else math.inf
+        side = "above" if rms > hi else "below"
+        return {"recognised": False, "checks": checks,
+                "reason": f"its level (RMS {rms:.4g}) lies {ratio:.3g}x {side} the baseline's range ({lo:.4g}-"
+                          f"{hi:.4g}): another sensor, gain or unit than the baseline's?"}
+    return {**rec, "checks": checks}
+
+
+__all__ = ["LEVEL_FACTOR", "MonitorResult", "level_check_against_baseline", "mesh_check_against_baseline", "monitor_record"]
