@@ -61,7 +61,7 @@ def test_each_class_is_covered_exactly_at_its_finite_sample_level_over_many_seed
         P, y = _draw(rng, counts)
         ps = PredictionSets.calibrate(P, y, CLASSES, cover)
         Pt, yt = _draw(rng, {c: 1 for c in CLASSES})
-        inside = ps.contains(Pt)
+        inside = ps.contains(Pt, nonempty=False)
         for i, c in enumerate(yt):
             hits[c] += bool(inside[i, CLASSES.index(c)])
         sizes.append(inside.sum(axis=1).mean())
@@ -110,7 +110,9 @@ def test_same_sets_as_mapie_split_conformal_per_class():
     P, y = _draw(rng, {"T1": 57, "T2": 33, "T4": 41})
     Pt, _ = _draw(rng, {"T1": 300, "T2": 300, "T4": 300})
     cover = stated_coverages(CLASSES)
-    ours = PredictionSets.calibrate(P, y, CLASSES, cover).contains(Pt)
+    ps = PredictionSets.calibrate(P, y, CLASSES, cover)
+    ours = ps.contains(Pt, nonempty=False)
+
     est = Given().fit(P, y)
     for j, c in enumerate(CLASSES):
         m = mapie.SplitConformalClassifier(estimator=est, confidence_level=cover[c], conformity_score="lac",
@@ -181,6 +183,8 @@ def test_prediction_set_order_and_words():
                         {c: 50 for c in CLASSES})
     assert ps.prediction_set([0.3, 0.1, 0.6]) == [["T4", "T1"]]
     assert ps.prediction_set([[0.05, 0.9, 0.05]]) == [["T2"]]
+    P = np.array([[0.1, 0.45, 0.05], [0.3, 0.1, 0.6]])  # the first passes no threshold: its most probable state
+    assert not ps.contains(P, nonempty=False)[0].any() and ps.prediction_set(P) == [["T2"], ["T4", "T1"]]
     names = {"T1": "healthy", "T4": "root crack"}.get
     assert describe_set(["T1", "T4"], 0.95, names) == ("healthy or root crack (95 % set): this model cannot tell "
                                                        "them apart on a reducer it has not seen")

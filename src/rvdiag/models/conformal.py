@@ -14,7 +14,10 @@ introduction to conformal prediction and distribution-free uncertainty quantific
 "class-conditional conformal prediction"): for each state c with ``n_c`` calibration samples of that state and a
 stated coverage ``1 - alpha_c``, its threshold ``q_c`` is the ``ceil((n_c + 1)(1 - alpha_c))``-th smallest of their
 scores (``inf`` when that rank exceeds ``n_c``: too few samples of c to exclude it at that level, so c is in every
-set).  The prediction set of a sample with probabilities ``p`` is ``{c : 1 - p_c <= q_c}``.
+set).  The prediction set of a sample with probabilities ``p`` is ``{c : 1 - p_c <= q_c}``, and where that is empty
+(every state less probable than its calibration samples were: a sample unlike them all), the most probable state
+``argmax p``: a set that only grows keeps the guarantee, and a user is never told "no state" by a set (the
+out-of-distribution check says when a record is unlike the training data).
 
 Guarantee (Vovk 2012, Prop. 4; Angelopoulos & Bates eq. 11): for a new sample of state c exchangeable with the
 calibration samples of c, ``1 - alpha_c <= P(c in set) < 1 - alpha_c + 1/(n_c + 1)`` (the upper bound without ties),
@@ -62,7 +65,7 @@ FAULT_COVERAGE = 0.90
 #: the healthy state of rvdiag's libraries
 HEALTHY = "T1"
 METHOD = ("class-conditional (Mondrian) split-conformal, LAC score 1 - p_y, threshold the ceil((n+1)(1-alpha))-th "
-          "smallest calibration score of each state")
+          "smallest calibration score of each state; an empty set gets the most probable state")
 
 
 def conformal_threshold(scores, alpha: float) -> float:
@@ -178,11 +181,17 @@ class PredictionSets:
             n_groups[c] = None if g is None else int(np.unique(g[y == c]).size)
         return cls(classes, {c: coverage[c] for c in classes}, thresholds, counts, n_groups, dict(source or {}))
 
-    def contains(self, proba) -> np.ndarray:
-        """Boolean (n, k): whether each class is in each sample's prediction set, ``1 - p_c <= q_c``."""
+    def contains(self, proba, nonempty: bool = True) -> np.ndarray:
+        """Boolean (n, k): whether each class is in each sample's prediction set, ``1 - p_c <= q_c``, or with
+        ``nonempty`` the most probable class where no class passes (module docstring)."""
         P = _proba(proba, self.classes)
         q = np.asarray([self.thresholds[c] for c in self.classes], dtype=np.float64)
-        return (1.0 - P) <= q[None, :]
+        inside = (1.0 - P) <= q[None, :]
+        if not nonempty:
+            return inside
+        empty = ~inside.any(axis=1)
+        inside[np.flatnonzero(empty), P[empty].argmax(axis=1)] = True
+        return inside
 
     def prediction_set(self, proba) -> list[list[str]]:
         """The prediction set of each row of ``proba`` (n, k) (or of one row, shape (k,)): its classes, most
