@@ -64,7 +64,8 @@ def step(title: str, args: list[str], stdout_file: Path | None = None) -> None:
 
 def summary_lines(metrics: dict) -> list[str]:
     """The figures the demo prints from ``rvdiag evaluate --json --merge T4=T1,T6=T5``: the six states (accuracy
-    with the healthy recall and false-alarm rate beside it, and each state's recall), the crack-free decision
+    with the healthy recall and false-alarm rate beside it, and each state's recall), the prediction sets' coverage
+    and size per state (key ``sets``, when the model has a calibration), the crack-free decision
     (key ``merged``) and, in one line, why it is printed."""
     def pct(v) -> str:
         return "-" if v is None else f"{100 * v:.1f} %"
@@ -73,6 +74,12 @@ def summary_lines(metrics: dict) -> list[str]:
              f"false-alarm rate {pct(metrics['false_alarm_rate'])} (macro F1 {metrics['f1_macro']:.3f}, "
              f"kappa {metrics['kappa']:.3f})",
              "recall " + ", ".join(f"{c} {pct(v)}" for c, v in metrics["recall"].items())]
+    sets = metrics.get("sets")
+    if sets is not None:
+        lines.append(f"prediction sets: coverage {pct(sets['coverage'])} (stated {pct(sets['stated_coverage'])}), "
+                     f"mean size {sets['mean_size']:.2f}; per state "
+                     + ", ".join(f"{c} {pct(v['coverage'])} of {100 * v['stated_coverage']:g} % (size "
+                                 f"{v['mean_size']:.2f})" for c, v in sets["per_state"].items()))
     merged = metrics.get("merged")
     if merged is not None:
         lines += [f"crack-free decision ({CRACK_FREE}): accuracy {pct(merged['accuracy'])}, healthy recall "
