@@ -26,6 +26,7 @@ class Evaluation:
     meta : dict of metadata columns of the evaluated samples
     warnings : list of str (fs mismatch...)
     sets, sets_note : the prediction sets' metrics, or why there are none (:func:`set_metrics_of` fills them)
+    proba : ndarray (n, k) or None, the class probabilities (kept for a model with a prediction-set calibration)
     """
 
     metrics: dict
@@ -37,6 +38,7 @@ class Evaluation:
     warnings: list[str] = field(default_factory=list)
     sets: dict | None = None
     sets_note: str | None = None
+    proba: np.ndarray | None = None
 
 
 def check_store_matches(card: dict, store) -> list[str]:
@@ -89,10 +91,16 @@ def evaluate_on_store(loaded, store, split: str = "test", where=()) -> Evaluatio
         raise ModelFileError(f"the split {split!r} of {store.path} is empty"
                              + (f" where {' and '.join(where)}" if where else ""))
     X = loaded.inputs(s.X, s.meta, where=f"the store {store.path}")
-    y_pred = predict_in_chunks(loaded.estimator, X).astype(str)
+    proba = None
+    if loaded.card.get("prediction_sets") and hasattr(loaded.estimator, "predict_proba"):
+        # one pass gives the prediction sets too: every rvdiag classifier predicts the argmax of predict_proba
+        proba = predict_in_chunks(loaded.estimator, X, method="predict_proba").astype(float)
+        y_pred = np.asarray(loaded.estimator.classes_)[proba.argmax(axis=1)].astype(str)
+    else:
+        y_pred = predict_in_chunks(loaded.estimator, X).astype(str)
     y_true = np.asarray(s.y).astype(str)
     m = classification_metrics(y_true, y_pred, labels=[str(c) for c in loaded.card["classes"]])
-    return Evaluation(m, y_true, y_pred, s.X, s.meta, split, warnings)
+    return Evaluation(m, y_true, y_pred, s.X, s.meta, split, warnings, proba=proba)
 
 
 def _level_key(level: float) -> int:
@@ -229,8 +237,10 @@ def set_metrics_of(loaded, ev: Evaluation) -> tuple[dict | None, str | None]:
         ev.sets_note = (f"no prediction sets: {loaded.card['prediction_sets_note']}"
                         if loaded.card.get("prediction_sets_note") else conformal.NOT_CALIBRATED)
         return None, ev.sets_note
-    X = loaded.inputs(ev.X, ev.meta, where="the evaluated samples")
-    P = predict_in_chunks(loaded.estimator, X, method="predict_proba").astype(float)
+    P = ev.proba
+    if P is None:
+        X = loaded.inputs(ev.X, ev.meta, where="the evaluated samples")
+        P = predict_in_chunks(loaded.estimator, X, method="predict_proba").astype(float)
     ev.sets = {**conformal.set_metrics(ps.contains(P), ev.y_true, ps.classes, ps.coverage),
                "calibration": {"n_calibration": ps.n_calibration, "n_reducers": ps.n_groups,
                                "method": ps.source.get("method"), "refit": ps.source.get("refit")}}
