@@ -319,3 +319,18 @@ def test_a_model_without_calibration_says_so(tone_model, tone_store, tmp_path, c
     np.save(f, _tone(0, np.random.default_rng(1)))
     code, out, err = run(["diagnose", old, str(f), "--fs", str(FS)], capsys)
     assert code == 0 and "no prediction set" in out, err
+
+
+def test_train_holds_nothing_out_when_a_state_would_get_too_few_calibration_samples():
+    from types import SimpleNamespace
+
+    from rvdiag.cli.train import calibration_split
+
+    y = np.repeat(["T1", "T2"], 40)
+    tr = SimpleNamespace(y=y, meta={"unit": np.arange(80) // 2})  # 20 reducers of 2 windows a state
+    cover = {"T1": 0.95, "T2": 0.9}
+    held, note = calibration_split(tr, 0.2, 0, cover)  # 4 reducers, 8 windows: T1 needs 19
+    assert held is None and "8 held-out sample(s) of T1, fewer than the 19" in note
+    held, note = calibration_split(tr, 0.5, 0, cover)
+    assert note is None and held.sum() == 40
+    assert calibration_split(SimpleNamespace(y=y, meta={}), 0.2, 0, cover)[0] is None

@@ -291,7 +291,14 @@ def register(app: typer.Typer) -> None:
             raise ParameterError(f"--calibration-fraction must lie in [0, 1), got {calibration_fraction}")
         from rvdiag.models.conformal import stated_coverages
 
-        stated_coverages([], healthy_coverage=healthy_coverage, fault_coverage=fault_coverage)  # checked now
+        from rvdiag.evaluation.metrics import healthy_class
+
+        def coverage_of(classes) -> dict[str, float]:
+            classes = [str(c) for c in classes]
+            return stated_coverages(classes, healthy=healthy_class(classes), healthy_coverage=healthy_coverage,
+                                    fault_coverage=fault_coverage)
+
+        coverage_of([])  # the coverages are checked before any work
         if epochs < 1:
             raise ParameterError(f"--epochs must be >= 1, got {epochs}")
         if out.exists() and not out.is_dir():
@@ -350,7 +357,7 @@ def register(app: typer.Typer) -> None:
 
             tr = StoreSamples(store, train_idx, meta_cols, where=where)
             te = StoreSamples(store, store.indices("test"), meta_cols, where=where) if "test" in store.splits() else None
-            held, cal_note = calibration_split(tr, calibration_fraction, seed)
+            held, cal_note = calibration_split(tr, calibration_fraction, seed, coverage_of(store.classes))
             cal = None
             if held is not None:
                 cal = StoreSamples(store, tr.index[held], meta_cols, where=where)
@@ -359,7 +366,7 @@ def register(app: typer.Typer) -> None:
         else:
             tr = store.load(index=train_idx) if conditions else store.load("train")
             te = store.load("test") if "test" in store.splits() else None
-            held, cal_note = calibration_split(tr, calibration_fraction, seed)
+            held, cal_note = calibration_split(tr, calibration_fraction, seed, coverage_of(store.classes))
             cal = None
             if held is not None:
                 tr, cal = subset(tr, ~held), subset(tr, held)
@@ -411,12 +418,9 @@ def register(app: typer.Typer) -> None:
             from rvdiag.models.conformal import PredictionSets
 
             P = predict_proba_store(est, cal) if stream else predict_in_chunks(est, Xcal, method="predict_proba")
-            from rvdiag.evaluation.metrics import healthy_class
-
             classes = [str(c) for c in est.classes_]
             sets = PredictionSets.calibrate(
-                P, cal.y, classes, stated_coverages(classes, healthy=healthy_class(classes),
-                                                    healthy_coverage=healthy_coverage, fault_coverage=fault_coverage),
+                P, cal.y, classes, coverage_of(classes),
                 groups=cal.meta["unit"], source=calibration_source(cal, calibration_fraction, seed))
             extra["prediction_sets"] = sets.to_card()
             if sets.too_few():
@@ -458,12 +462,13 @@ def register(app: typer.Typer) -> None:
 DEFAULT_CALIBRATION_FRACTION = 0.2
 
 
-def calibration_split(tr, fraction: float, seed: int):
+def calibration_split(tr, fraction: float, seed: int, coverage: dict[str, float]):
     """The training samples held out to calibrate the prediction sets (:func:`rvdiag.models.conformal.split_by_group`:
     whole reducers, the metadata column ``unit``, ``fraction`` of each state's, drawn with ``[seed, 4]``), as a
-    boolean mask, and None; or None and the reason there are none (``fraction`` 0, no ``unit`` column, no state
-    with two reducers)."""
-    from rvdiag.models.conformal import split_by_group
+    boolean mask, and None; or None and the reason there are none (``fraction`` 0, no ``unit`` column, a state
+    with too few held-out samples for its stated ``coverage``: then nothing is held out and the fit keeps every
+    sample)."""
+    from rvdiag.models.conformal import min_calibration_samples, split_by_group
 
     if fraction <= 0:
         return None, "--calibration-fraction 0"
@@ -471,8 +476,12 @@ def calibration_split(tr, fraction: float, seed: int):
     if units is None:
         return None, "the store has no reducer column (unit) to hold whole reducers out of the fit"
     held = split_by_group(tr.y, units, fraction, [seed, 4])
-    if not held.any():
-        return None, "no state has two reducers (units) in the training split: none can be held out"
+    y = np.asarray(tr.y).astype(str)
+    for c in np.unique(y):
+        n, need = int(np.sum(held & (y == c))), min_calibration_samples(coverage[str(c)])
+        if n < need:
+            return None, (f"{n} held-out sample(s) of {c}, fewer than the {need} a {100 * coverage[str(c)]:g} % set "
+                          "needs: build more reducers (simulations) or raise --calibration-fraction")
     return held, None
 
 
