@@ -24,7 +24,8 @@ def register(app: typer.Typer) -> None:
         data: Path = typer.Argument(..., help="Sample store (.zarr) to score."),
         split: str = typer.Option("test", "--split", help="test | train | all (or any split of the store)."),
         json_out: bool = opt.json_flag("Print accuracy, precision_macro, recall_macro, f1_macro, kappa, "
-                                       "per_class, confusion as JSON."),
+                                       "per_class, confusion and the prediction sets (sets: stated_coverage, "
+                                       "coverage, mean_size, per_state) as JSON."),
         report: Path = typer.Option(None, "--report", help="Write a self-contained HTML report here."),
         by: str = typer.Option(None, "--by",
                                help="Also give the accuracy per value/bin of a metadata column, e.g. noise_snr_db "

@@ -20,6 +20,13 @@ class.
 cracked) instead of one six-class classifier and decodes each sample to the state of largest joint probability
 (:mod:`rvdiag.models.multilabel`); the model still predicts T1..T6.
 
+Prediction sets (:mod:`rvdiag.models.conformal`): ``--calibration-fraction`` (default 0.2) of each state's training
+reducers (metadata column ``unit``) are held out of the fit, and the model's probabilities on their samples calibrate
+class-conditional split-conformal sets, stated at ``--healthy-coverage`` (0.95) for the healthy state and
+``--fault-coverage`` (0.90) for each fault; the card's ``prediction_sets`` holds the thresholds and the held-out
+reducers, and ``evaluate`` / ``diagnose`` give the sets.  No reducer is held out (and there are no sets) where a state
+would get fewer samples than its coverage needs (19 for 95 %, 9 for 90 %), or with ``--calibration-fraction 0``.
+
 ``--streaming`` (CNN models) reads the training samples from the store a block at a time instead of loading the
 split (:mod:`rvdiag.models.streaming`): memory stays flat whatever the library's size.  A CNN streams without being
 asked when its training split's signals exceed 2 GiB (``--no-streaming`` loads it anyway); smaller stores train in
