@@ -334,3 +334,36 @@ def test_train_holds_nothing_out_when_a_state_would_get_too_few_calibration_samp
     held, note = calibration_split(tr, 0.5, 0, cover)
     assert note is None and held.sum() == 40
     assert calibration_split(SimpleNamespace(y=y, meta={}), 0.2, 0, cover)[0] is None
+
+
+def test_group_folds_put_reducers_of_every_class_in_every_fold():
+    from rvdiag.models.conformal import group_folds
+
+    y = np.repeat(["T1", "T2"], 30)
+    g = np.arange(60) // 3  # 10 reducers a class
+    f = group_folds(y, g, 3, seed=1)
+    assert np.array_equal(f, group_folds(y, g, 3, seed=1))
+    for k in range(3):
+        for c in ("T1", "T2"):
+            assert 3 <= np.unique(g[(f == k) & (y == c)]).size <= 4
+    assert all(np.unique(f[g == r]).size == 1 for r in np.unique(g))  # a reducer never split between folds
+    with pytest.raises(ParameterError):
+        group_folds(y, g, 11, seed=1)
+
+
+def test_train_cross_calibrates_on_every_training_reducer(tone_store, tmp_path, capsys):
+    from conftest import run_cli as run
+
+    out = tmp_path / "cross"
+    code, _, err = run(["train", tone_store, "--model", "svm", "--features", "spectrum", "--out", out, "--seed", "0",
+                        "--calibration", "cross", "--calibration-folds", "3"], capsys)
+    assert code == 0, err
+    card = read_card(out)
+    ps = from_card(card)
+    assert ps.source["method"] == "cross" and ps.source["refit"] is True and ps.source["folds"] == 3
+    assert ps.n_calibration == {c: 80 for c in ps.classes} and ps.n_groups == {c: 40 for c in ps.classes}
+    assert card["training_store"]["n_train"] == 240
+    code, text, err = run(["evaluate", out, tone_store, "--json"], capsys)
+    assert code == 0 and json.loads(text)["sets"]["n"] == 24, err
+    code, _, err = run(["train", tone_store, "--out", tmp_path / "x", "--calibration", "both"], capsys)
+    assert code == 2 and "--calibration must be split or cross" in err

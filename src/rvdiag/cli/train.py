@@ -274,6 +274,12 @@ def register(app: typer.Typer) -> None:
         alpha: float = typer.Option(None, "--alpha",
                                     help="baseline-monitor: the alarm's false-alarm rate per healthy record "
                                          "(default 0.01; docs/monitoring.md)."),
+        calibration: str = typer.Option(
+            "split", "--calibration",
+            help="How the prediction sets are calibrated: split (hold --calibration-fraction of the reducers out of "
+                 "the fit) | cross (score every training reducer by a model fitted on the other "
+                 "--calibration-folds folds, then fit on all: K more fits, no reducer lost; docs/models.md)."),
+        calibration_folds: int = typer.Option(3, "--calibration-folds", help="--calibration cross: folds of reducers."),
         calibration_fraction: float = typer.Option(
             DEFAULT_CALIBRATION_FRACTION, "--calibration-fraction",
             help="Share of each state's training reducers (metadata column unit) held out of the fit to calibrate "
@@ -294,6 +300,10 @@ def register(app: typer.Typer) -> None:
         model = opt.renamed("--model", model, OLD_MODEL_NAMES)
         if repeat < 1:
             raise ParameterError(f"--repeat must be >= 1, got {repeat}")
+        if calibration not in ("split", "cross"):
+            raise ParameterError(f"--calibration must be split or cross, got {calibration!r}")
+        if calibration == "cross" and calibration_folds < 2:
+            raise ParameterError(f"--calibration-folds must be >= 2, got {calibration_folds}")
         if not 0.0 <= calibration_fraction < 1.0:
             raise ParameterError(f"--calibration-fraction must lie in [0, 1), got {calibration_fraction}")
         from rvdiag.models.conformal import stated_coverages
@@ -364,8 +374,11 @@ def register(app: typer.Typer) -> None:
 
             tr = StoreSamples(store, train_idx, meta_cols, where=where)
             te = StoreSamples(store, store.indices("test"), meta_cols, where=where) if "test" in store.splits() else None
+            if calibration == "cross":
+                raise ParameterError("--calibration cross fits the folds in memory and does not combine with "
+                                     "--streaming (use --calibration split)")
             held, cal_note = calibration_split(tr, calibration_fraction, seed, coverage_of(store.classes))
-            cal = None
+            cal, folds = None, None
             if held is not None:
                 cal = StoreSamples(store, tr.index[held], meta_cols, where=where)
                 tr = StoreSamples(store, tr.index[~held], meta_cols, where=where)
@@ -373,10 +386,13 @@ def register(app: typer.Typer) -> None:
         else:
             tr = store.load(index=train_idx) if conditions else store.load("train")
             te = store.load("test") if "test" in store.splits() else None
-            held, cal_note = calibration_split(tr, calibration_fraction, seed, coverage_of(store.classes))
-            cal = None
-            if held is not None:
-                tr, cal = subset(tr, ~held), subset(tr, held)
+            cal, folds = None, None
+            if calibration == "cross":
+                folds, cal_note = calibration_folds_of(tr, calibration_folds, seed, coverage_of(store.classes))
+            else:
+                held, cal_note = calibration_split(tr, calibration_fraction, seed, coverage_of(store.classes))
+                if held is not None:
+                    tr, cal = subset(tr, ~held), subset(tr, held)
             if snr_db is not None:
                 tr, te = _with_noise(tr, snr_db, [seed, 0]), (None if te is None else _with_noise(te, snr_db, [seed, 1]))
                 cal = None if cal is None else _with_noise(cal, snr_db, [seed, 3])
@@ -390,7 +406,9 @@ def register(app: typer.Typer) -> None:
         echo(f"{data}: {len(tr.y)} training samples of {store.length} points, {len(labels)} classes"
              + (f", {len(te.y)} test samples" if te is not None else ", no test split")
              + (f"; {len(cal.y)} samples of {_n_groups(cal)} held-out training reducers calibrate the prediction sets"
-                if cal is not None else f"; no prediction sets ({cal_note})")
+                if cal is not None else f"; every training reducer calibrates the prediction sets, scored by "
+                                        f"{calibration_folds} fold models" if folds is not None
+                else f"; no prediction sets ({cal_note})")
              + (f"; streamed from the store, {DEFAULT_BUFFER_SAMPLES} samples at a time" if stream else ""))
 
         runs, first = [], None
@@ -433,6 +451,26 @@ def register(app: typer.Typer) -> None:
             if sets.too_few():
                 echo(f"note: too few held-out samples of {', '.join(sets.too_few())} for the stated coverage: "
                      "in every prediction set")
+        elif folds is not None:
+            from rvdiag.models.conformal import PredictionSets
+
+            P = np.zeros((len(tr.y), len(est.classes_)))
+            for k in range(calibration_folds):
+                part = folds != k
+                fold_est = _fit(new_estimator(seed=seed, fs=store.fs), Xtr[part], np.asarray(tr.y)[part],
+                                quiet or json_out, f"calibration fold {k + 1}/{calibration_folds}",
+                                groups=validation_groups(store, subset(tr, part)))
+                if [str(c) for c in fold_est.classes_] != [str(c) for c in est.classes_]:
+                    raise StoreError(f"calibration fold {k + 1} lacks a class: use --calibration split")
+                P[~part] = fold_est.predict_proba(Xtr[~part])
+            classes = [str(c) for c in est.classes_]
+            sets = PredictionSets.calibrate(
+                P, tr.y, classes, coverage_of(classes), groups=tr.meta["unit"],
+                source={"method": "cross", "refit": True, "folds": int(calibration_folds), "seed": [int(seed), 5],
+                        "what": "every training reducer (metadata column unit), scored by the model fitted on the "
+                                "other folds of reducers; the thresholds apply to the model fitted on all",
+                        "n_calibration": int(len(tr.y))})
+            extra["prediction_sets"] = sets.to_card()
         else:
             extra["prediction_sets"] = None
             extra["prediction_sets_note"] = cal_note
@@ -490,6 +528,27 @@ def calibration_split(tr, fraction: float, seed: int, coverage: dict[str, float]
             return None, (f"{n} held-out sample(s) of {c}, fewer than the {need} a {100 * coverage[str(c)]:g} % set "
                           "needs: build more reducers (simulations) or raise --calibration-fraction")
     return held, None
+
+
+def calibration_folds_of(tr, folds: int, seed: int, coverage: dict[str, float]):
+    """The fold of each training sample for ``--calibration cross`` (:func:`rvdiag.models.conformal.group_folds`
+    over the reducers, metadata column ``unit``, drawn with ``[seed, 5]``), and None; or None and the reason there
+    are no sets (no ``unit`` column, a state with fewer reducers than folds or fewer samples than its coverage
+    needs)."""
+    from rvdiag.models.conformal import group_folds, min_calibration_samples
+
+    units = tr.meta.get("unit")
+    if units is None:
+        return None, "the store has no reducer column (unit) to fold the reducers"
+    y = np.asarray(tr.y).astype(str)
+    for c in np.unique(y):
+        n, need = int(np.sum(y == c)), min_calibration_samples(coverage[str(c)])
+        if n < need:
+            return None, f"{n} training sample(s) of {c}, fewer than the {need} a {100 * coverage[str(c)]:g} % set needs"
+    try:
+        return group_folds(y, units, folds, [seed, 5]), None
+    except ParameterError as exc:
+        return None, str(exc)
 
 
 def calibration_source(cal, fraction: float, seed: int) -> dict:

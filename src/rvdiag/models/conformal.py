@@ -29,7 +29,10 @@ Which samples are exchangeable
 Windows of one reducer share its manufacturing errors, path and noise floor: they are not exchangeable with another
 reducer's, and a model scores the windows of the reducers it trained on better than a new reducer's.  So the
 calibration samples must come from reducers the model never trained on (``rvdiag train`` holds out whole reducers
-of each state: :func:`split_by_group`), and the guarantee holds for a new reducer only as well as the calibration
+of each state, :func:`split_by_group`, or with ``--calibration cross`` scores each training reducer by a model fitted
+on the other folds of reducers, :func:`group_folds`, and applies the thresholds to the model refitted on all: the
+cross-conformal / CV+ construction of Vovk, "Cross-conformal predictors", Ann. Math. Artif. Intell. 74 (2015) 9-28,
+and Barber et al. 2021, whose guarantee is 1 - 2 alpha in the worst case, near 1 - alpha for a stable fit), and the guarantee holds for a new reducer only as well as the calibration
 reducers represent it.  The scores of the calibration windows are pooled with equal weight per window (each
 simulated reducer gives the same number); with few reducers the effective calibration size lies between the
 number of reducers and the number of windows (Dunn, Wasserman & Ramdas, "Distribution-free prediction sets for
@@ -309,6 +312,26 @@ def split_by_group(y, groups, fraction: float, seed) -> np.ndarray:
         held = rng.choice(names, size=k, replace=False)
         cal |= in_c & np.isin(g, held)
     return cal
+
+
+def group_folds(y, groups, folds: int, seed) -> np.ndarray:
+    """The fold (0 .. ``folds`` - 1) of each sample for cross-conformal calibration over whole groups (reducers):
+    each class's groups, in an order drawn with ``numpy.random.default_rng(seed)``, cut into ``folds`` nearly equal
+    parts (:func:`numpy.array_split`), so every fold holds groups of every class; :class:`ParameterError` when a
+    class has fewer groups than folds."""
+    y = np.asarray(y).astype(str).ravel()
+    g = np.asarray(groups).ravel()
+    if int(folds) < 2:
+        raise ParameterError(f"cross-conformal calibration needs at least 2 folds, got {folds}")
+    rng = np.random.default_rng(seed)
+    fold = np.zeros(y.size, dtype=np.int64)
+    for c in np.unique(y):
+        names = rng.permutation(np.unique(g[y == c]))
+        if names.size < int(folds):
+            raise ParameterError(f"class {c} has {names.size} reducer(s), fewer than the {folds} calibration folds")
+        for k, part in enumerate(np.array_split(names, int(folds))):
+            fold[(y == c) & np.isin(g, part)] = k
+    return fold
 
 
 def describe_set(states: list[str], coverage: float, names=None) -> str:
