@@ -21,7 +21,12 @@ Usage::
     rvdiag library build configs/demo.toml --out /tmp/demo.zarr
     rvdiag train /tmp/demo.zarr --out /tmp/model --seed 0
     rvdiag train /tmp/demo.zarr --out /tmp/model-all --seed 0 --calibration-fraction 0
+    rvdiag train /tmp/demo.zarr --out /tmp/model-cross --seed 0 --calibration cross
     python bench/prediction_sets.py /tmp/demo.zarr /tmp/model --baseline-model /tmp/model-all --generic
+    python bench/prediction_sets.py /tmp/demo.zarr /tmp/model-cross --generic
+
+A cross-conformal card (``--calibration cross``) keeps no fold models, so its thresholds are not recomputed here;
+``--generic`` then compares the test split's probabilities and sets under the stored thresholds.
 """
 
 from __future__ import annotations
@@ -48,8 +53,9 @@ def _probabilities(model_dir: Path, store_path: Path, rows: np.ndarray) -> np.nd
 
 
 def _rows(store, card: dict) -> tuple[np.ndarray, np.ndarray]:
-    """The store rows of the card's calibration reducers, and of the test split."""
-    held = card["prediction_sets"]["source"]["held_out_reducers"]
+    """The store rows of the card's held-out calibration reducers (none for a cross-conformal card: its scores came
+    from fold models that are not kept), and of the test split."""
+    held = card["prediction_sets"]["source"].get("held_out_reducers") or {}
     units = np.asarray(store.meta["unit"]).astype(str)
     labels = np.asarray(store.label_names).astype(str)
     train = np.asarray(store.meta["split"]) == "train"
@@ -71,10 +77,11 @@ def score(model_dir: Path, store_path: Path, P_cal=None, P_test=None) -> dict:
     classes = stored.classes
     cal_rows, test_rows = _rows(store, card)
     labels = np.asarray(store.label_names).astype(str)
-    P_cal = _probabilities(model_dir, store_path, cal_rows) if P_cal is None else P_cal
+    if P_cal is None:
+        P_cal = _probabilities(model_dir, store_path, cal_rows) if cal_rows.size else np.zeros((0, len(classes)))
     P_test = _probabilities(model_dir, store_path, test_rows) if P_test is None else P_test
-    recal = PredictionSets.calibrate(P_cal, labels[cal_rows], classes, stored.coverage,
-                                     groups=np.asarray(store.meta["unit"])[cal_rows])
+    recal = None if not cal_rows.size else PredictionSets.calibrate(
+        P_cal, labels[cal_rows], classes, stored.coverage, groups=np.asarray(store.meta["unit"])[cal_rows])
     y = labels[test_rows]
     pred = np.asarray(classes)[P_test.argmax(axis=1)]
     m = classification_metrics(y, pred, labels=classes)
@@ -91,7 +98,9 @@ def score(model_dir: Path, store_path: Path, P_cal=None, P_test=None) -> dict:
         "model": str(model_dir), "store": str(store_path),
         "n_calibration": stored.n_calibration, "n_calibration_reducers": stored.n_groups,
         "thresholds": stored.thresholds,
-        "recalibrated_equal": bool(all(recal.thresholds[c] == stored.thresholds[c] for c in classes)),
+        "calibration": stored.source.get("method"),
+        "recalibrated_equal": None if recal is None else bool(all(recal.thresholds[c] == stored.thresholds[c]
+                                                                  for c in classes)),
         "accuracy": m["accuracy"], "healthy_recall": m["healthy_recall"], "false_alarm_rate": m["false_alarm_rate"],
         "recall": {c: v["recall"] for c, v in m["per_class"].items()},
         "windows": set_metrics(inside, y, classes, stored.coverage),
@@ -122,12 +131,13 @@ def generic(model_dir: Path, store_path: Path) -> dict:
     store = SampleStore.open(store_path)
     cal_rows, _ = _rows(store, read_card(model_dir))
     y_cal = np.asarray(store.label_names).astype(str)[cal_rows]
-    recal = PredictionSets.calibrate(z["cal"], y_cal, stored.classes, stored.coverage)
+    recal = PredictionSets.calibrate(z["cal"], y_cal, stored.classes, stored.coverage) if cal_rows.size else stored
     inside_generic = recal.contains(z["test"])
-    return {"max_abs_probability_difference": float(max(np.abs(here["_P_cal"] - z["cal"]).max(),
-                                                        np.abs(here["_P_test"] - z["test"]).max())),
-            "max_abs_threshold_difference": float(max(abs(recal.thresholds[c] - stored.thresholds[c])
-                                                      for c in stored.classes)),
+    diffs = [np.abs(here["_P_test"] - z["test"]).max()] + ([np.abs(here["_P_cal"] - z["cal"]).max()]
+                                                             if cal_rows.size else [])
+    return {"max_abs_probability_difference": float(max(diffs)),
+            "max_abs_threshold_difference": None if not cal_rows.size else float(
+                max(abs(recal.thresholds[c] - stored.thresholds[c]) for c in stored.classes)),
             "test_sets_differing": int(np.any(inside_generic != here["_inside"], axis=1).sum()),
             "n_test": int(len(inside_generic)),
             "coverage_generic": there["windows"]["coverage"], "coverage_native": here["windows"]["coverage"]}
