@@ -1,13 +1,14 @@
-# rvdiag: `make demo` runs the main job on the built-in default, `make test` runs the tests.
-# Both create .venv and install rvdiag with its test extras when needed.
+# rvdiag: `make demo` runs the main job on the built-in default, `make test` runs the tests, `make docs` builds the
+# API reference in build/docs.  Each creates .venv and installs rvdiag with its extras when needed.
 
 PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.rvdiag-installed
+DOCS_STAMP := $(VENV)/.rvdiag-docs-installed
 OUT    ?= out
 
-.PHONY: demo paper test bench clean install
+.PHONY: demo paper test docs bench clean install
 
 install: $(STAMP)
 
@@ -33,8 +34,17 @@ paper: $(STAMP)
 test: $(STAMP)
 	eval "$$(bash tests/services/start.sh)"; $(PY) -m pytest -q -p no:cacheprovider
 
+$(DOCS_STAMP): $(STAMP)
+	$(PIP) -e '.[test,docs]'
+	@touch $(DOCS_STAMP)
+
+# the API reference from the numpydoc docstrings (docs/api/conf.py), warnings as errors
+docs: $(DOCS_STAMP)
+	$(PY) -m sphinx -q -b html -W --keep-going docs/api build/docs
+	@echo "API reference: build/docs/index.html"
+
 bench: $(STAMP)
 	$(PY) bench/tvms_speed.py
 
 clean:
-	rm -rf $(OUT) .pytest_cache
+	rm -rf $(OUT) .pytest_cache build/docs docs/api/generated

@@ -29,8 +29,8 @@ dann        the same MLP with a domain classifier behind a gradient reversal lay
             ``DANN``, reg 1)
 ==========  =======================================================================================
 
-Prints, per feature set, target and method, the accuracy and its ratio to the baseline's.  docs/results.md
-("Domain adaptation (skada)") and bench/HISTORY.md hold the figures.  Importing skada switches on scikit-learn's
+Prints, per feature set, target and method, the accuracy and its ratio to the baseline's.  bench/HISTORY.md
+("Domain adaptation (skada)") holds the figures.  Importing skada switches on scikit-learn's
 metadata routing for the whole process (``sklearn.set_config(enable_metadata_routing=True)``).
 """
 
@@ -48,7 +48,7 @@ DEEP = ("mlp", "deepcoral", "dann")
 
 def features(store, split: str, name: str, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """(features, labels) of a split, computed as ``rvdiag train --model svm --features NAME`` would."""
-    from rvdiag.cli.train import build_estimator
+    from rvdiag.workflows.training import build_estimator
     from rvdiag.features.combine import input_metadata, with_metadata
 
     est = build_estimator("svm", name, seed=seed, epochs=1, device="cpu", batch_size=32, lr=1e-3,

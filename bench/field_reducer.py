@@ -7,7 +7,7 @@ stiffness and damping within +-10 %, its own sensor path), but from another mast
 (``--floor-db``) below its healthy power at 45 deg/s and 90 N m.  Every record has the library's run-to-run
 variation (load +-3 %, speed +-1 %, temperature +-2 %, mesh damping +-10 %, gain +-3 %).  The records are made by
 the library's own units (:func:`rvdiag.library.build.make_plan` of a ``[baseline]`` config,
-:func:`rvdiag.library.units.simulate_unit`, the gain and floor noise as ``finish_unit`` adds them): the same
+:func:`rvdiag.library.work_units.simulate_unit`, the gain and floor noise as ``finish_unit`` adds them): the same
 physics, drawn the same way.
 
 Files (CSV, columns ``time_s``, ``acc`` in m/s^2, ``angle_in``: the input shaft's encoder angle in rad, 17 bits
@@ -72,9 +72,9 @@ def field_config(*, seed: int, floor_db: float, points, commissioning: int, heal
 
 def record(unit, job) -> tuple[np.ndarray, np.ndarray]:
     """``(acc, angle_in)`` of one unit: the kept channel times the record's gain plus the reducer's floor noise
-    (as :func:`rvdiag.library.units.finish_unit`), and the input angle quantised to the encoder's counts."""
+    (as :func:`rvdiag.library.work_units.finish_unit`), and the input angle quantised to the encoder's counts."""
     from rvdiag.dynamics.noise import add_noise_power
-    from rvdiag.library.units import _streams, floor_noise_power, kept_signal, simulate_unit
+    from rvdiag.library.work_units import _streams, floor_noise_power, kept_signal, simulate_unit
 
     res = simulate_unit(unit, job)
     n = job.samples_per_signal
@@ -113,7 +113,7 @@ def main(argv=None) -> dict:
         points, states, duration, transient = [[45.0, 90.0]], ["T2"], 0.3, 0.05
         a.commissioning, a.healthy, a.per_state = 1, 1, 1
     from rvdiag.library.build import make_plan
-    from rvdiag.library.units import Job
+    from rvdiag.library.work_units import Job
 
     cfg = field_config(seed=a.seed, floor_db=a.floor_db, points=points, commissioning=a.commissioning,
                        healthy=a.healthy, per_state=a.per_state, states=states, duration_s=duration,

@@ -20,7 +20,7 @@ def run(out_dir: pathlib.Path) -> dict:
     import matplotlib.pyplot as plt
 
     from rvdiag.gears import GearPair, ToothFaults, mesh_stiffness
-    from rvdiag.gears.faults import STATES
+    from rvdiag.gears.faults import FAULT_KINDS
     from rvdiag.params import ReducerParams
 
     out_dir = pathlib.Path(out_dir)
@@ -39,7 +39,7 @@ def run(out_dir: pathlib.Path) -> dict:
     }
     fig, axes = plt.subplots(2, 1, figsize=(10, 7), gridspec_kw={"height_ratios": [2, 1]})
     healthy = None
-    for state, name in STATES.items():
+    for state, name in FAULT_KINDS.items():
         faults = ToothFaults.for_state(state)
         res = mesh_stiffness(pair, None if faults.is_healthy else faults, cycles=cycles,
                              points_per_cycle=360)

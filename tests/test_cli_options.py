@@ -136,19 +136,22 @@ def test_model_names_come_from_the_registry():
 
     assert train.CNN_MODELS is registry.CNN_MODELS is cnn.ARCHITECTURES
     assert train.CLASSICAL_MODELS is registry.CLASSICAL_MODELS is pipelines.MODEL_NAMES
-    cli_src = "".join(p.read_text() for p in (REPO / "src/rvdiag/cli").glob("*.py"))
-    assert not re.search(r"\.(_check_params)\(", cli_src)  # the CLI calls no private method of an estimator
+    cli_src = "".join(p.read_text() for d in ("cli", "workflows", "monitoring")
+                      for p in (REPO / "src/rvdiag" / d).glob("*.py"))
+    assert not re.search(r"\.(_check_params)\(", cli_src)  # the CLI and its workflows call no private method
     model = next(p for p in _opts_of(_commands()["train"]) if p.name == "model")
     assert model.help.startswith(" | ".join(registry.CNN_MODELS + registry.CLASSICAL_MODELS))
 
 
 def test_readme_command_block_uses_existing_options():
-    """Every option in the README's command block is a visible option of its command (no stale spellings)."""
+    """Every option in the README's command blocks ("Start here", "Using it") is a visible option of its command (no
+    stale spellings)."""
     text = (REPO / "README.md").read_text()
-    block = text[text.index("## Using it"):].split("```")[1]
+    blocks = [b for b in text.split("```")[1::2] if b.startswith("bash")]
+    assert text[text.index("## Using it"):].split("```")[1] in blocks and len(blocks) >= 4
     commands = _commands()
     bad = []
-    for line in re.sub(r"\\\n\s*", " ", block).splitlines():
+    for line in re.sub(r"\\\n\s*", " ", "\n".join(blocks)).splitlines():
         words = line.split("#")[0].split()
         if not words or words[0] != "rvdiag":
             continue

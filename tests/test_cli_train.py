@@ -159,7 +159,7 @@ def test_validation_split_is_by_segment_without_overlap_and_by_simulation_with_i
     by segment there; with overlapping segments, whole simulations move (no leak)."""
     from types import SimpleNamespace
 
-    from rvdiag.cli.train import validation_groups
+    from rvdiag.workflows.training import validation_groups
 
     units = np.array([0, 0, 1, 1])
     samples = SimpleNamespace(meta={"unit": units})

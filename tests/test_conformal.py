@@ -324,7 +324,7 @@ def test_a_model_without_calibration_says_so(tone_model, tone_store, tmp_path, c
 def test_train_holds_nothing_out_when_a_state_would_get_too_few_calibration_samples():
     from types import SimpleNamespace
 
-    from rvdiag.cli.train import calibration_split
+    from rvdiag.workflows.training import calibration_split
 
     y = np.repeat(["T1", "T2"], 40)
     tr = SimpleNamespace(y=y, meta={"unit": np.arange(80) // 2})  # 20 reducers of 2 windows a state

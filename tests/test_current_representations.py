@@ -120,7 +120,7 @@ def test_cnn_features_take_the_representation_and_survive_a_round_trip(represent
 
 
 def test_the_defaults_on_a_current_store_are_the_log_spectrum():
-    from rvdiag.cli.train import features_kw
+    from rvdiag.workflows.training import features_kw
     from rvdiag.evaluation.motor_current_study import McsaSettings
     from rvdiag.models.cnn_features import CNNFeatures, default_representation
 

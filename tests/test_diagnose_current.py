@@ -10,7 +10,7 @@ import scipy.io
 from conftest import run_cli as run
 from rvdiag.errors import ParameterError
 from rvdiag.kinematics import characteristic_frequencies
-from rvdiag.motor.lines import current_lines, estimate_output_speed, line_height, amplitude_spectrum
+from rvdiag.motor.lines import current_lines, output_speed_from_current, line_height, amplitude_spectrum
 from rvdiag.params import ReducerParams
 
 PARAMS = ReducerParams.default()
@@ -43,7 +43,7 @@ def test_speed_is_estimated_from_the_supply_line():
     for speed in (30.0, 45.0, 60.0):
         x, _ = _synthetic(speed=speed)
         # one bin of 0.244 Hz at f_e = p f1 = 5 x 121 x speed / 360 Hz: speed to within 0.5 %
-        assert estimate_output_speed(x, 1000.0, PARAMS) == pytest.approx(speed, rel=0.005)
+        assert output_speed_from_current(x, 1000.0, PARAMS) == pytest.approx(speed, rel=0.005)
     table = current_lines(_synthetic(speed=60.0)[0], 1000.0, PARAMS)
     assert table["speed_source"] == "strongest line taken as f_e"
     assert table["output_speed_deg_s"] == pytest.approx(60.0, rel=0.005)
@@ -58,7 +58,7 @@ def test_lines_beyond_the_spectrum_are_null_and_bad_input_is_refused():
     with pytest.raises(ParameterError, match="at least"):
         current_lines(x[:100], 1000.0, PARAMS)
     with pytest.raises(ParameterError, match="speed"):
-        estimate_output_speed(np.zeros(4096), 1000.0, PARAMS)
+        output_speed_from_current(np.zeros(4096), 1000.0, PARAMS)
 
 
 # ------------------------------------------------------------------------------ diagnose with a current model

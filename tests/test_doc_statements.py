@@ -51,9 +51,10 @@ def test_train_defaults_are_the_recommended_setup_of_results_md():
                                    "patience": 6}
     train = typer.main.get_command(build_app()).commands["train"]
     defaults = {p.name: p.default for p in train.params}
-    # --model has no fixed default: the recommended model, or the baseline monitor on a paired store (train.py)
+    # --model has no fixed default: the recommended model (rvdiag.workflows.train), or the baseline monitor on a
+    # paired store (cli/train.py dispatches to rvdiag.monitoring.train_monitor)
     assert defaults["model"] is None and 'model = model or RECOMMENDED_TRAINING["model"]' in (
-        REPO / "src" / "rvdiag" / "cli" / "train.py").read_text()
+        REPO / "src" / "rvdiag" / "workflows" / "training.py").read_text()
     assert {k: defaults[k] for k in RECOMMENDED_TRAINING if k != "model"} == {
         k: v for k, v in RECOMMENDED_TRAINING.items() if k != "model"}
     demo = (REPO / "examples" / "demo.py").read_text()

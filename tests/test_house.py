@@ -56,7 +56,7 @@ def test_one_home_for_window_starts_and_the_spectral_peak():
     import numpy as np
 
     from rvdiag.io.angles import estimate_shaft_speed
-    from rvdiag.motor.lines import estimate_output_speed
+    from rvdiag.motor.lines import output_speed_from_current
     from rvdiag.params import ReducerParams
 
     fs, n = 1000.0, 4096
@@ -64,7 +64,7 @@ def test_one_home_for_window_starts_and_the_spectral_peak():
     p = ReducerParams.default()
     speed = 30.0  # deg/s at the output: the supply line f_e = p f1
     fe = speed / 360.0 * p.ratio * p.operation.motor_pole_pairs
-    assert estimate_output_speed(np.sin(2 * np.pi * fe * t), fs, p) == \
+    assert output_speed_from_current(np.sin(2 * np.pi * fe * t), fs, p) == \
         pytest.approx(speed, rel=fs / n / fe)
     assert estimate_shaft_speed(np.sin(2 * np.pi * 123.4 * t), fs, 10.0, (5.0, 30.0)) == \
         pytest.approx(12.34, rel=1e-3)

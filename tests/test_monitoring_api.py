@@ -98,6 +98,12 @@ def test_bad_input_is_one_line_errors(paired, loaded, base, tmp_path):  # noqa: 
         open_baseline(baseline_store(paired, tmp_path / "f.zarr", fs=2 * FS), loaded)
 
 
+def _answers(paired, tmp_path, *pairs):
+    """``to_dict()`` of one broken-tooth record judged by each (model, baseline) of ``pairs``."""
+    rec = read_record(record_file(paired, tmp_path / "t2.npy", "T2", speed=30.2, load=51.0), fs=FS)
+    return [monitor_record(m, rec, b, output_speed=30.2, load=51.0).to_dict() for m, b in pairs]
+
+
 def test_make_baseline_writes_a_store_that_judges_as_the_built_one(paired, loaded, base, tmp_path):  # noqa: F811
     """Records of reducer 8's baseline, written by make_baseline, give the same answer as its store."""
     m = paired["meta"]
@@ -108,10 +114,7 @@ def test_make_baseline_writes_a_store_that_judges_as_the_built_one(paired, loade
     made = make_baseline(recs, model=loaded, operating_points=ops, out=tmp_path / "made.zarr")
     assert isinstance(made, Baseline) and made.n_records == len(keep) and made.fs == FS
     assert len(made.operating_points) == len(keep)
-    f = record_file(paired, tmp_path / "t2.npy", "T2", speed=30.2, load=51.0)
-    rec = read_record(f, fs=FS)
-    a = monitor_record(loaded, rec, made, output_speed=30.2, load=51.0).to_dict()
-    b = monitor_record(loaded, rec, base, output_speed=30.2, load=51.0).to_dict()
+    a, b = _answers(paired, tmp_path, (loaded, made), (loaded, base))
     a.pop("baseline"), b.pop("baseline")
     assert a == b
     with pytest.raises(StoreError, match="already exists"):
@@ -123,7 +126,8 @@ def test_make_baseline_writes_a_store_that_judges_as_the_built_one(paired, loade
     assert not (tmp_path / "m2.zarr").exists() and not (tmp_path / "m3").exists()
 
 
-def test_read_record_reads_the_load_and_speed_from_the_name_in_one_spelling(paired, loaded, base, tmp_path):  # noqa: F811
+def test_read_record_reads_the_load_and_speed_from_the_name_in_one_spelling(paired, loaded, base,  # noqa: F811
+                                                                            tmp_path):
     """``--meta-regex`` groups ``load`` and ``load_Nm`` both give ``load_Nm``; ``speed_dps`` gives the speed."""
     rng = np.random.default_rng(5)
     x = np.concatenate([record(rng, paired["fps"][8], 30.0, 50.0, "T2") for _ in range(2)])
@@ -160,10 +164,7 @@ def test_a_monitor_saved_before_the_move_loads_as_before(monitor, loaded, base, 
     p.write_bytes(buf.getvalue())
     again = load_model(old)
     assert type(again.estimator) is type(loaded.estimator)
-    f = record_file(paired, tmp_path / "t2.npy", "T2", speed=30.2, load=51.0)
-    rec = read_record(f, fs=FS)
-    a = monitor_record(again, rec, base, output_speed=30.2, load=51.0).to_dict()
-    b = monitor_record(loaded, rec, base, output_speed=30.2, load=51.0).to_dict()
+    a, b = _answers(paired, tmp_path, (again, base), (loaded, base))
     a.pop("model"), b.pop("model")
     assert a == b
 
@@ -173,3 +174,26 @@ def test_operating_points_are_listed(base):
     assert base.n_records == 12 and len(base.operating_points) == 12
     for p in base.operating_points:
         assert any(abs(p["output_speed_deg_s"] / v - 1) <= 0.01 and abs(p["load_Nm"] / ld - 1) <= 0.03 for v, ld in OPS)
+
+
+def test_diagnose_reads_the_record_as_dataset_from_files(paired, monitor, loaded, base, tmp_path, capsys):  # noqa: F811
+    """``diagnose --angle-channel --meta-regex`` (issue 37): the speed from the encoder angle, the load from the file
+    name's group ``load``, as ``dataset from-files`` reads them; the same answer as the API."""
+    from rvdiag.params import ReducerParams
+
+    rng = np.random.default_rng(21)
+    v, ld = 30.0, 50.0
+    t = np.arange(2 * L) / FS
+    x = np.concatenate([record(rng, paired["fps"][8], v, ld, "T2") for _ in range(2)])
+    angle = 2 * np.pi * v * ReducerParams.default().ratio / 360.0 * t
+    f = tmp_path / "joint_50Nm.csv"
+    np.savetxt(f, np.column_stack([t, x, angle]), delimiter=",", header="time_s,acc,angle_in", comments="")
+    reading = ["--channel", "^acc$", "--angle-channel", "angle_in", "--meta-regex", r"_(?P<load>\d+)Nm"]
+    code, out, err = run_cli(["diagnose", monitor, f, "--baseline", base.path, *reading, "--json"], capsys)
+    assert code == 0, err
+    got = json.loads(out)
+    assert got["operating_point"]["load_Nm"] == 50.0
+    assert got["operating_point"]["output_speed_deg_s"] == pytest.approx(v, rel=1e-3)
+    assert "angle" in got["operating_point"]["speed_source"]
+    rec = read_record(f, channel="^acc$", angle_channel="angle_in", meta_regex=r"_(?P<load>\d+)Nm")
+    assert got == json.loads(json.dumps(monitor_record(loaded, rec, base).to_dict()))

@@ -45,7 +45,8 @@ def test_runtime_dependencies_are_ranges_and_pyemd_is_for_tests_only():
 def test_constraints_pin_every_dependency_and_the_cpu_torch():
     pins = _constraints()
     assert pins["torch"] == "2.13.0" and pins["mealpy"] == "3.0.3" and pins["emd-signal"] == "1.10.0"
-    reqs = PYPROJECT["project"]["dependencies"] + PYPROJECT["project"]["optional-dependencies"]["test"]
+    extras = PYPROJECT["project"]["optional-dependencies"]
+    reqs = PYPROJECT["project"]["dependencies"] + extras["test"] + extras["docs"]
     assert [r for r in reqs if _name(r) not in pins] == []
     assert "-c constraints.txt" in (REPO / "Makefile").read_text()
 

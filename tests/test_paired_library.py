@@ -16,7 +16,7 @@ from rvdiag.monitoring.pairing import is_paired, match_baseline
 from rvdiag.errors import ConfigError
 from rvdiag.library import LibraryConfig, build_library, make_plan
 from rvdiag.library.paired import VARIATION_KEYS, apply_variation, draw_variation
-from rvdiag.library.units import Job, simulator_call
+from rvdiag.library.work_units import Job, simulator_call
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_library_build import TINY, assert_same_store, tiny  # noqa: E402
@@ -52,9 +52,9 @@ def columns(store, keep=None):
 
 @pytest.fixture(scope="module")
 def store(tmp_path_factory):
-    import rvdiag.library.units as units
+    import rvdiag.library.work_units as work_units
 
-    units._TWIN_POWERS.clear()
+    work_units._TWIN_POWERS.clear()
     path = tmp_path_factory.mktemp("paired") / "paired.zarr"
     report = build_library(paired(), path, workers=0, progress=False)
     assert report.built == report.n_units == 4 * (3 + 2 + 1 + 1)
@@ -210,7 +210,7 @@ def test_signal_carries_the_records_gain(store, tmp_path):
 
 def test_resume_is_bit_identical(store, tmp_path):
     import rvdiag.library.build as build
-    import rvdiag.library.units as units
+    import rvdiag.library.work_units as work_units
 
     part = tmp_path / "part.zarr"
     calls = []
@@ -223,13 +223,13 @@ def test_resume_is_bit_identical(store, tmp_path):
         return real(unit, job)
 
     build._run_checked, saved = dies_on_the_tenth, build._run_checked
-    units._TWIN_POWERS.clear()  # each process starts without twins
+    work_units._TWIN_POWERS.clear()  # each process starts without twins
     try:
         with pytest.raises(KeyboardInterrupt):
             build_library(paired(), part, workers=0, progress=False)
     finally:
         build._run_checked = saved
-    units._TWIN_POWERS.clear()
+    work_units._TWIN_POWERS.clear()
     report = build_library(paired(), part, workers=0, progress=False)
     assert report.skipped == 9 and report.built == 28 - 9
     assert_same_store(store, part)

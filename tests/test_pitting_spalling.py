@@ -191,11 +191,11 @@ def test_faults_on_the_driven_gear_recur_every_z2_cycles(pair):
 
 
 def test_states_t7_t8_round_trip_by_name():
-    from rvdiag.gears.faults import STATES
+    from rvdiag.gears.faults import FAULT_KINDS
     from rvdiag.library import STATES as LIBRARY_STATES
     from rvdiag.library import FaultSpec, tooth_faults
 
-    assert STATES["T7"] == "pitting" and STATES["T8"] == "spalling"
+    assert FAULT_KINDS["T7"] == "pitting" and FAULT_KINDS["T8"] == "spalling"
     for name, label, kind in (("pitting", "T7", Pitting), ("spalling", "T8", Spalling)):
         by_name, by_state = ToothFaults.from_name(name), ToothFaults.for_state(label)
         assert by_name == by_state and by_name.label == label and ToothFaults.from_name(label).label == label

@@ -70,9 +70,12 @@ def test_a_root_crack_changes_the_rms_like_a_real_gearbox(point):
     assert 0.95 < crack <= 1.2, crack
 
 
-@pytest.mark.xfail(strict=True, reason="not met since the extended tooth contact (2026-11-25) made the healthy "
-                   "signal 1.5-4x quieter: 20 um of run-in Archard wear gives 3.2-6.9x the healthy RMS, an 18 um "
-                   "transmission-error dip per mesh cycle against a 1 um deflection (docs/model.md section 9)")
+@pytest.mark.xfail(strict=True, reason="20 um of run-in Archard wear gives 4.9-6.9x the healthy RMS: on this 1.4 N m "
+                   "stage 20 um is ~30x the 0.6-1.1 um elastic deflection, and Archard's single-contact wear (no load "
+                   "sharing there) leaves a 15-19 um transmission-error swing per mesh cycle. 20 um is a late-life depth "
+                   "(20,000 h at k = 1e-17 m^2/N: 29 um); no measured RMS bound exists for wear that deep against "
+                   "the deflection (research/README.md, 'Archard wear over a robot's life'), so the bound, not the "
+                   "model, is in doubt; life-consistent depths are tested below")
 def test_wear_changes_the_rms_like_a_real_gearbox(point):
     """20 um of wear: RMS <= 2x healthy (measured 3.16-6.93x over 30-60 deg/s, 40-150 % with the run-in wear
     profile, 2.46-6.28x with fixed load shares; 1.63-1.93x before the extended tooth contact).  Strict: once met,
@@ -80,6 +83,26 @@ def test_wear_changes_the_rms_like_a_real_gearbox(point):
     speed, load, x = point
     wear = _rms(_x("T3", speed, load, wear_depth=20e-6)) / _rms(x)
     assert 1.0 < wear <= 2.0, wear
+
+
+@pytest.fixture(scope="module")
+def life_wear():
+    """The sun's Archard wear after 20,000 h moving half the time at 30 deg/s and half the rated torque, with the
+    well-lubricated wear coefficient 1e-18 m^2/N (rvdiag.gears.wear; 3.1 um deep, run in, zero at the pitch point)."""
+    from rvdiag.gears.wear import DutyCycle, wear_depth_profile
+
+    return wear_depth_profile(P0, 20000.0, DutyCycle(30.0, 0.5 * RATED, 0.5), 1e-18).to_wear()
+
+
+def test_life_consistent_wear_changes_the_rms_little(point, life_wear):
+    """Wear of a life-consistent depth and shape (fixture ``life_wear``): RMS within 0.8-2x healthy (measured
+    0.99 / 1.11 / 1.36x at 30 deg/s rated, 60 deg/s rated, 45 deg/s 40 %, over these 0.5 s).  At k = 1e-17 (above what a measured RV lost-motion
+    growth allows) the same life wears 29 um and gives 5-6x (research/README.md), so this test can fail."""
+    speed, load, x = point
+    fault = ToothFaults({}, wear=life_wear)
+    y = simulate(P0, fault, output_speed_deg_s=speed, load_Nm=load, duration_s=0.5).signal[0]
+    ratio = _rms(y - y.mean()) / _rms(x)
+    assert 0.8 <= ratio <= 2.0, ratio
 
 
 def test_no_contact_ever_pulls():

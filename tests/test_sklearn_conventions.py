@@ -20,7 +20,7 @@ from rvdiag.features import (
     feature_names as signal_feature_names,
     make_features,
 )
-from rvdiag.features.baseline import HealthyBaselineFeatures
+from rvdiag.features.zscore import HealthyBaselineFeatures
 from rvdiag.features.bearing import BearingEnvelopeFeatures
 from rvdiag.features.current import FundamentalResidual
 from rvdiag.features.tsa import TSAIndicatorFeatures

@@ -10,7 +10,7 @@ import pytest
 
 from conftest import run_cli
 
-from rvdiag.datasets import SampleStore, parse_condition
+from rvdiag.datasets import SampleStore, parse_where
 from rvdiag.datasets.store import write_store
 from rvdiag.errors import ParameterError, StoreError
 
@@ -36,14 +36,14 @@ def store(tmp_path):
     return p
 
 
-def test_parse_condition():
-    assert parse_condition("noise_snr_db>=20") == ("noise_snr_db", ">=", 20.0)
-    assert parse_condition(" simulation < 10 ") == ("simulation", "<", 10.0)
-    assert parse_condition("state=T4") == ("state", "==", "T4")
-    assert parse_condition("state!=T4") == ("state", "!=", "T4")
+def test_parse_where():
+    assert parse_where("noise_snr_db>=20") == ("noise_snr_db", ">=", 20.0)
+    assert parse_where(" simulation < 10 ") == ("simulation", "<", 10.0)
+    assert parse_where("state=T4") == ("state", "==", "T4")
+    assert parse_where("state!=T4") == ("state", "!=", "T4")
     for bad in ("noise_snr_db", ">=20", "snr>=", "a<=>3"):
         with pytest.raises(ParameterError, match="COLUMN OP VALUE"):
-            parse_condition(bad)
+            parse_where(bad)
 
 
 def test_indices_where(store):

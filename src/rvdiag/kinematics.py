@@ -6,7 +6,7 @@ study of Li, Zhao et al. 2024 (docs/references.md), Table 2 and the Table 3 test
 With f_s the sun (input) speed and f_H = f_s / i the carrier (output) speed, i = 1 + (Z2/Z1) Zp:
 
 - motor electrical frequency  f_e = p f_s                      (p pole pairs)
-- crank shaft, absolute       f2 = Zc f_H  (= |crank relative to carrier| - f_H = Zp f_H - f_H)
+- crank shaft, absolute       f2 = Zc f_H  (= ``|crank relative to carrier|`` - f_H = Zp f_H - f_H)
 - stage-1 mesh                f_sp = Z1 (f_s - f_H)
 - stage-2 mesh                f_cs = Zc Zp f_H
 - local sun-tooth fault       N (f_s - f_H)                   (N planets, each meets the tooth once)
@@ -63,6 +63,14 @@ def sun_speed_hz(
     if not output_speed_deg_s > 0:
         raise ParameterError(f"output speed must be > 0 deg/s, got {output_speed_deg_s}")
     return float(output_speed_deg_s) / 360.0 * params.ratio
+
+
+def output_speed_from_input_hz(params: ReducerParams, input_hz: float) -> float:
+    """Output (carrier) speed in deg/s of a sun (input) rotation frequency ``input_hz``: f_H = f_s / i, the inverse
+    of :func:`sun_speed_hz`.  Every speed estimate that reads an input-shaft frequency (a vibration mesh line,
+    :func:`rvdiag.io.angles.input_revolutions`; a motor current's supply line,
+    :func:`rvdiag.motor.lines.output_speed_from_fe`) turns it into the output speed here."""
+    return float(input_hz) * 360.0 / params.ratio
 
 
 def characteristic_frequencies(

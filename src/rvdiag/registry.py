@@ -45,7 +45,7 @@ _BUILTIN: frozenset[str] = frozenset({
     "rvdiag.features.eemd.EEMDFeatures",
     "rvdiag.features.tsa.TSAIndicatorFeatures",
     "rvdiag.features.tsa.OrderSpectrumFeatures",
-    "rvdiag.features.baseline.HealthyBaselineFeatures",
+    "rvdiag.features.zscore.HealthyBaselineFeatures",
     "rvdiag.features.relative.BaselineReferencedFeatures",
     "rvdiag.features.current.CurrentLineFeatures",
     "rvdiag.monitoring.detector.BaselineMonitor",
@@ -87,14 +87,19 @@ _BUILTIN: frozenset[str] = frozenset({
     "builtins.NoneType",
 })
 
-#: Types that moved to another module: the skops name a model saved before the move holds -> the name now.  A saved
-#: model is read with these names replaced (:func:`rvdiag.models.pipelines.load_classical`), so it loads as before.
-MOVED_TYPES: dict[str, str] = {
-    "rvdiag.models.monitoring.BaselineMonitor": "rvdiag.monitoring.detector.BaselineMonitor",
-}
-
 #: Types a saved classical model may contain (skops type names); nothing else is loaded.
 TRUSTED_TYPES: set[str] = set(_BUILTIN)
+
+#: Types whose module has moved since a saved model could name them: the skops name in an older ``model.skops``
+#: -> the name now (one of :data:`TRUSTED_TYPES`).  :func:`rvdiag.models.pipelines.load_classical` reads the new
+#: name in place of the old before it checks the file against the trusted list, so a model saved before the move
+#: loads as it did.
+MOVED_TYPES: dict[str, str] = {
+    # features/baseline.py held the healthy-sample z-scores until 2026-11-28 (now features/zscore.py)
+    "rvdiag.features.baseline.HealthyBaselineFeatures": "rvdiag.features.zscore.HealthyBaselineFeatures",
+    # the baseline monitor lived in models/monitoring.py until 2026-11-28 (now rvdiag.monitoring, its own package)
+    "rvdiag.models.monitoring.BaselineMonitor": "rvdiag.monitoring.detector.BaselineMonitor",
+}
 
 
 def register_trusted_type(name: str) -> None:

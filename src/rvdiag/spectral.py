@@ -1,5 +1,5 @@
 """The one-sided Hann amplitude spectrum and the frequency of its highest peak in a band: the one home of the
-spectral speed estimates (a motor current's supply line, :func:`rvdiag.motor.lines.estimate_output_speed`; a
+spectral speed estimates (a motor current's supply line, :func:`rvdiag.motor.lines.output_speed_from_current`; a
 vibration's mesh line, :func:`rvdiag.io.angles.estimate_shaft_speed`) and of the spectra that plots draw.
 
 It sits at the bottom of the package (numpy only), so the motor layer and the io layer both use it.

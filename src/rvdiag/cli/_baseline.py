@@ -4,8 +4,6 @@ line that ``diagnose`` prints for both kinds of model (:func:`not_recognised_lin
 
 from __future__ import annotations
 
-from rvdiag.monitoring.training import headline
-
 
 def not_recognised_line(res: dict) -> str | None:
     """The line that says a record is not recognised, with its reason (rich markup), or None when it is: one
@@ -19,6 +17,8 @@ def not_recognised_line(res: dict) -> str | None:
 def print_evaluation(res: dict, loaded, data) -> None:
     from rich.console import Console
     from rich.table import Table
+
+    from rvdiag.monitoring.training import headline
 
     con = Console()
     reds = "" if res.get("n_reducers") is None else f" of {res['n_reducers']} reducers"

@@ -59,7 +59,8 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Score a saved model on a split of a sample store (progress with an ETA on stderr; -q: none)."""
         from rvdiag.cli._progress import progress_bars
-        from rvdiag.datasets import SampleStore, parse_condition
+        from rvdiag.datasets import SampleStore
+        from rvdiag.datasets import parse_where as parse_condition
         from rvdiag.evaluation.evaluate import report_html
         from rvdiag.evaluation.report import write_report
         from rvdiag.workflows import load_model
@@ -137,6 +138,7 @@ def _monitor(loaded, data, split, where, baseline, json_out, merge, others: dict
         if v:
             raise ParameterError(f"{flag} does not apply to a baseline-referenced model")
     from rvdiag.datasets import SampleStore
+    from rvdiag.workflows.evaluation import parse_merge
 
     merge_map = parse_merge(merge, loaded.card["classes"]) if merge is not None else None
     res = evaluate_monitor(loaded, SampleStore.open(data), data, split, where or (), baseline, merge_map)

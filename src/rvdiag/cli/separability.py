@@ -21,7 +21,7 @@ SEPARABILITY_OPTION_NAMES = {"duration_s": "--duration", "fs": "--fs", "substeps
 
 
 def _pair(text: str) -> list[str]:
-    from rvdiag.gears.faults import STATES
+    from rvdiag.gears.faults import FAULT_KINDS as STATES
 
     names = [x.strip().upper() for x in str(text).split(",")]
     if len(names) != 2 or not all(names):
@@ -35,7 +35,7 @@ def _pair(text: str) -> list[str]:
 def _check_pair_severities(pair: list[str], severities: dict) -> None:
     """Every severity given must apply to a state of the pair, and be valid for it."""
     from rvdiag.cli.simulate import _OPTION, _USES, _check_severities
-    from rvdiag.gears.faults import STATES
+    from rvdiag.gears.faults import FAULT_KINDS as STATES
 
     kinds = {k for s in pair for k in STATES[s].split("+")}
     for key in severities:

@@ -31,7 +31,7 @@ SIMULATE_OPTION_NAMES = {"duration_s": "--duration", "fs": "--fs", "substeps": "
 def _check_severities(state: str, severities: dict) -> None:
     """Validate every given severity and refuse one the state does not use (it would be ignored)."""
     from rvdiag.gears import BrokenTooth, Pitting, RootCrack, Spalling, Wear
-    from rvdiag.gears.faults import STATES
+    from rvdiag.gears.faults import FAULT_KINDS as STATES
 
     kinds = STATES.get(state, "").split("+")
     for key, value in severities.items():
@@ -84,7 +84,7 @@ def _rates(signal: str, fs: float | None, current_fs: float | None) -> tuple[flo
 def register(app: typer.Typer) -> None:
     """Add the ``simulate`` command to ``app``."""
 
-    from rvdiag.gears.faults import STATES
+    from rvdiag.gears.faults import FAULT_KINDS as STATES
 
     states_help = ", ".join(f"{k} {v}" for k, v in STATES.items())
 

@@ -35,9 +35,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import shutil
-import tempfile
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
@@ -47,28 +45,28 @@ import numpy as np
 import zarr
 
 from rvdiag import __version__
-from rvdiag.atomic import replace_directory
+from rvdiag.atomic import atomic_file, staged_directory
 from rvdiag.errors import ParameterError, StoreError
 
 STORE_FORMAT = "rvdiag-store/1"
 REQUIRED_META = ("split", "unit")
 
 
-#: The comparison operators of a sample condition (:func:`parse_condition`), longest first.
-CONDITION_OPERATORS = ("<=", ">=", "==", "!=", "<", ">", "=")
+#: The comparison operators of a ``--where`` filter (:func:`parse_where`), longest first.
+WHERE_OPERATORS = ("<=", ">=", "==", "!=", "<", ">", "=")
 
 
-def parse_condition(text: str) -> tuple[str, str, float | str]:
-    """``(column, operator, value)`` of a sample condition ``COLUMN OP VALUE`` (``OP`` one of ``< <= > >= == !=``,
+def parse_where(text: str) -> tuple[str, str, float | str]:
+    """``(column, operator, value)`` of a ``--where`` filter on the samples' metadata, ``COLUMN OP VALUE`` (``OP`` one of ``< <= > >= == !=``,
     ``=`` meaning ``==``): the value is a number when it reads as one, else a string (``state==T1``).
 
-    >>> parse_condition("noise_snr_db>=20")
+    >>> parse_where("noise_snr_db>=20")
     ('noise_snr_db', '>=', 20.0)
-    >>> parse_condition("state = T4")
+    >>> parse_where("state = T4")
     ('state', '==', 'T4')
     """
     t = str(text)
-    for op in CONDITION_OPERATORS:
+    for op in WHERE_OPERATORS:
         if op in t:
             column, _, value = (x.strip() for x in t.partition(op))
             if column and value and not any(o in value for o in "<>=!"):
@@ -177,7 +175,7 @@ class SampleStore:
 
     def indices(self, split: str = "all", where: Iterable[str] = ()) -> np.ndarray:
         """Sample indices of a split (``"all"`` = every sample), keeping only the samples that satisfy every
-        condition of ``where`` (``"noise_snr_db>=20"``, ``"simulation<10"``: :func:`parse_condition`)."""
+        condition of ``where`` (``"noise_snr_db>=20"``, ``"simulation<10"``: :func:`parse_where`)."""
         if split == "all":
             idx = np.arange(self.n_samples)
         elif split not in self.splits():
@@ -185,7 +183,7 @@ class SampleStore:
         else:
             idx = np.flatnonzero(self.meta["split"] == split)
         for text in where or ():
-            column, op, value = parse_condition(text)
+            column, op, value = parse_where(text)
             if column not in self.meta:
                 raise StoreError(f"{self.path}: no metadata column {column!r} for the condition {text!r} "
                                  f"(columns: {', '.join(sorted(self.meta))})")
@@ -328,9 +326,7 @@ def write_store(
     unknown = set(names.tolist()) - set(lookup)
     if unknown:
         raise StoreError(f"labels not among classes: {sorted(unknown)}")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
-    try:
+    with staged_directory(path) as tmp:
         group = zarr.open_group(str(tmp), mode="w")
         group.attrs.update(_base_attrs(kind, classes, X.shape[1], fs, config, extra_attrs or {}))
         sig = group.create_array("signals", shape=X.shape, dtype="float32", chunks=(1, X.shape[1]))
@@ -339,10 +335,6 @@ def write_store(
         lab[:] = np.asarray([lookup[v] for v in names.tolist()], dtype=np.int16)
         _write_meta_columns(group, meta, X.shape[0])
         group.attrs["complete"] = True
-        replace_directory(tmp, path)
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
     return path
 
 
@@ -475,12 +467,8 @@ class StoreBuilder:
             if len(v) != hi - lo:
                 raise StoreError(f"unit {unit}: metadata column {k!r} has {len(v)} rows, expected {hi - lo}")
         target = self._units_dir / f"{unit}.json"
-        tmp = target.with_suffix(".json.tmp")
-        with open(tmp, "w", encoding="utf-8") as fh:
+        with atomic_file(target, "w", encoding="utf-8") as fh:
             json.dump(record, fh)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, target)
 
     def finalize(self) -> Path:
         """Turn the unit records into ``label`` and ``meta`` columns and mark the store complete.

@@ -12,7 +12,8 @@ from rvdiag.dynamics.profile import LoadProfile, SpeedProfile
 from rvdiag.dynamics.results import SimulationResult
 from rvdiag.dynamics.simulation import (CURRENT_CHANNELS, CURRENT_UNITS, SIGNALS, PreparedSimulation,
                                         current_record_margin, initial_deflection, mesh_table, motor_current_record,
-                                        prepare, prepare_simulation, simulate, with_load_inertia)
+                                        prepare, prepare_simulation, simulate, SimulationRequest,
+                                        with_load_inertia)
 
 #: The revision of the simulated physics: the date of the last deliberate change to what a simulation returns for
 #: the same parameters (bumped with it; what each revision changed: bench/HISTORY.md, "Physics revisions").
@@ -22,7 +23,7 @@ PHYSICS_REVISION = "2026-11-28"
 __all__ = [
     "PHYSICS_REVISION",
     "LoadProfile", "MeshTable", "Model", "ModelSettings", "SimulationResult", "SpeedProfile", "add_awgn", "build_model",
-    "mesh_table", "prepare", "prepare_simulation", "PreparedSimulation", "simulate",
+    "mesh_table", "prepare", "prepare_simulation", "PreparedSimulation", "simulate", "SimulationRequest",
     "CURRENT_CHANNELS", "CURRENT_UNITS", "SIGNALS", "current_record_margin", "initial_deflection",
     "motor_current_record", "with_load_inertia",
 ]

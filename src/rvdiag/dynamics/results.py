@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from rvdiag.atomic import atomic_file
 from rvdiag.errors import DataFileError
 
 
@@ -100,20 +100,15 @@ class SimulationResult:
         path = Path(path)
         if path.suffix != ".npz":  # np.savez's own rule, kept now that it writes to a file object
             path = path.with_name(path.name + ".npz")
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-        try:  # through a temporary sibling and a rename: an interrupted write leaves an existing file as it was
-            with open(tmp, "wb") as fh:
-                np.savez(
-                    fh,
-                    signal=np.asarray(self.signal, dtype=np.float64),
-                    fs=np.float64(self.fs),
-                    settings=np.array(json.dumps(self.settings, sort_keys=True)),
-                    channel_names=np.array(self.channel_names, dtype=str),
-                    **angles,
-                )
-            os.replace(tmp, path)
-        finally:
-            tmp.unlink(missing_ok=True)
+        with atomic_file(path) as fh:  # an interrupted write leaves an existing file as it was
+            np.savez(
+                fh,
+                signal=np.asarray(self.signal, dtype=np.float64),
+                fs=np.float64(self.fs),
+                settings=np.array(json.dumps(self.settings, sort_keys=True)),
+                channel_names=np.array(self.channel_names, dtype=str),
+                **angles,
+            )
 
     @classmethod
     def from_npz(cls, path: str | Path) -> "SimulationResult":

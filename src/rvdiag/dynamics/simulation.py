@@ -15,6 +15,7 @@ the motor, the current record (:class:`PreparedSimulation`, which the GPU ensemb
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import math
 from collections.abc import Callable
 from typing import Any
@@ -172,30 +173,14 @@ def initial_deflection(model: Model, t0: float) -> tuple[np.ndarray, str]:
         return bilateral_deflection(model, t0), "bilateral linear deflection (static iteration did not converge)"
 
 
-def simulate(
-    params: ReducerParams | None = None,
-    fault: Any = None,
-    *,
-    input_speed_rpm: float | None = None,
-    output_speed_deg_s: float | None = None,
-    load_Nm: float | None = None,
-    duration_s: float = 1.0,
-    fs: float = 48000.0,
-    noise_snr_db: float | None = None,
-    seed: int = 0,
-    settings: ModelSettings | None = None,
-    mesh_source: str = "auto",
-    progress: Callable[[int, int], None] | None = None,
-    workers: int = 1,
-    profile: SpeedProfile | None = None,
-    load_profile: LoadProfile | None = None,
-    signal: str = "vibration",
-    current_fs: float = 1000.0,
-    current_snr_db: float | None = None,
-    load_inertia_kg_m2: float | None = None,
-) -> SimulationResult:
-    """Simulate the housing vibration of an RV reducer at constant speed and load, or under a speed and load
-    profile.
+@dataclasses.dataclass(frozen=True)
+class SimulationRequest:
+    """One simulation of the reducer: every argument of :func:`simulate` and :func:`prepare_simulation`, said once.
+
+    ``simulate(params, fault, **keywords)`` is ``SimulationRequest(params, fault, **keywords).run()``, and
+    ``prepare_simulation(...)`` is ``SimulationRequest(...).prepare()``; the library's simulator
+    (:func:`rvdiag.library.simulators.dynamics`) builds one request for both.  Nothing is checked until
+    :meth:`prepare` (an unknown keyword is a ``TypeError`` at once, as for any function).
 
     Parameters
     ----------
@@ -219,8 +204,6 @@ def simulate(
         Sub-steps, transient length, sensor, damping and the other model settings.
     mesh_source : str
         ``"auto"``, ``"gears"`` or ``"rectangular"`` (see :func:`mesh_table`).
-    progress : callable, optional
-        ``progress(done_samples, total_samples)`` after each chunk.
     workers : int
         Threads integrating time segments at once when ``settings.segment_s > 0``
         (:mod:`rvdiag.dynamics.segments`); the output does not depend on it.
@@ -245,6 +228,97 @@ def simulate(
         (docs/model.md sections 1 and 3; an elastic joint, Spong 1987); 0: a pure load torque on the carrier, the
         model without the load DOF.  ``None``: ``params``' ``[operation] load_inertia`` when it states one, else the
         gravity arm's point-mass inertia ``M L^2`` of ``load_profile`` (no arm: 0).
+    """
+
+    params: ReducerParams | None = None
+    fault: Any = None
+    _: dataclasses.KW_ONLY
+    input_speed_rpm: float | None = None
+    output_speed_deg_s: float | None = None
+    load_Nm: float | None = None
+    duration_s: float = 1.0
+    fs: float = 48000.0
+    noise_snr_db: float | None = None
+    seed: int = 0
+    settings: ModelSettings | None = None
+    mesh_source: str = "auto"
+    workers: int = 1
+    profile: SpeedProfile | None = None
+    load_profile: LoadProfile | None = None
+    signal: str = "vibration"
+    current_fs: float = 1000.0
+    current_snr_db: float | None = None
+    load_inertia_kg_m2: float | None = None
+
+    def prepare(self) -> "PreparedSimulation":
+        """The simulation up to the integration: every argument validated, the model built."""
+        from rvdiag.dynamics.segments import check_workers
+
+        params, fault, fs, duration_s, seed, signal = (self.params, self.fault, self.fs, self.duration_s, self.seed,
+                                                       self.signal)
+        current_fs, settings, workers, profile, load_profile = (self.current_fs, self.settings, self.workers,
+                                                                self.profile, self.load_profile)
+        if signal not in SIGNALS:
+            raise ParameterError(f"signal must be one of {', '.join(SIGNALS)}, got {signal!r}")
+        if signal != "vibration":
+            from rvdiag.motor import current_rate_ratio
+
+            current_rate_ratio(float(fs), current_fs)
+        st = settings or ModelSettings()
+        if signal != "vibration" and not st.electrical:
+            st = dataclasses.replace(st, electrical=True)
+        for name, val in (("duration_s", duration_s), ("fs", fs)):
+            if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val) or val <= 0:
+                raise ParameterError(f"{name} must be a number > 0, got {val!r}")
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise ParameterError(f"seed must be a whole number >= 0, got {seed!r}")
+        check_workers(workers)
+        n_samples = int(round(duration_s * fs))
+        if n_samples < 1:
+            raise ParameterError(f"duration {duration_s} s at {fs} Hz gives no sample")
+        params = ReducerParams.default() if params is None else params
+        if not isinstance(params, ReducerParams):
+            raise ParameterError("params must be a ReducerParams")
+        params = with_load_inertia(params, self.load_inertia_kg_m2)
+        model = prepare(params, fault, input_speed_rpm=self.input_speed_rpm,
+                        output_speed_deg_s=self.output_speed_deg_s, load_Nm=self.load_Nm, settings=st,
+                        mesh_source=self.mesh_source, profile=profile,
+                        load_profile=load_profile, duration_s=float(duration_s))
+        n_tr = int(round(st.transient_s * fs))
+        margin = current_record_margin(fs, current_fs, n_tr) if model.has_pmsm else (0, 0)
+        return PreparedSimulation(model, params, fault, st, fs, duration_s, n_samples, n_tr, margin, workers,
+                                  profile or SpeedProfile(), load_profile or LoadProfile(), self)
+
+    def run(self, progress: Callable[[int, int], None] | None = None) -> SimulationResult:
+        """The simulation: :meth:`prepare`, then its :meth:`~PreparedSimulation.integrate` (``progress(done_samples,
+        total_samples)`` after each chunk) and :meth:`~PreparedSimulation.finish`."""
+        run = self.prepare()
+        out, n_segments = run.integrate(progress)
+        return run.finish(out, n_segments)
+
+
+def _request_signature(*extra: inspect.Parameter) -> inspect.Signature:
+    """The signature of a function that takes :class:`SimulationRequest`'s fields (``params`` and ``fault``
+    positional, the rest keyword-only) and ``extra``, for ``help()`` and IDEs."""
+    kinds = {"params": inspect.Parameter.POSITIONAL_OR_KEYWORD, "fault": inspect.Parameter.POSITIONAL_OR_KEYWORD}
+    fields = [inspect.Parameter(f.name, kinds.get(f.name, inspect.Parameter.KEYWORD_ONLY), default=f.default,
+                                annotation=f.type)
+              for f in dataclasses.fields(SimulationRequest)]
+    return inspect.Signature([*fields, *extra])
+
+
+def simulate(params: ReducerParams | None = None, fault: Any = None, *,
+             progress: Callable[[int, int], None] | None = None, **keywords: Any) -> SimulationResult:
+    """Simulate the housing vibration of an RV reducer at constant speed and load, or under a speed and load
+    profile: ``SimulationRequest(params, fault, **keywords).run(progress)``.
+
+    Parameters
+    ----------
+    params, fault, **keywords
+        The fields of :class:`SimulationRequest` (the reducer, the fault, the operating point, the record, the
+        noise and its seed, the model settings, the motor current), documented there.
+    progress : callable, optional
+        ``progress(done_samples, total_samples)`` after each chunk.
 
     Returns
     -------
@@ -256,13 +330,22 @@ def simulate(
         ``current_fs``) with the channels ``i_a``, ``i_b``, ``i_c``, ``i_q`` (A) and ``speed`` (the rotor's, rpm);
         for ``signal="current"`` the result's ``signal``, ``fs`` and ``channel_names`` are those of the current.
     """
-    run = prepare_simulation(params, fault, input_speed_rpm=input_speed_rpm, output_speed_deg_s=output_speed_deg_s,
-                             load_Nm=load_Nm, duration_s=duration_s, fs=fs, noise_snr_db=noise_snr_db, seed=seed,
-                             settings=settings, mesh_source=mesh_source, workers=workers, profile=profile,
-                             load_profile=load_profile, signal=signal, current_fs=current_fs,
-                             current_snr_db=current_snr_db, load_inertia_kg_m2=load_inertia_kg_m2)
-    out, n_segments = run.integrate(progress)
-    return run.finish(out, n_segments)
+    return SimulationRequest(params, fault, **keywords).run(progress)
+
+
+def prepare_simulation(params: ReducerParams | None = None, fault: Any = None,
+                       **keywords: Any) -> PreparedSimulation:
+    """:func:`simulate` (the same arguments, less ``progress``) up to the integration: every argument validated,
+    the model built (``SimulationRequest(params, fault, **keywords).prepare()``).  ``simulate(...)`` is
+    ``prepare_simulation(...)`` then its :meth:`~PreparedSimulation.integrate` and
+    :meth:`~PreparedSimulation.finish`."""
+    return SimulationRequest(params, fault, **keywords).prepare()
+
+
+simulate.__signature__ = _request_signature(  # type: ignore[attr-defined]
+    inspect.Parameter("progress", inspect.Parameter.KEYWORD_ONLY, default=None,
+                      annotation="Callable[[int, int], None] | None"))
+prepare_simulation.__signature__ = _request_signature()  # type: ignore[attr-defined]
 
 
 @dataclasses.dataclass
@@ -288,8 +371,8 @@ class PreparedSimulation:
     workers: int
     profile: SpeedProfile
     load_profile: LoadProfile
-    #: the remaining :func:`simulate` arguments the result needs (speeds, noise, seed, signal, current rate)
-    options: dict[str, Any]
+    #: the request it was prepared from: the result reads the speeds, noise, seed, signal and current rate there
+    request: SimulationRequest
     #: how each start state was found (:func:`initial_deflection`), one entry per :meth:`start_state` call
     starts: list[str] = dataclasses.field(default_factory=list)
 
@@ -328,34 +411,34 @@ class PreparedSimulation:
     def finish(self, out: np.ndarray, n_segments: int) -> SimulationResult:
         """The :class:`SimulationResult` from the integrator's rows ``out`` (:attr:`rows` x :attr:`columns`)."""
         model, params, fs, n_samples, margin = self.model, self.params, self.fs, self.n_samples, self.margin
-        opt = self.options
-        seed, current_fs, signal_kind = opt["seed"], opt["current_fs"], opt["signal"]
+        req = self.request
+        seed, current_fs, signal_kind = req.seed, req.current_fs, req.signal
         n_sens = model.sensor.shape[0]
         signal = apply_path(out[:n_sens, margin[0]:margin[0] + n_samples], fs, params.mounting)
         starts = self.starts
         initial_state = starts[0] if len(set(starts)) == 1 else "; ".join(sorted(set(starts)))
-        if opt["noise_snr_db"] is not None:
-            signal = add_awgn(signal, opt["noise_snr_db"], np.random.default_rng(seed))
+        if req.noise_snr_db is not None:
+            signal = add_awgn(signal, req.noise_snr_db, np.random.default_rng(seed))
         names = [f"accel[{d[0]:.3g},{d[1]:.3g}]" for d in model.sensor]
         current = None
         if model.has_pmsm:
             current = motor_current_record(out[n_sens:], fs, current_fs, margin)
             rng = np.random.default_rng([int(seed), 1])
             current[:4] += params.motor.current_noise * rng.standard_normal(current[:4].shape)
-            if opt["current_snr_db"] is not None:
-                current = add_awgn(current, opt["current_snr_db"], rng)
+            if req.current_snr_db is not None:
+                current = add_awgn(current, req.current_snr_db, rng)
         theta_out = self.profile.state(np.arange(n_samples) / float(fs), float(model.P[5]), float(self.duration_s))[0]
         record = {
             "initial_state": initial_state,
             "segments": n_segments,
             "workers": int(self.workers),
-            "input_speed_rpm": opt["input_speed_rpm"],
-            "output_speed_deg_s": opt["output_speed_deg_s"],
+            "input_speed_rpm": req.input_speed_rpm,
+            "output_speed_deg_s": req.output_speed_deg_s,
             "sun_speed_hz": float(model.P[5] + model.P[6]) / (2 * math.pi),
             "load_Nm": float(model.P[I_TLOAD]),
             "duration_s": float(self.duration_s),
             "fs": float(fs),
-            "noise_snr_db": opt["noise_snr_db"],
+            "noise_snr_db": req.noise_snr_db,
             "seed": int(seed),
             "fault": _describe(self.fault),
             "mesh_source": model.mesh_source,
@@ -368,68 +451,10 @@ class PreparedSimulation:
             record["load_inertia_kg_m2"] = float(model.mass[-1])
         if current is None:
             return SimulationResult(signal, float(fs), record, names, theta_out, params.ratio * theta_out)
-        record.update(signal=signal_kind, current_fs=float(current_fs), current_snr_db=opt["current_snr_db"],
+        record.update(signal=signal_kind, current_fs=float(current_fs), current_snr_db=req.current_snr_db,
                       current_units=dict(zip(CURRENT_CHANNELS, CURRENT_UNITS)))
         res = SimulationResult(signal, float(fs), record, names, theta_out, params.ratio * theta_out,
                                current=current, current_fs=float(current_fs), current_names=list(CURRENT_CHANNELS))
         return res.current_only() if signal_kind == "current" else res
 
 
-def prepare_simulation(
-    params: ReducerParams | None = None,
-    fault: Any = None,
-    *,
-    input_speed_rpm: float | None = None,
-    output_speed_deg_s: float | None = None,
-    load_Nm: float | None = None,
-    duration_s: float = 1.0,
-    fs: float = 48000.0,
-    noise_snr_db: float | None = None,
-    seed: int = 0,
-    settings: ModelSettings | None = None,
-    mesh_source: str = "auto",
-    workers: int = 1,
-    profile: SpeedProfile | None = None,
-    load_profile: LoadProfile | None = None,
-    signal: str = "vibration",
-    current_fs: float = 1000.0,
-    current_snr_db: float | None = None,
-    load_inertia_kg_m2: float | None = None,
-) -> PreparedSimulation:
-    """:func:`simulate` (the same arguments, less ``progress``) up to the integration: every argument validated,
-    the model built.  ``simulate(...)`` is ``prepare_simulation(...)`` then its :meth:`~PreparedSimulation.integrate`
-    and :meth:`~PreparedSimulation.finish`."""
-    from rvdiag.dynamics.segments import check_workers
-
-    if signal not in SIGNALS:
-        raise ParameterError(f"signal must be one of {', '.join(SIGNALS)}, got {signal!r}")
-    if signal != "vibration":
-        from rvdiag.motor import current_rate_ratio
-
-        current_rate_ratio(float(fs), current_fs)
-    st = settings or ModelSettings()
-    if signal != "vibration" and not st.electrical:
-        st = dataclasses.replace(st, electrical=True)
-    for name, val in (("duration_s", duration_s), ("fs", fs)):
-        if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val) or val <= 0:
-            raise ParameterError(f"{name} must be a number > 0, got {val!r}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ParameterError(f"seed must be a whole number >= 0, got {seed!r}")
-    check_workers(workers)
-    n_samples = int(round(duration_s * fs))
-    if n_samples < 1:
-        raise ParameterError(f"duration {duration_s} s at {fs} Hz gives no sample")
-    params = ReducerParams.default() if params is None else params
-    if not isinstance(params, ReducerParams):
-        raise ParameterError("params must be a ReducerParams")
-    params = with_load_inertia(params, load_inertia_kg_m2)
-    model = prepare(params, fault, input_speed_rpm=input_speed_rpm, output_speed_deg_s=output_speed_deg_s,
-                    load_Nm=load_Nm, settings=st, mesh_source=mesh_source, profile=profile,
-                    load_profile=load_profile, duration_s=float(duration_s))
-    n_tr = int(round(st.transient_s * fs))
-    margin = current_record_margin(fs, current_fs, n_tr) if model.has_pmsm else (0, 0)
-    options = {"input_speed_rpm": input_speed_rpm, "output_speed_deg_s": output_speed_deg_s,
-               "noise_snr_db": noise_snr_db, "seed": seed, "signal": signal, "current_fs": current_fs,
-               "current_snr_db": current_snr_db}
-    return PreparedSimulation(model, params, fault, st, fs, duration_s, n_samples, n_tr, margin, workers,
-                              profile or SpeedProfile(), load_profile or LoadProfile(), options)

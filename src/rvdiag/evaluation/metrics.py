@@ -2,29 +2,42 @@
 
 Keys of :func:`classification_metrics` (also the keys of ``rvdiag evaluate --json``):
 
-``accuracy``         fraction of samples classified correctly
-``precision_macro``  unweighted mean over classes of TP / (TP + FP)
-``recall_macro``     unweighted mean over classes of TP / (TP + FN) (= mean per-class accuracy, the
-                     figure Li, Zhao et al. 2024 and the dynamics paper tabulate per state)
-``f1_macro``         unweighted mean of the per-class F1 = 2 P R / (P + R)
-``kappa``            Cohen's kappa (Cohen 1960): (p_o - p_e) / (1 - p_e), agreement beyond chance; the
-                     EEMD-MPA-KELM study (Tu et al. 2023) reports it (0.82)
-``per_class``        {class: {precision, recall, f1, support}}
-``recall``           {class: recall}: the share of each class's samples diagnosed as that class (None for a
-                     class absent from ``y_true``)
-``healthy_class``    the healthy state among ``labels`` (:func:`healthy_class`: ``T1``, or a class named
-                     ``healthy``/``normal``), or None
-``healthy_recall``   the recall of ``healthy_class`` (None without one, or without a healthy sample)
-``false_alarm_rate`` the share of the healthy samples diagnosed as any other (faulty) class, 1 - healthy recall
-                     (None as ``healthy_recall``).  The same definition holds for whatever is scored: windows,
-                     whole records (``evaluate --records``) and merged classes (``--merge``: e.g. with ``T4=T1``
-                     the healthy class holds the cracked samples too, and a false alarm is a crack-free decision
-                     other than healthy).  An accuracy is never shown without these two figures
-                     (:func:`headline`): a model that calls every healthy sample faulty can still score 80 %.
-``confusion``        confusion matrix as a list of rows: row = true class, column = predicted, in the
-                     order of ``labels``
-``labels``           the class order of ``confusion``
+``accuracy``
+    fraction of samples classified correctly
+``precision_macro``
+    unweighted mean over classes of TP / (TP + FP)
+``recall_macro``
+    unweighted mean over classes of TP / (TP + FN) (= mean per-class accuracy, the
+    figure Li, Zhao et al. 2024 and the dynamics paper tabulate per state)
+``f1_macro``
+    unweighted mean of the per-class F1 = 2 P R / (P + R)
+``kappa``
+    Cohen's kappa (Cohen 1960): (p_o - p_e) / (1 - p_e), agreement beyond chance; the
+    EEMD-MPA-KELM study (Tu et al. 2023) reports it (0.82)
+``per_class``
+    {class: {precision, recall, f1, support}}
+``recall``
+    {class: recall}: the share of each class's samples diagnosed as that class (None for a
+    class absent from ``y_true``)
+``healthy_class``
+    the healthy state among ``labels`` (:func:`healthy_class`: ``T1``, or a class named
+    ``healthy``/``normal``), or None
+``healthy_recall``
+    the recall of ``healthy_class`` (None without one, or without a healthy sample)
+``false_alarm_rate``
+    the share of the healthy samples diagnosed as any other (faulty) class, 1 - healthy recall
+    (None as ``healthy_recall``).  The same definition holds for whatever is scored: windows,
+    whole records (``evaluate --records``) and merged classes (``--merge``: e.g. with ``T4=T1``
+    the healthy class holds the cracked samples too, and a false alarm is a crack-free decision
+    other than healthy).  An accuracy is never shown without these two figures
+    (:func:`headline`): a model that calls every healthy sample faulty can still score 80 %.
+``confusion``
+    confusion matrix as a list of rows: row = true class, column = predicted, in the
+    order of ``labels``
+``labels``
+    the class order of ``confusion``
 ``n_samples``
+    the number of samples scored
 """
 
 from __future__ import annotations
@@ -50,15 +63,15 @@ HEALTHY_NAMES = ("healthy", "normal")
 
 def healthy_class(labels: Sequence[str]) -> str | None:
     """The healthy state among ``labels``: the library's healthy state (``T1``,
-    :data:`rvdiag.gears.faults.STATES`), else the first label named as in :data:`HEALTHY_NAMES`, else None.
+    :data:`rvdiag.gears.faults.FAULT_KINDS`), else the first label named as in :data:`HEALTHY_NAMES`, else None.
 
     >>> healthy_class(["T1", "T2"]), healthy_class(["normal", "inner race"]), healthy_class(["a", "b"])
     ('T1', 'normal', None)
     """
-    from rvdiag.gears.faults import STATES
+    from rvdiag.gears.faults import FAULT_KINDS
 
     labels = [str(c) for c in labels]
-    healthy = [k for k, v in STATES.items() if v == "healthy"]
+    healthy = [k for k, v in FAULT_KINDS.items() if v == "healthy"]
     for c in labels:
         if c in healthy:
             return c

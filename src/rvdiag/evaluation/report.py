@@ -15,8 +15,6 @@ from __future__ import annotations
 
 import html
 import json
-import os
-import tempfile
 import warnings
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -24,6 +22,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from rvdiag import __version__
+from rvdiag.atomic import atomic_write
 from rvdiag.errors import FallbackWarning, RvdiagError
 from rvdiag.evaluation import plots
 
@@ -312,22 +311,5 @@ def _indicator_section(ind: Mapping[str, Any]) -> str:
 
 
 def write_report(path: str | Path, html_text: str) -> Path:
-    """Write the report atomically (temporary file + rename)."""
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(html_text)
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return p
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
+    """Write the report atomically (:func:`rvdiag.atomic.atomic_write`: temporary file + rename)."""
+    return atomic_write(path, html_text)

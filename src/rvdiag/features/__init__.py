@@ -1,33 +1,33 @@
 """Feature extractors: scikit-learn transformers from signal windows (n_samples, n_points) to features.
 
-================  ==========================================  ===================================
-name              transformer                                 source
-================  ==========================================  ===================================
-time              :class:`TimeDomainFeatures` (10 statistics)  Li, Zhao et al. 2024
+================  ===========================================================  ===================================
+name              transformer                                                  source
+================  ===========================================================  ===================================
+time              :class:`TimeDomainFeatures` (10 statistics)                  Li, Zhao et al. 2024
 spectrum          :class:`SpectrumFeatures` (64 log relative
                   FFT band powers)
 spectrum-abs      :class:`SpectrumFeatures` (64 log absolute
                   FFT band powers: keeps the level)
-logspec           :class:`SpectrumFeatures` (every FFT bin, log  the input of the ``logspec`` CNNs
+logspec           :class:`SpectrumFeatures` (every FFT bin, log                the input of the ``logspec`` CNNs
                   of the relative magnitude)
-envelope          :class:`EnvelopeSpectrumFeatures` (squared-     Randall & Antoni 2011
+envelope          :class:`EnvelopeSpectrumFeatures` (squared-                  Randall & Antoni 2011
                   envelope spectrum, 40 bands)
-bearing-envelope  :class:`~rvdiag.features.bearing.BearingEnvelopeFeatures`   Randall & Antoni 2011
+bearing-envelope  :class:`~rvdiag.features.bearing.BearingEnvelopeFeatures`    Randall & Antoni 2011
                   (envelope lines at BPFO, BPFI, 2 BSF)
-wpd               :class:`WaveletPacketEnergy` (16 bands)      Li, Zhao et al. 2024
-eemd              :class:`EEMDFeatures` (mean |IMF| x 6)        Tu et al. 2023
-tsa-ci            :class:`~rvdiag.features.tsa.TSAIndicatorFeatures`   Decker 2002; Lebold et al. 2000
+wpd               :class:`WaveletPacketEnergy` (16 bands)                      Li, Zhao et al. 2024
+eemd              :class:`EEMDFeatures` (mean ``|IMF|`` x 6)                   Tu et al. 2023
+tsa-ci            :class:`~rvdiag.features.tsa.TSAIndicatorFeatures`           Decker 2002; Lebold et al. 2000
                   (FM0, FM4, NA4, NB4, M6A, M8A... of the TSA)
-tsa-mod           the same with ``modulation=True``: + sideband   Randall 1982; McFadden & Smith 1985;
-                  asymmetry, phase modulation of the mesh         McFadden 1986
-tsa-ci-z          :class:`~rvdiag.features.baseline.HealthyBaselineFeatures`  Dempsey & Zakrajsek 2001
-                  of ``tsa-ci``: z-scores against the healthy     (load-normalised NA4*)
+tsa-mod           the same with ``modulation=True``: + sideband                Randall 1982; McFadden & Smith 1985;
+                  asymmetry, phase modulation of the mesh                      McFadden 1986
+tsa-ci-z          :class:`~rvdiag.features.zscore.HealthyBaselineFeatures`     Dempsey & Zakrajsek 2001
+                  of ``tsa-ci``: z-scores against the healthy                  (load-normalised NA4*)
                   training samples of the same speed and load
                   bin (``tsa-mod-z``: of ``tsa-mod``)
-orders            :class:`~rvdiag.features.tsa.OrderSpectrumFeatures`  Fyfe & Munck 1997 (computed order
-                  (order-spectrum bands, envelope fault orders) tracking); docs/orders.md
+orders            :class:`~rvdiag.features.tsa.OrderSpectrumFeatures`          Fyfe & Munck 1997 (computed order
+                  (order-spectrum bands, envelope fault orders)                tracking); docs/orders.md
 none              :class:`RawSignal` (the samples themselves)
-================  ==========================================  ===================================
+================  ===========================================================  ===================================
 
 Names joined by ``+`` (``spectrum-abs+bearing-envelope``) put feature sets side by side
 (:class:`~rvdiag.features.combine.CombinedFeatures`, built by :func:`rvdiag.models.pipelines.make_feature_set`).
@@ -47,7 +47,7 @@ from typing import Callable
 
 from rvdiag.errors import ParameterError
 from rvdiag.features._base import SignalTransformer, as_signal_matrix
-from rvdiag.features.baseline import HealthyBaselineFeatures, healthy_modulation_features, healthy_tsa_features
+from rvdiag.features.zscore import HealthyBaselineFeatures, healthy_modulation_features, healthy_tsa_features
 from rvdiag.features.bearing import BearingEnvelopeFeatures
 from rvdiag.features.combine import CombinedFeatures, input_metadata, with_metadata
 from rvdiag.features.current import FundamentalResidual, fundamental_residual

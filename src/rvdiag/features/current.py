@@ -47,7 +47,11 @@ MIN_PEAK_BINS = 3
 
 def electrical_frequency(x: np.ndarray, min_frequency: float | None = None) -> float:
     """The supply frequency of one window in cycles per sample: the highest peak of its Hann amplitude spectrum
-    at or above ``min_frequency`` (default :data:`MIN_PEAK_BINS` bins), refined (Grandke 1983)."""
+    at or above ``min_frequency`` (default :data:`MIN_PEAK_BINS` bins), refined (Grandke 1983).
+
+    The same line as :func:`rvdiag.motor.lines.output_speed_from_current` reads for a record's speed, but refined
+    between bins (the residual fits the line's frequency) where that one keeps the peak bin, and per window;
+    the two agree within half a bin (tests/test_speed_estimates.py)."""
     x = np.asarray(x, dtype=np.float64)
     f, amp = amplitude_spectrum(x)
     low = MIN_PEAK_BINS / x.size if min_frequency is None else float(min_frequency)

@@ -386,7 +386,7 @@ def _reported(i: int, n: int, row):
 
 
 class EEMDFeatures(SignalTransformer):
-    """scikit-learn transformer: mean |IMF| of the first ``n_imfs`` EEMD IMFs of each window.
+    """scikit-learn transformer: mean ``|IMF|`` of the first ``n_imfs`` EEMD IMFs of each window.
 
     These are the features of the EEMD-MPA-KELM study of Tu et al. 2023 (first six IMFs, mean absolute value of each).
 
@@ -403,7 +403,7 @@ class EEMDFeatures(SignalTransformer):
     random_state : int
         Seed of the noise ensemble (shared by all windows).
     relative : bool
-        Divide by the window's mean |x| (features then describe how the amplitude is shared between the
+        Divide by the window's mean ``|x|`` (features then describe how the amplitude is shared between the
         scales, independent of the signal level).
     n_jobs : int or None
         Threads over windows (the compiled kernel releases the GIL); scikit-learn's convention: None or 1 is

@@ -21,7 +21,8 @@ def mesh_lines(x: np.ndarray, fs: float, params, output_speed_deg_s: float) -> d
     """``{"stage1": {"hz", "height_db"}, "stage2": {"hz", "height_db"}, "present": [names], "threshold_db"}`` of
     the record ``x`` at ``output_speed_deg_s`` (a line beyond the spectrum has height None)."""
     from rvdiag.kinematics import characteristic_frequencies
-    from rvdiag.motor.lines import amplitude_spectrum, line_height
+    from rvdiag.motor.lines import line_height
+    from rvdiag.spectral import amplitude_spectrum
 
     cf = characteristic_frequencies(params, output_speed_deg_s=float(output_speed_deg_s))
     f, amp = amplitude_spectrum(np.asarray(x, dtype=np.float64), float(fs))
@@ -55,7 +56,9 @@ def _line(f: np.ndarray, amp: np.ndarray, df: float, hz: float) -> tuple[float, 
 
 def confirm_speed(x: np.ndarray, fs: float, params, output_speed_deg_s: float) -> dict:
     """Whether the record's own lines confirm an output speed estimated from the stage-1 mesh peak
-    (:func:`rvdiag.io.angles.input_revolutions`), as a vibration analyst reads a mesh's line family:
+    (:func:`rvdiag.io.angles.input_revolutions`), as a vibration analyst reads a mesh's line family.  A check, not
+    an estimate: it reads the lines at the speed given and returns that speed unchanged, confirmed or not (the
+    estimate itself is :func:`rvdiag.io.angles.estimate_shaft_speed`'s):
 
     1. the cycloid-pin (stage-2) mesh, which turns with the carrier, shows its line ``fcs`` at that speed,
        :data:`LINE_DB` above its floor;
@@ -77,7 +80,7 @@ def confirm_speed(x: np.ndarray, fs: float, params, output_speed_deg_s: float) -
     raise the floor around the mesh lines, so its records are mostly not confirmed (the speed must then be given):
     tests/test_diagnose_trust.py."""
     from rvdiag.kinematics import characteristic_frequencies
-    from rvdiag.motor.lines import amplitude_spectrum
+    from rvdiag.spectral import amplitude_spectrum
 
     speed = float(output_speed_deg_s)
     cf = characteristic_frequencies(params, output_speed_deg_s=speed)

@@ -138,7 +138,7 @@ class TSAIndicatorFeatures(_AngleFeatures):
         shares, and ``tooth_deviation_trimmed``, the periods' mean-square deviation from the median tooth (the
         2 N largest left out on the sun, N planets; 2 on the other shafts) over its mean square; log10 with
         ``log``.  Wear of every tooth raises the first and lowers the second; a broken tooth barely moves either
-        (docs/monitoring.md, "What the baseline buys").  Off by default: the ``tsa-ci`` set keeps its nine.
+        (docs/monitoring.md, "Why these features").  Off by default: the ``tsa-ci`` set keeps its nine.
     """
 
     def __init__(self, fs: float = 48000.0, shaft: str = "sun", output_speed_deg_s: float = 45.0,

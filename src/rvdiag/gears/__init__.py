@@ -11,9 +11,11 @@ from rvdiag.gears.cycloid import pin_contact_state
 from rvdiag.gears.faults import BrokenTooth, Pitting, RootCrack, Spalling, ToothFaults, Wear
 from rvdiag.gears.geometry import Gear, GearPair
 from rvdiag.gears.tvms import MeshStiffnessResult, mesh_stiffness, tooth_pair_components
+from rvdiag.gears.wear import DutyCycle, wear_depth_history, wear_depth_profile
 
 __all__ = [
     "BrokenTooth",
+    "DutyCycle",
     "Gear",
     "GearPair",
     "MeshStiffnessResult",
@@ -25,4 +27,6 @@ __all__ = [
     "mesh_stiffness",
     "pin_contact_state",
     "tooth_pair_components",
+    "wear_depth_history",
+    "wear_depth_profile",
 ]

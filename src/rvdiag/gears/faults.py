@@ -65,6 +65,24 @@ def _finite(name: str, value: float) -> float:
     return value
 
 
+#: The default severities of the T1..T8 states (SI; angles in degrees), keyed by :meth:`ToothFaults.for_state`'s
+#: keywords: the one table of defaults, read by ``for_state`` (``rvdiag simulate --state T4``, ``rvdiag tvms``,
+#: ``rvdiag separability``) and by the library (``rvdiag.library.states.SEVERITY_PARAMETERS``, a config that names
+#: a state without its severities).
+DEFAULT_SEVERITIES: dict[str, float] = {
+    "broken_fraction": 1.0,         # whole tooth lost (as in the dynamics paper)
+    "wear_depth": 20e-6,            # 20 um: moderate wear, about 1.5 % of the RV-20E module
+    "crack_depth": 0.8e-3,          # 0.8 mm at 45 deg: about half way from the RV-20E sun flank to its centreline
+    "crack_angle_deg": 45.0,        # the angle used by Chen & Shao (2011) and Tian (2004)
+    "pit_area_fraction": 0.15,      # T7: 15 % of the band pitted (10-20 %: moderate pitting)
+    "pit_radius": 0.15e-3,          # T7: 0.3 mm pits, about a quarter of the RV-20E module
+    "pit_depth": 0.1e-3,            # T7
+    "spall_width_fraction": 0.5,    # T8: half the face width
+    "spall_length_fraction": 0.33,  # T8: a third of the working flank
+    "spall_depth": 0.2e-3,          # T8
+}
+
+
 @dataclass(frozen=True)
 class Wear:
     """Archard flank wear of maximum depth ``depth`` (m), zero at the pitch point.
@@ -73,10 +91,16 @@ class Wear:
     (default 1 um: the RV-20E's sun-planet pair at its rated torque, 107 N on a ~1.3e8 N/m pair); the load shares
     of the two pairs in double contact follow their worn separations within it (:func:`archard_wear_profile`).
     ``0`` keeps the fixed shares (1/2 in double contact) of the model before 2026-11-25.
+
+    ``shape``, optional, replaces that profile by a tabulated one: ``(positions, depths)``, the positions as
+    fractions 0..1 of the path of contact (0 its start) and the depths relative to their maximum, which ``depth``
+    scales; :meth:`rvdiag.gears.wear.WearDepthProfile.to_wear` gives the shape Archard's law grows over a duty
+    cycle.  ``run_in_deflection`` is then unused.
     """
 
     depth: float
     run_in_deflection: float = 1.0e-6
+    shape: tuple[tuple[float, ...], tuple[float, ...]] | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         d = _finite("wear depth", self.depth)
@@ -87,6 +111,22 @@ class Wear:
             raise ParameterError(f"wear run-in deflection must be >= 0, got {r!r} m")
         object.__setattr__(self, "depth", d)
         object.__setattr__(self, "run_in_deflection", r)
+        if self.shape is not None:
+            x, y = (np.asarray(v, dtype=float) for v in self.shape)
+            if (x.ndim != 1 or x.shape != y.shape or x.size < 2 or not np.all(np.isfinite(x))
+                    or not np.all(np.isfinite(y)) or np.any(np.diff(x) <= 0) or x[0] > 0 or x[-1] < 1
+                    or np.any(y < 0) or y.max() <= 0):
+                raise ParameterError("wear shape must be (positions, depths): increasing positions covering 0..1 "
+                                     "of the path of contact and depths >= 0, not all zero")
+            object.__setattr__(self, "shape", (tuple(x.tolist()), tuple((y / y.max()).tolist())))
+
+    def profile(self, pair: GearPair, gear: str, roll: np.ndarray) -> np.ndarray:
+        """Depth (m) at path-of-contact positions ``roll`` (m) of the ``gear`` flank: the tabulated ``shape``
+        scaled to ``depth``, or :func:`archard_wear_profile` without one."""
+        if self.shape is None:
+            return archard_wear_profile(pair, gear, roll, self.depth, self.run_in_deflection)
+        x, y = self.shape
+        return self.depth * np.interp(np.asarray(roll, dtype=float) / pair.path_of_contact, x, y)
 
 
 @dataclass(frozen=True)
@@ -94,7 +134,7 @@ class RootCrack:
     """Straight root crack of depth ``depth`` (m) at ``angle_deg`` from the tooth centreline."""
 
     depth: float
-    angle_deg: float = 45.0
+    angle_deg: float = DEFAULT_SEVERITIES["crack_angle_deg"]
 
     def __post_init__(self) -> None:
         d = _finite("crack depth", self.depth)
@@ -136,7 +176,7 @@ class RootCrack:
 class BrokenTooth:
     """Loss of ``fraction`` (0 < f <= 1) of the tooth height, measured from the tip."""
 
-    fraction: float = 1.0
+    fraction: float = DEFAULT_SEVERITIES["broken_fraction"]
 
     def __post_init__(self) -> None:
         f = _finite("broken fraction", self.fraction)
@@ -296,11 +336,11 @@ class Pitting:
     (:func:`cut_section`), and a contact line at s touches L - delta_L(s) of the face, so that the Hertz stiffness
     is k_h = pi E (L - delta_L) / (4 (1 - nu^2)) there.
 
-    Severity
-    --------
+    Parameters
+    ----------
     area_fraction : float
         Fraction of the band's flank area covered by pits, in [0, pi/4) (0: no pits, healthy).  Default 0.15
-        (``DEFAULT_PIT_AREA_FRACTION``), within the 10-20 % of a moderately pitted flank; the number of pits,
+        (``DEFAULT_SEVERITIES``), within the 10-20 % of a moderately pitted flank; the number of pits,
         area_fraction x band area / (pi radius^2), is rounded to a whole number (at least one).
     radius : float
         Pit radius on the flank (m); default 0.15 mm, a 0.3 mm pit, about a quarter of the RV-20E module (1.25 mm).
@@ -321,9 +361,9 @@ class Pitting:
     so the stiffness falls monotonically with ``area_fraction``.
     """
 
-    area_fraction: float = 0.15
-    radius: float = 0.15e-3
-    depth: float = 0.1e-3
+    area_fraction: float = DEFAULT_SEVERITIES["pit_area_fraction"]
+    radius: float = DEFAULT_SEVERITIES["pit_radius"]
+    depth: float = DEFAULT_SEVERITIES["pit_depth"]
     band_fraction: float = 0.4
     centre_fraction: float | None = None
 
@@ -380,11 +420,11 @@ class Spalling:
     model of Chaari, Baccar, Abbes & Haddar 2008, Eur. J. Mech. A/Solids 27, and of Jia & Howard 2006, Mech.
     Syst. Signal Process. 20).
 
-    Severity
-    --------
+    Parameters
+    ----------
     width_fraction : float
         Spall width across the face as a fraction of the face width, in [0, 1] (0: no spall, healthy; 1: a spall
-        through the whole face).  Default 0.5 (``DEFAULT_SPALL_WIDTH_FRACTION``): a spall over half the face, in
+        through the whole face).  Default 0.5 (``DEFAULT_SEVERITIES``): a spall over half the face, in
         the 40-60 % of a developed spall.  Only a spall through the face lifts the contact (a profile deviation,
         :meth:`FlankLoss.contact_deviation`); over part of the face the intact part carries the load, and the
         spall only softens the pair.
@@ -398,9 +438,9 @@ class Spalling:
         the pitch point (:func:`flank_zone`).
     """
 
-    width_fraction: float = 0.5
-    length_fraction: float = 0.33
-    depth: float = 0.2e-3
+    width_fraction: float = DEFAULT_SEVERITIES["spall_width_fraction"]
+    length_fraction: float = DEFAULT_SEVERITIES["spall_length_fraction"]
+    depth: float = DEFAULT_SEVERITIES["spall_depth"]
     centre_fraction: float | None = None
 
     def __post_init__(self) -> None:
@@ -425,21 +465,11 @@ class Spalling:
 Fault = Wear | RootCrack | BrokenTooth | Pitting | Spalling
 _FAULT_TYPES = (Wear, RootCrack, BrokenTooth, Pitting, Spalling)
 
-#: physically sensible default severities for the T1..T8 states (SI)
-DEFAULT_WEAR_DEPTH = 20e-6       # 20 um: moderate wear, about 1.5 % of the RV-20E module
-DEFAULT_CRACK_DEPTH = 0.8e-3     # 0.8 mm at 45 deg: about half way from the RV-20E sun flank to its centreline
-DEFAULT_CRACK_ANGLE_DEG = 45.0   # the angle used by Chen & Shao (2011) and Tian (2004)
-DEFAULT_BROKEN_FRACTION = 1.0    # whole tooth lost (as in the dynamics paper)
 T6_CRACK_OFFSET = 5               # T6: the crack sits this many teeth after the broken tooth
-DEFAULT_PIT_AREA_FRACTION = 0.15  # T7: 15 % of the band pitted (10-20 %: moderate pitting)
-DEFAULT_PIT_RADIUS = 0.15e-3      # T7: 0.3 mm pits, about a quarter of the RV-20E module
-DEFAULT_PIT_DEPTH = 0.1e-3        # T7
-DEFAULT_SPALL_WIDTH_FRACTION = 0.5    # T8: half the face width
-DEFAULT_SPALL_LENGTH_FRACTION = 0.33  # T8: a third of the working flank
-DEFAULT_SPALL_DEPTH = 0.2e-3          # T8
 
-#: the health states of the library (those of the dynamics-model-driven study, docs/references.md)
-STATES = {
+#: The health states T1..T8 and the fault kinds each combines (``+``-joined, the names :meth:`ToothFaults.from_name`
+#: reads): the one state table.  ``rvdiag.library.states.STATES`` derives its :class:`HealthState` objects from it.
+FAULT_KINDS: dict[str, str] = {
     "T1": "healthy",
     "T2": "broken",
     "T3": "wear",
@@ -449,7 +479,7 @@ STATES = {
     "T7": "pitting",
     "T8": "spalling",
 }
-_STATE_RANGE = f"{next(iter(STATES))}..{next(reversed(STATES))}"
+_STATE_RANGE = f"{next(iter(FAULT_KINDS))}..{next(reversed(FAULT_KINDS))}"
 
 
 @dataclass(frozen=True)
@@ -524,19 +554,21 @@ class ToothFaults:
             damaged_profile(pair, self.gear, self.faults_of(tooth))
 
     @classmethod
-    def for_state(cls, state: str, *, wear_depth: float = DEFAULT_WEAR_DEPTH,
-                  crack_depth: float = DEFAULT_CRACK_DEPTH,
-                  crack_angle_deg: float = DEFAULT_CRACK_ANGLE_DEG,
-                  broken_fraction: float = DEFAULT_BROKEN_FRACTION,
-                  pit_area_fraction: float = DEFAULT_PIT_AREA_FRACTION,
-                  pit_radius: float = DEFAULT_PIT_RADIUS, pit_depth: float = DEFAULT_PIT_DEPTH,
-                  spall_width_fraction: float = DEFAULT_SPALL_WIDTH_FRACTION,
-                  spall_length_fraction: float = DEFAULT_SPALL_LENGTH_FRACTION,
-                  spall_depth: float = DEFAULT_SPALL_DEPTH,
+    def for_state(cls, state: str, *, wear_depth: float = DEFAULT_SEVERITIES["wear_depth"],
+                  crack_depth: float = DEFAULT_SEVERITIES["crack_depth"],
+                  crack_angle_deg: float = DEFAULT_SEVERITIES["crack_angle_deg"],
+                  broken_fraction: float = DEFAULT_SEVERITIES["broken_fraction"],
+                  pit_area_fraction: float = DEFAULT_SEVERITIES["pit_area_fraction"],
+                  pit_radius: float = DEFAULT_SEVERITIES["pit_radius"],
+                  pit_depth: float = DEFAULT_SEVERITIES["pit_depth"],
+                  spall_width_fraction: float = DEFAULT_SEVERITIES["spall_width_fraction"],
+                  spall_length_fraction: float = DEFAULT_SEVERITIES["spall_length_fraction"],
+                  spall_depth: float = DEFAULT_SEVERITIES["spall_depth"],
                   tooth: int = 0, crack_tooth: int | None = None,
                   gear: str = "driver") -> "ToothFaults":
         """The health states of the library: T1 healthy, T2 broken tooth, T3 wear, T4 root crack,
-        T5 broken + wear, T6 broken + wear + crack, T7 pitting, T8 spalling.
+        T5 broken + wear, T6 broken + wear + crack, T7 pitting, T8 spalling (:data:`FAULT_KINDS`).  A severity
+        not given takes its value from :data:`DEFAULT_SEVERITIES`.
 
         Pitting (:class:`Pitting`) and the spall (:class:`Spalling`) sit on ``tooth``, around its pitch line.
 
@@ -549,9 +581,9 @@ class ToothFaults:
         "Fault sensitivity").
         """
         key = str(state).upper()
-        if key not in STATES:
-            raise ParameterError(f"unknown fault state {state!r}; choose one of {', '.join(STATES)}")
-        kinds = STATES[key].split("+")
+        if key not in FAULT_KINDS:
+            raise ParameterError(f"unknown fault state {state!r}; choose one of {', '.join(FAULT_KINDS)}")
+        kinds = FAULT_KINDS[key].split("+")
         wear = Wear(wear_depth) if "wear" in kinds else None
         teeth: dict[int, list[Fault]] = {}
         if "broken" in kinds:
@@ -569,16 +601,16 @@ class ToothFaults:
     def from_name(cls, name: str, **severities: float) -> "ToothFaults":
         """Build from a name ``healthy``, ``wear``, ``crack``, ``broken``, ``broken+wear``,
         ``broken+wear+crack``, ``pitting``, ``spalling`` (or T1..T8)."""
-        lookup = {v: k for k, v in STATES.items()}
+        lookup = {v: k for k, v in FAULT_KINDS.items()}
         key = str(name).strip().lower()
-        if key.upper() in STATES:
+        if key.upper() in FAULT_KINDS:
             return cls.for_state(key.upper(), **severities)
         parts = sorted(key.split("+"))
         for label, kinds in lookup.items():
             if sorted(label.split("+")) == parts:
                 return cls.for_state(kinds, **severities)
         raise ParameterError(
-            f"unknown fault {name!r}; choose one of {', '.join(STATES.values())} or {_STATE_RANGE}")
+            f"unknown fault {name!r}; choose one of {', '.join(FAULT_KINDS.values())} or {_STATE_RANGE}")
 
     def describe(self) -> dict:
         """JSON-ready description of the faults (SI units)."""
@@ -635,7 +667,7 @@ def cut_section(thickness: np.ndarray, face_width: float,
     return area, second - first * first / area
 
 
-def _sliding(pair: GearPair, gear: str, roll: np.ndarray) -> np.ndarray:
+def sliding_ratio(pair: GearPair, gear: str, roll: np.ndarray) -> np.ndarray:
     """Sliding per unit rolling of the ``gear`` flank at path positions ``roll``: |1 - v_j / v_i| with
     v_i = omega_i rho_i (Flodin & Andersson 1997, eq. (2)); zero at the pitch point."""
     rho1, rho2 = pair.roll_lengths(np.asarray(roll, dtype=float))
@@ -675,7 +707,7 @@ def archard_wear_profile(pair: GearPair, gear: str, roll: np.ndarray, depth: flo
     roll = np.asarray(roll, dtype=float)
     pb, path = pair.base_pitch, pair.path_of_contact
     s = np.linspace(0.0, path, _RUN_IN_POINTS)
-    slip = _sliding(pair, gear, s)
+    slip = sliding_ratio(pair, gear, s)
     enter = s <= path - pb          # double contact, the partner pair at s + pb
     leave = s >= pb                 # double contact, the partner pair at s - pb
     fixed_share = np.where(enter | leave, 0.5, 1.0)
@@ -716,7 +748,7 @@ def flank_deviation(pair: GearPair, gear: str, faults: Iterable[Fault], roll: np
     faults = tuple(faults)
     for f in faults:
         if isinstance(f, Wear) and f.depth > 0:
-            out = out + archard_wear_profile(pair, gear, roll, f.depth, f.run_in_deflection)
+            out = out + f.profile(pair, gear, roll)
     loss = FlankLoss()
     for f in faults:
         if isinstance(f, (Pitting, Spalling)):
@@ -758,7 +790,7 @@ def damaged_profile(pair: GearPair, gear: str, faults: Iterable[Fault]) -> Damag
                 roll = (pair.line_of_action_length - rho) - pair.start_roll_length_driver
             active = (roll >= 0) & (roll <= pair.path_of_contact) & (np.arange(len(y)) >= prof.n_fillet)
             h = np.zeros_like(y)
-            h[active] = archard_wear_profile(pair, gear, roll[active], f.depth, f.run_in_deflection)
+            h[active] = f.profile(pair, gear, roll[active])
             tau = rho / g.base_radius - g.base_half_angle     # flank normal vs. section (load angle)
             xl = xl - h / np.cos(tau)
             if np.any(xl[active] <= 0.0):

@@ -131,7 +131,7 @@ def iso1328_tolerances(module_m: float, pitch_diameter_m: float, grade: int) -> 
 
     >>> t = iso1328_tolerances(1.25e-3, 13.75e-3, 5)
     >>> round(t.single_pitch * 1e6, 2), round(t.profile_slope * 1e6, 2)
-    (5.51, 3.25)
+    (5.51, 3.26)
     >>> round(iso1328_tolerances(1.25e-3, 41.25e-3, 5).runout * 1e6, 1)
     14.8
     """

@@ -202,9 +202,15 @@ def angle_from_tacho(pulse_times, n: int, fs: float, ppr: int = 1, ratio: float 
 
 # --------------------------------------------------------------------------- the spectrum
 def estimate_shaft_speed(x, fs: float, order: float, speed_range: tuple[float, float]) -> float:
-    """Shaft speed (rev/s) from the spectrum: the highest peak of the Hann-windowed amplitude spectrum of ``x``
-    between ``order`` x ``speed_range`` (rev/s), refined by parabolic interpolation of the log magnitude over
-    the peak bin and its two neighbours, divided by ``order`` (e.g. the stage-1 mesh, order Z1 of ``sun``)."""
+    """Shaft speed (rev/s) from a vibration spectrum: the highest peak of the Hann-windowed amplitude spectrum of
+    ``x`` between ``order`` x ``speed_range`` (rev/s), refined by parabolic interpolation of the log magnitude over
+    the peak bin and its two neighbours (:func:`rvdiag.spectral.peak_frequency`), divided by ``order`` (e.g. the
+    stage-1 mesh, order Z1 of ``sun``).
+
+    The band matters: a vibration's strongest line anywhere is often a mesh harmonic, so the peak is sought only
+    where the mesh of a plausible speed lies, and :func:`rvdiag.features.mesh_lines.confirm_speed` checks it
+    against the rest of the mesh's line family.  A motor current's speed comes instead from its supply line,
+    the strongest line of the whole spectrum (:func:`rvdiag.motor.lines.output_speed_from_current`)."""
     x = np.asarray(x, dtype=np.float64).ravel()
     lo, hi = (float(v) for v in speed_range)
     if not (0 < lo < hi and order > 0):
@@ -442,6 +448,7 @@ def input_revolutions(sig, spec: AngleSpec, params=None, fs: float | None = None
     and sun teeth; default the built-in RV-20E); ``fs`` overrides the rate of the other channels as it did
     ``sig``'s.  The speed is checked against ``spec.speed_range_rpm``."""
     from rvdiag.io.readers import list_channels
+    from rvdiag.kinematics import output_speed_from_input_hz, sun_speed_hz
     from rvdiag.params import ReducerParams
 
     spec.validate()
@@ -467,8 +474,8 @@ def input_revolutions(sig, spec: AngleSpec, params=None, fs: float | None = None
         res = (angle_from_speed(n, rate, spec.input_speed_rpm / 60.0), "input-speed",
                f"input {spec.input_speed_rpm:g} rev/min")
     elif spec.output_speed_deg_s is not None:
-        res = (angle_from_speed(n, rate, spec.output_speed_deg_s / 360.0 * i), "output-speed",
-               f"output {spec.output_speed_deg_s:g} deg/s")
+        res = (angle_from_speed(n, rate, sun_speed_hz(p, output_speed_deg_s=spec.output_speed_deg_s)),
+               "output-speed", f"output {spec.output_speed_deg_s:g} deg/s")
     elif spec.meta_regex is not None:
         m = _compile(spec.meta_regex, "--meta-regex").search(sig.path.name)
         if m is None:
@@ -489,11 +496,11 @@ def input_revolutions(sig, spec: AngleSpec, params=None, fs: float | None = None
                    "the simulated record's stated speed")
         elif spec.estimate:
             mesh = p.stage1.sun_teeth * (1.0 - 1.0 / i)  # stage-1 mesh per input revolution
-            band = tuple(v / 360.0 * i for v in ESTIMATE_OUTPUT_DEG_S)
+            band = tuple(sun_speed_hz(p, output_speed_deg_s=v) for v in ESTIMATE_OUTPUT_DEG_S)
             f = estimate_shaft_speed(sig.data, rate, mesh, band)
             res = (angle_from_speed(n, rate, f), "estimate",
                    f"estimated from the stage-1 mesh peak (order {p.stage1.sun_teeth} of the sun; "
-                   f"{f * 360.0 / i:.4g} deg/s output)")
+                   f"{output_speed_from_input_hz(p, f):.4g} deg/s output)")
         else:
             raise ParameterError(f"{sig.path.name}: no angle source (give --angle-channel, --tacho-channel, a speed "
                                  "or --meta-regex with a group rpm or speed_dps)")

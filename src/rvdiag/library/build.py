@@ -27,7 +27,7 @@ crash, SIGKILL or Ctrl-C); a store built from another config is refused.  ``devi
 in ensembles on a GPU, one task per ensemble, and finishes each unit as here (:mod:`rvdiag.library.gpu`).
 
 One unit on a worker (:class:`Unit`, :class:`Job`, :func:`run_unit` and the steps it is made of) lives in
-:mod:`rvdiag.library.units`, below this module and the GPU path; its names are imported here too.
+:mod:`rvdiag.library.work_units`, below this module and the GPU path; its names are imported here too.
 """
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ from rvdiag.errors import ConfigError, RvdiagError, SimulationError, StoreError
 from rvdiag.library.config import ARM_KEYS, LEGACY_MODES, LibraryConfig, scaled_keys
 from rvdiag.library.specimens import draw_specimen, override_message, specimen_seed
 from rvdiag.library.states import STATES, FaultSpec
-from rvdiag.library.units import (_TWIN_POWERS, Job, Unit, UnitResult, _streams, check_worker,  # noqa: F401
+from rvdiag.library.work_units import (_TWIN_POWERS, Job, Unit, UnitResult, _streams, check_worker,  # noqa: F401
                                   finish_unit, floor_noise_power, kept_signal, needs_twin, project_sensor,
                                   resolve_simulator, run_unit, segment_starts, simulate_unit, simulator_call,
                                   twin_key, twin_power, unit_params, window_angles)

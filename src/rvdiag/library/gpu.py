@@ -1,10 +1,10 @@
 """Library units on a CUDA GPU: ``rvdiag library build --device cuda``.
 
 The units of a build are taken in ensembles of ``ensemble`` simulations.  Each unit is prepared as the CPU path
-prepares it (:func:`rvdiag.library.units.simulator_call`, the simulator's ``prepare``: the same model, start state
+prepares it (:func:`rvdiag.library.work_units.simulator_call`, the simulator's ``prepare``: the same model, start state
 and record), all their integrator calls run as one GPU ensemble, one thread per simulation
 (:func:`rvdiag.dynamics.ensemble.integrate_ensemble`), and each unit is finished exactly as on the CPU
-(``PreparedSimulation.finish``, then :func:`rvdiag.library.units.finish_unit`: transfer path, noise, segments).
+(``PreparedSimulation.finish``, then :func:`rvdiag.library.work_units.finish_unit`: transfer path, noise, segments).
 A unit whose noise is a floor below its healthy twin's power has its twin integrated in the same ensemble.
 One ensemble is one task: in this process, or one Dask task per ensemble on a cluster of GPU workers.
 """
@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from rvdiag.errors import ConfigError, DeviceWarning, RvdiagError
-from rvdiag.library.units import (Job, Unit, UnitResult, check_worker, finish_unit, needs_twin, resolve_simulator,
+from rvdiag.library.work_units import (Job, Unit, UnitResult, check_worker, finish_unit, needs_twin, resolve_simulator,
                                   run_unit, simulator_call)
 
 #: values of ``--device``
@@ -62,7 +62,7 @@ def resolve_device(device: str, simulator: str, check_here: bool = True) -> str:
 
 
 def run_ensemble(units: list[Unit], job: Job, layout: str = "last") -> list[UnitResult | RvdiagError]:
-    """Simulate ``units`` as one GPU ensemble and finish each as :func:`rvdiag.library.units.run_unit` does.
+    """Simulate ``units`` as one GPU ensemble and finish each as :func:`rvdiag.library.work_units.run_unit` does.
 
     Returns, in the order of ``units``, each unit's :class:`UnitResult` or its error (named as the CPU path names
     it: ``simulation INDEX (STATE #k): ...``), so that one unstable simulation does not lose the others.

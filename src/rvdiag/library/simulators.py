@@ -30,6 +30,7 @@ integrates many of them at once and finishes each as :func:`rvdiag.dynamics.simu
 
 from __future__ import annotations
 
+import inspect
 from typing import Any, Mapping
 
 from rvdiag.errors import ConfigError, ParameterError
@@ -77,58 +78,50 @@ def check_options(model: Mapping[str, Any] | None) -> None:
     _record_options(model, 0.0)
 
 
-def _simulate_arguments(params: Any, fault: Any, duration_s: float, transient_s: float, fs: float, seed: int,
-                        model: Mapping[str, Any] | None, operating: Mapping[str, Any]) -> dict[str, Any]:
-    """The keyword arguments of :func:`rvdiag.dynamics.simulate` for one call of :func:`dynamics`."""
+def dynamics_request(
+    params: Any,
+    fault: Any = None,
+    *,
+    duration_s: float,
+    transient_s: float,
+    fs: float,
+    seed: int = 0,
+    model: Mapping[str, Any] | None = None,
+    **operating: Any,
+) -> Any:
+    """The :class:`rvdiag.dynamics.SimulationRequest` of one library simulation (the contract's arguments, said once
+    for :func:`dynamics` and :func:`prepare_dynamics`).
+
+    ``operating`` holds the speed (``input_speed_rpm`` or ``output_speed_deg_s``) and ``load_Nm``, and with a
+    ``[profile]`` table the ``profile`` and ``load_profile`` of the simulation.  With ``[model] signal =
+    "current"`` the request records the servo motor's current at ``fs``, integrated at ``integration_fs``
+    (:data:`RECORD_KEYS`).
+    """
+    from rvdiag.dynamics import SimulationRequest
+
     signal, f_int = _record_options(model, fs)
     settings = _settings(model, transient_s)
     if signal == "current":
-        return dict(params=params, fault=fault, duration_s=duration_s, fs=f_int, seed=seed, settings=settings,
-                    signal="current", current_fs=fs, **operating)
-    return dict(params=params, fault=fault, duration_s=duration_s, fs=fs, seed=seed, settings=settings, **operating)
+        return SimulationRequest(params, fault, duration_s=duration_s, fs=f_int, seed=seed, settings=settings,
+                                 signal="current", current_fs=fs, **operating)
+    return SimulationRequest(params, fault, duration_s=duration_s, fs=fs, seed=seed, settings=settings, **operating)
 
 
-def dynamics(
-    params: Any,
-    fault: Any = None,
-    *,
-    duration_s: float,
-    transient_s: float,
-    fs: float,
-    seed: int = 0,
-    model: Mapping[str, Any] | None = None,
-    **operating: Any,
-) -> Any:
-    """The 27-DOF dynamic model (:func:`rvdiag.dynamics.simulate`) with the library's contract.
+def dynamics(*args: Any, **kwargs: Any) -> Any:
+    """The 27-DOF dynamic model (:func:`rvdiag.dynamics.simulate`) with the library's contract: the request of
+    :func:`dynamics_request` (the same arguments), run.
 
-    ``operating`` holds the speed (``input_speed_rpm`` or ``output_speed_deg_s``) and ``load_Nm``, and with a
-    ``[profile]`` table the ``profile`` and ``load_profile`` of the simulation.
     Returns a :class:`rvdiag.dynamics.SimulationResult`: two housing-acceleration channels, x and y, or with
-    ``[model] signal = "current"`` the servo motor's ``i_a, i_b, i_c, i_q, speed`` at ``fs`` (integrated at
-    ``integration_fs``, :data:`RECORD_KEYS`).
+    ``[model] signal = "current"`` the servo motor's ``i_a, i_b, i_c, i_q, speed`` at ``fs``.
     """
-    from rvdiag.dynamics import simulate
-
-    return simulate(**_simulate_arguments(params, fault, duration_s, transient_s, fs, seed, model, operating))
+    return dynamics_request(*args, **kwargs).run()
 
 
-def prepare_dynamics(
-    params: Any,
-    fault: Any = None,
-    *,
-    duration_s: float,
-    transient_s: float,
-    fs: float,
-    seed: int = 0,
-    model: Mapping[str, Any] | None = None,
-    **operating: Any,
-) -> Any:
+def prepare_dynamics(*args: Any, **kwargs: Any) -> Any:
     """:func:`dynamics` up to the integration: the :class:`rvdiag.dynamics.PreparedSimulation` whose ``finish``
     gives what :func:`dynamics` returns (the GPU ensemble integrates it, ``rvdiag.library.gpu``)."""
-    from rvdiag.dynamics import prepare_simulation
-
-    return prepare_simulation(**_simulate_arguments(params, fault, duration_s, transient_s, fs, seed, model,
-                                                    operating))
+    return dynamics_request(*args, **kwargs).prepare()
 
 
+dynamics.__signature__ = prepare_dynamics.__signature__ = inspect.signature(dynamics_request)  # type: ignore
 dynamics.prepare = prepare_dynamics  # type: ignore[attr-defined]

@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 from rvdiag.errors import ParameterError
-from rvdiag.gears.faults import STATES as GEAR_STATES
+from rvdiag.gears.faults import DEFAULT_SEVERITIES, FAULT_KINDS
 
 
 @dataclass(frozen=True)
@@ -53,7 +53,6 @@ class SeverityParameter:
     name : key in configs, metadata columns and ``ToothFaults.for_state`` keyword
     unit : unit of the value ("m", "deg" or "1")
     lo, hi : closed interval of physically valid values
-    default : value used when a config does not give one
     description : one line for docs and ``rvdiag library info``
     """
 
@@ -61,8 +60,13 @@ class SeverityParameter:
     unit: str
     lo: float
     hi: float
-    default: float
     description: str
+
+    @property
+    def default(self) -> float:
+        """The value used when a config does not give one: the gear model's
+        (:data:`rvdiag.gears.faults.DEFAULT_SEVERITIES`, the one table of default severities)."""
+        return DEFAULT_SEVERITIES[self.name]
 
     def check(self, value: float, where: str = "") -> float:
         """Return ``value`` as float or raise :class:`ParameterError` if outside ``[lo, hi]``."""
@@ -94,43 +98,43 @@ SEVERITY_PARAMETERS: dict[str, SeverityParameter] = {
     p.name: p
     for p in (
         SeverityParameter(
-            "broken_fraction", "1", 0.05, 1.0, 1.0,
+            "broken_fraction", "1", 0.05, 1.0,
             "fraction of the tooth that has broken off (1 = the whole tooth is missing)",
         ),
         SeverityParameter(
-            "wear_depth", "m", 1.0e-6, 2.0e-4, 2.0e-5,
+            "wear_depth", "m", 1.0e-6, 2.0e-4,
             "maximum uniform-Archard wear depth of the tooth flank (m)",
         ),
         SeverityParameter(
-            "crack_depth", "m", 5.0e-5, 2.2e-3, 5.0e-4,
+            "crack_depth", "m", 5.0e-5, 2.2e-3,
             "root crack depth q measured along the crack (m)",
         ),
         SeverityParameter(
-            "crack_angle_deg", "deg", 15.0, 80.0, 45.0,
+            "crack_angle_deg", "deg", 15.0, 80.0,
             "root crack angle to the tooth centreline (deg)",
         ),
         SeverityParameter(
-            "pit_area_fraction", "1", 0.02, 0.35, 0.15,
+            "pit_area_fraction", "1", 0.02, 0.35,
             "fraction of the pitting band (40 % of the working flank, around the pitch line) covered by pits",
         ),
         SeverityParameter(
-            "pit_radius", "m", 5.0e-5, 4.0e-4, 1.5e-4,
+            "pit_radius", "m", 5.0e-5, 4.0e-4,
             "radius of the cylindrical pits on the flank (m)",
         ),
         SeverityParameter(
-            "pit_depth", "m", 2.0e-5, 3.0e-4, 1.0e-4,
+            "pit_depth", "m", 2.0e-5, 3.0e-4,
             "depth of the pits normal to the flank (m)",
         ),
         SeverityParameter(
-            "spall_width_fraction", "1", 0.1, 1.0, 0.5,
+            "spall_width_fraction", "1", 0.1, 1.0,
             "spall width across the face as a fraction of the face width",
         ),
         SeverityParameter(
-            "spall_length_fraction", "1", 0.1, 0.8, 0.33,
+            "spall_length_fraction", "1", 0.1, 0.8,
             "spall length along the profile as a fraction of the working flank (centred on the pitch point)",
         ),
         SeverityParameter(
-            "spall_depth", "m", 5.0e-5, 5.0e-4, 2.0e-4,
+            "spall_depth", "m", 5.0e-5, 5.0e-4,
             "depth of the spall normal to the flank (m)",
         ),
     )
@@ -170,8 +174,9 @@ def _health_state(name: str, kinds: str) -> HealthState:
     return HealthState(name, description, tuple(p for k in parts for p in _KIND_PARAMETERS[k]))
 
 
-#: the eight states, derived from the one state table of :mod:`rvdiag.gears.faults`
-STATES: dict[str, HealthState] = {name: _health_state(name, kinds) for name, kinds in GEAR_STATES.items()}
+#: the eight states, derived from the one state table :data:`rvdiag.gears.faults.FAULT_KINDS` (state -> fault
+#: kinds, re-exported here as ``FAULT_KINDS``)
+STATES: dict[str, HealthState] = {name: _health_state(name, kinds) for name, kinds in FAULT_KINDS.items()}
 
 
 def get_state(name: str) -> HealthState:
@@ -214,11 +219,6 @@ class FaultSpec:
     def to_tooth_faults(self) -> Any:
         """The ``rvdiag.gears.ToothFaults`` of this spec (``None`` for the healthy state)."""
         return tooth_faults(self.state, **self.severity)
-
-
-#: The fault kinds of each state, in the names ``rvdiag.gears.ToothFaults.from_name`` understands: the gear
-#: module's state table (``rvdiag.gears.faults.STATES``), the one table both layers read.
-FAULT_KINDS: dict[str, str] = dict(GEAR_STATES)
 
 
 def tooth_faults(state: str, **severity: float) -> Any:

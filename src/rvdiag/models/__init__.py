@@ -15,6 +15,9 @@ CNNFeatures               the ``cnn`` feature set: a CNN's last hidden layer as 
 save_model, load_model    model directories (card.json + model.safetensors | model.skops)
 read_card                 the one reader of the model card
 ========================  ===========================================================================
+
+The baseline monitor (a model that compares a record with its machine's own baseline) is
+:class:`rvdiag.monitoring.BaselineMonitor`, in the monitoring package above this one.
 """
 
 from __future__ import annotations

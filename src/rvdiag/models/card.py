@@ -20,13 +20,12 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from rvdiag.atomic import atomic_write
 from rvdiag.errors import ModelFileError, ParameterError
 
 CARD_FORMAT = "rvdiag-model"
@@ -54,19 +53,6 @@ def jsonable(obj: Any) -> Any:
     if isinstance(obj, Path):
         return str(obj)
     return obj
-
-
-def atomic_write(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file and a rename: a failure leaves no half file."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def card_text(card: dict) -> bytes:
@@ -123,9 +109,3 @@ def read_card(directory: str | Path) -> dict:
     except (TypeError, ValueError):
         raise ModelFileError(f"{p}: bad input_length {card['input_length']!r}") from None
     return card
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask

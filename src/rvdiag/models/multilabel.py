@@ -33,18 +33,18 @@ from sklearn.base import BaseEstimator, ClassifierMixin, clone
 from sklearn.utils.validation import check_is_fitted
 
 from rvdiag.errors import ParameterError
-from rvdiag.gears.faults import STATES as GEAR_STATES
+from rvdiag.gears.faults import FAULT_KINDS
 
 #: The binary labels, in the order of the columns of :data:`STATE_FAULTS`.
 FAULT_LABELS: tuple[str, ...] = ("broken", "worn", "cracked")
 
-#: The fault kind of :data:`rvdiag.gears.faults.STATES` behind each label of :data:`FAULT_LABELS`.
+#: The fault kind of :data:`rvdiag.gears.faults.FAULT_KINDS` behind each label of :data:`FAULT_LABELS`.
 _KINDS: tuple[str, ...] = ("broken", "wear", "crack")
 
 #: Each state's fault combination (broken, worn, cracked), read from the library's own state table
 #: (``"broken+wear+crack"``): the states made of those faults only, T1..T6.
 STATE_FAULTS: dict[str, tuple[int, ...]] = {
-    state: tuple(int(k in kinds.split("+")) for k in _KINDS) for state, kinds in GEAR_STATES.items()
+    state: tuple(int(k in kinds.split("+")) for k in _KINDS) for state, kinds in FAULT_KINDS.items()
     if kinds == "healthy" or set(kinds.split("+")) <= set(_KINDS)
 }
 

@@ -78,7 +78,7 @@ class NoveltyDetector:
     def save(self, directory: str | Path) -> None:
         from safetensors.numpy import save
 
-        from rvdiag.models.card import atomic_write
+        from rvdiag.atomic import atomic_write
 
         atomic_write(Path(directory) / NOVELTY_FILE, save({"location": np.ascontiguousarray(self.location),
                                                            "precision": np.ascontiguousarray(self.precision)}))

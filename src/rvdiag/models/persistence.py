@@ -46,8 +46,9 @@ import numpy as np
 import torch
 
 from rvdiag import __version__
+from rvdiag.atomic import atomic_write, staged_directory
 from rvdiag.errors import ModelFileError, ParameterError
-from rvdiag.models.card import CARD, CARD_FORMAT, CARD_VERSION, atomic_write, jsonable, now, read_card, write_card
+from rvdiag.models.card import CARD, CARD_FORMAT, CARD_VERSION, jsonable, now, read_card, write_card
 from rvdiag.models.cnn import build_network
 from rvdiag.models.torch_estimator import ANGLE_REPRESENTATIONS, CNNClassifier, network_length
 
@@ -170,8 +171,6 @@ def save_model(estimator, directory: str | Path, novelty=None, *, files: dict[st
     files : more files to write into the directory (name -> bytes), e.g. ``repeat.json``
     **card_fields : keyword arguments of :func:`base_card` (``model`` is required)
     """
-    from rvdiag.atomic import staged_directory
-
     d = Path(directory)
     if d.exists() and not d.is_dir():
         raise ModelFileError(f"{d} exists and is not a directory")

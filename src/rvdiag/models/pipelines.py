@@ -34,6 +34,9 @@ list lives in :mod:`rvdiag.registry`, below every layer, so it does not depend o
 
 from __future__ import annotations
 
+import io
+import json
+import zipfile
 from pathlib import Path
 
 from sklearn.calibration import CalibratedClassifierCV
@@ -43,13 +46,14 @@ from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
 
 from rvdiag import features as _features
+from rvdiag.atomic import atomic_write
 from rvdiag.errors import ModelFileError, ParameterError
-from rvdiag.models.card import atomic_write, card_text, read_card, write_card
+from rvdiag.models.card import card_text, read_card, write_card
 from rvdiag.models.cnn_features import CNNFeatures
 from rvdiag.models.kelm import KELMClassifier
 from rvdiag.models.multilabel import CompoundFaultClassifier
 from rvdiag.models.tuning import OPTIMIZERS, TunedKELM
-from rvdiag.registry import CLASSICAL_MODELS
+from rvdiag.registry import CLASSICAL_MODELS, MOVED_TYPES
 from rvdiag.registry import TRUSTED_TYPES, register_trusted_type  # noqa: F401  (public names, re-exported)
 
 MODEL_NAMES = CLASSICAL_MODELS  # the names are registered below every layer (rvdiag.registry)
@@ -178,36 +182,32 @@ def save_classical(model, directory, metadata: dict | None = None) -> Path:
     return d
 
 
-def _moved_types(data: bytes) -> bytes:
-    """A skops archive with the type names of :data:`rvdiag.registry.MOVED_TYPES` replaced by their names now (the
-    ``__module__`` of each object of its ``schema.json``); the archive as it is when it names none."""
-    import io
-    import json
-    import zipfile
-
-    from rvdiag.registry import MOVED_TYPES
-
-    old = {name.rpartition(".")[0] for name in MOVED_TYPES}
-    with zipfile.ZipFile(io.BytesIO(data)) as z:
-        schema = z.read("schema.json")
-        if not any(m.encode() in schema for m in old):
-            return data
-        members = {i: z.read(i) for i in z.infolist()}
+def _with_moved_types_renamed(data: bytes) -> bytes:
+    """A skops file ``data`` with every type of :data:`rvdiag.registry.MOVED_TYPES` named by its module now
+    (the ``__module__`` / ``__class__`` of its ``schema.json`` entries); ``data`` itself when it names none.
+    The arrays and every other entry are copied unchanged."""
+    old = {tuple(k.rsplit(".", 1)): tuple(v.rsplit(".", 1)) for k, v in MOVED_TYPES.items()}
+    renamed = []
 
     def rename(node):
         if isinstance(node, dict):
-            mod, cls = node.get("__module__"), node.get("__class__")
-            if isinstance(mod, str) and isinstance(cls, str) and f"{mod}.{cls}" in MOVED_TYPES:
-                node = {**node, "__module__": MOVED_TYPES[f"{mod}.{cls}"].rpartition(".")[0]}
+            key = (node.get("__module__"), node.get("__class__"))
+            if key in old:
+                renamed.append(key)
+                node = {**node, "__module__": old[key][0], "__class__": old[key][1]}
             return {k: rename(v) for k, v in node.items()}
         if isinstance(node, list):
             return [rename(v) for v in node]
         return node
 
+    src = zipfile.ZipFile(io.BytesIO(data))
+    schema = rename(json.loads(src.read("schema.json")))
+    if not renamed:
+        return data
     out = io.BytesIO()
-    with zipfile.ZipFile(out, "w", compression=zipfile.ZIP_DEFLATED) as z:
-        for info, body in members.items():
-            z.writestr(info, json.dumps(rename(json.loads(body))).encode() if info.filename == "schema.json" else body)
+    with zipfile.ZipFile(out, "w") as dst:
+        for info in src.infolist():
+            dst.writestr(info, json.dumps(schema).encode() if info.filename == "schema.json" else src.read(info))
     return out.getvalue()
 
 
@@ -227,7 +227,7 @@ def load_classical(directory):
     if not p.is_file():
         raise ModelFileError(f"{directory}: no model.skops")
     try:
-        data = _moved_types(p.read_bytes())
+        data = _with_moved_types_renamed(p.read_bytes())
         untrusted = sio.get_untrusted_types(data=data)
     except Exception as exc:  # skops raises many kinds on a corrupt archive
         raise ModelFileError(f"{p}: not a readable skops model file ({type(exc).__name__}: {exc})") from None

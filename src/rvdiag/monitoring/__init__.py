@@ -38,35 +38,12 @@ line.  A monitor saved when :class:`BaselineMonitor` lived in ``rvdiag.models.mo
 
 from __future__ import annotations
 
-import importlib
+from rvdiag.monitoring.baseline import Baseline, make_baseline, needs_baseline, open_baseline, reducer_type
+from rvdiag.monitoring.detector import BaselineMonitor, save_monitor
+from rvdiag.monitoring.diagnosis import MonitorResult, monitor_record
+from rvdiag.monitoring.pairing import is_paired, match_baseline, paired_features, record_means
+from rvdiag.monitoring.training import evaluate_monitor, train_monitor
 
-_EXPORTS = {
-    "BaselineMonitor": "rvdiag.monitoring.detector",
-    "save_monitor": "rvdiag.monitoring.detector",
-    "Baseline": "rvdiag.monitoring.baseline",
-    "make_baseline": "rvdiag.monitoring.baseline",
-    "open_baseline": "rvdiag.monitoring.baseline",
-    "needs_baseline": "rvdiag.monitoring.baseline",
-    "reducer_type": "rvdiag.monitoring.baseline",
-    "MonitorResult": "rvdiag.monitoring.diagnosis",
-    "monitor_record": "rvdiag.monitoring.diagnosis",
-    "is_paired": "rvdiag.monitoring.pairing",
-    "match_baseline": "rvdiag.monitoring.pairing",
-    "paired_features": "rvdiag.monitoring.pairing",
-    "record_means": "rvdiag.monitoring.pairing",
-    "train_monitor": "rvdiag.monitoring.training",
-    "evaluate_monitor": "rvdiag.monitoring.training",
-}
-
-
-def __getattr__(name: str):
-    if name in _EXPORTS:
-        return getattr(importlib.import_module(_EXPORTS[name]), name)
-    raise AttributeError(f"module 'rvdiag.monitoring' has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(list(globals()) + list(_EXPORTS))
-
-
-__all__ = sorted(_EXPORTS)
+__all__ = ["Baseline", "BaselineMonitor", "MonitorResult", "evaluate_monitor", "is_paired", "make_baseline",
+           "match_baseline", "monitor_record", "needs_baseline", "open_baseline", "paired_features", "record_means",
+           "reducer_type", "save_monitor", "train_monitor"]

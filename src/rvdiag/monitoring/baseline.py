@@ -66,8 +66,6 @@ class Baseline:
     operating_points: list[dict]
     fs: float
     samples: Any = field(repr=False, default=None)
-    #: per-process memo of the baseline side of the features (:mod:`rvdiag.monitoring.diagnosis`)
-    cache: dict = field(repr=False, default_factory=dict, compare=False)
 
     def to_dict(self) -> dict:
         """The baseline's description, JSON-ready."""

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from rvdiag.errors import ParameterError
-from rvdiag.monitoring.baseline import Baseline
+from rvdiag.monitoring.baseline import Baseline, needs_baseline
 from rvdiag.monitoring.pairing import OPERATING_COLUMNS, paired_features
 
 
@@ -117,6 +117,9 @@ def monitor_record(model, rec, base: Baseline, *, output_speed: float | None = N
     from rvdiag.datasets.store import Samples
     from rvdiag.workflows.records import SPEED_META, flat_reason, recognition, record_speed, state_name
 
+    if not needs_baseline(model):
+        raise ParameterError(f"the model {model.path} is not baseline-referenced (its card does not say "
+                             "needs_baseline): judge its records with rvdiag.workflows.diagnose")
     if not isinstance(base, Baseline):
         raise ParameterError(f"monitor_record needs a Baseline (rvdiag.monitoring.open_baseline), got "
                              f"{type(base).__name__}")
@@ -165,7 +168,8 @@ def monitor_record(model, rec, base: Baseline, *, output_speed: float | None = N
     if speed.get("output_speed_deg_s") is None:
         raise ParameterError(f"the record's speed is needed to find its baseline: {speed.get('error')}")
     X = x[: k * L].reshape(k, L)
-    meta = {OPERATING_COLUMNS[0]: np.full(k, float(speed["output_speed_deg_s"])), OPERATING_COLUMNS[1]: np.full(k, load)}
+    meta = {OPERATING_COLUMNS[0]: np.full(k, float(speed["output_speed_deg_s"])),
+            OPERATING_COLUMNS[1]: np.full(k, load)}
     mon = Samples(X=X, y=np.array(["?"] * k), meta=meta, index=np.arange(k))
     D, groups = paired_features(est.features, mon, bs, fs=float(rec.fs), baseline_fs=base.fs,
                                 card_tolerances=model.card.get("baseline"), where="the record")

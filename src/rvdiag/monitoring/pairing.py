@@ -77,12 +77,12 @@ def match_baseline(monitored: Mapping[str, Any], baseline: Mapping[str, Any], *,
         (a healthy store of one machine) serves every monitored sample.
     fs, baseline_fs : sampling rates of the two; refused when they differ (by more than 1e-9 relative).
     speed_tolerance, load_tolerance : float
-        Largest relative distance |v - v_b| / v_b of the speed and of the load.
+        Largest relative distance ``|v - v_b| / v_b`` of the speed and of the load.
 
     Returns
     -------
     list of int arrays, one per monitored sample: row indices into ``baseline``.  The nearest baseline sample
-    (by max(|dv| / (speed_tolerance v_b), |dL| / (load_tolerance L_b))) defines the operating point; every baseline
+    (by ``max(|dv| / (speed_tolerance v_b), |dL| / (load_tolerance L_b))``) defines the operating point; every baseline
     sample of the reducer within both tolerances of that sample's speed and load belongs to it (the run-to-run
     scatter of the records of one operating point).
 

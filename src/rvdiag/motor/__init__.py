@@ -7,7 +7,7 @@ this package holds the design side: controller gains, operating-point checks, th
 
 from rvdiag.motor.pmsm import (ControllerGains, check_operating_point, controller_gains, current_rate_ratio,
                                phase_currents, sample_current)
-from rvdiag.motor.lines import current_lines, estimate_output_speed
+from rvdiag.motor.lines import current_lines, output_speed_from_current
 
 __all__ = ["ControllerGains", "check_operating_point", "controller_gains", "current_lines", "current_rate_ratio",
-           "estimate_output_speed", "phase_currents", "sample_current"]
+           "output_speed_from_current", "phase_currents", "sample_current"]

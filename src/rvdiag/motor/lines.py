@@ -9,8 +9,12 @@ section 4 and Table 3): the supply line ``f_e`` and the lines the reducer puts a
   amplitude ``A`` on a bin reads ``A``) and its height in dB over the median of the bins 6 to 40 away on both
   sides (the local floor; Benbouzid 2000, IEEE Trans. Ind. Electron. 47(5), reads fault lines the same way,
   against the neighbouring noise).
-- :func:`estimate_output_speed`: the output speed from the strongest line, taken as ``f_e = p f1``, when the
-  file states none.
+- :func:`output_speed_from_current`: the output speed from the strongest line, taken as ``f_e = p f1``, when the
+  file states none.  One of three speed estimates of a record, each from its own signal: this one reads a
+  motor current's supply line; :func:`rvdiag.io.angles.estimate_shaft_speed` a vibration's stage-1 mesh line
+  (then checked by :func:`rvdiag.features.mesh_lines.confirm_speed`); a tachometer or encoder gives the angle
+  itself (:func:`rvdiag.io.angles.input_revolutions`).  All turn an input-shaft frequency into the output speed by
+  :func:`rvdiag.kinematics.output_speed_from_input_hz`.
 - :func:`current_lines`: every line of the table at one operating point.
 """
 
@@ -42,14 +46,20 @@ def line_height(amp: np.ndarray, df: float, f0: float) -> tuple[float, float]:
     return peak, 20.0 * math.log10(peak / floor) if peak > 0 else -math.inf
 
 
-def estimate_output_speed(x: np.ndarray, fs: float, params, min_hz: float = 2.0) -> float:
-    """Output speed (deg/s) from the strongest line of the current above ``min_hz``, taken as the supply
-    frequency ``f_e = p f1`` (it is 40-80 dB above everything else under load)."""
-    return _speed_from_spectrum(*amplitude_spectrum(x, fs), params, min_hz)
+def output_speed_from_current(x: np.ndarray, fs: float, params, min_hz: float = 2.0) -> float:
+    """Output speed (deg/s) of a motor phase current: its strongest line above ``min_hz`` taken as the supply
+    frequency ``f_e = p f1`` (it is 40-80 dB above everything else under load), at the frequency of its bin
+    (not refined: the line table reads lines at bins), then :func:`output_speed_from_fe`.
+
+    Not for a vibration record, whose strongest line is a mesh harmonic: there the speed comes from the stage-1
+    mesh line (:func:`rvdiag.io.angles.estimate_shaft_speed`).  The per-window supply frequency of the current
+    features, :func:`rvdiag.features.current.electrical_frequency`, reads the same line but refined between bins
+    (Grandke 1983) and from 3 bins up, in cycles per sample: the two agree within half a bin."""
+    return _output_speed_from_supply_peak(*amplitude_spectrum(x, fs), params, min_hz)
 
 
-def _speed_from_spectrum(f: np.ndarray, amp: np.ndarray, params, min_hz: float = 2.0) -> float:
-    """:func:`estimate_output_speed` on an amplitude spectrum already taken."""
+def _output_speed_from_supply_peak(f: np.ndarray, amp: np.ndarray, params, min_hz: float = 2.0) -> float:
+    """:func:`output_speed_from_current` on an amplitude spectrum already taken."""
     keep = f >= min_hz
     fe = peak_frequency(f, amp, min_hz, refine=False)
     if fe is None or not np.isfinite(amp[keep]).all() or amp[keep].max() <= 0:
@@ -60,8 +70,11 @@ def _speed_from_spectrum(f: np.ndarray, amp: np.ndarray, params, min_hz: float =
 
 def output_speed_from_fe(fe: float, params) -> float:
     """The output speed (deg/s) at which the supply frequency is ``fe`` Hz: ``f_e = p f1`` (``p`` pole pairs,
-    ``f1`` the input shaft's rotation frequency), the output turning ``1 / ratio`` as fast."""
-    return fe / params.operation.motor_pole_pairs / params.ratio * 360.0
+    ``f1`` the input shaft's rotation frequency, :func:`rvdiag.kinematics.characteristic_frequencies`), the output
+    turning ``1 / ratio`` as fast (:func:`rvdiag.kinematics.output_speed_from_input_hz`)."""
+    from rvdiag.kinematics import output_speed_from_input_hz
+
+    return output_speed_from_input_hz(params, fe / params.operation.motor_pole_pairs)
 
 
 def line_frequencies(fr) -> dict[str, float]:
@@ -97,7 +110,7 @@ def current_lines(x: np.ndarray, fs: float, params, output_speed_deg_s: float | 
     f, amp = amplitude_spectrum(x, fs)
     source = "given"
     if output_speed_deg_s is None:
-        output_speed_deg_s, source = _speed_from_spectrum(f, amp, params), "strongest line taken as f_e"
+        output_speed_deg_s, source = _output_speed_from_supply_peak(f, amp, params), "strongest line taken as f_e"
     fr = characteristic_frequencies(params, output_speed_deg_s=output_speed_deg_s)
     wanted = line_frequencies(fr)
     df = float(f[1] - f[0])

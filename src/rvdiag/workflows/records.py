@@ -151,9 +151,9 @@ FLAT_FRACTION = 1e-9
 
 
 def fault_name(c: str) -> str | None:
-    """``broken tooth`` for ``T2``: the words for a state of :data:`rvdiag.gears.faults.STATES`; None for other
+    """``broken tooth`` for ``T2``: the words for a state of :data:`rvdiag.gears.faults.FAULT_KINDS`; None for other
     classes."""
-    from rvdiag.gears.faults import STATES
+    from rvdiag.gears.faults import FAULT_KINDS as STATES
 
     names = {"healthy": "healthy", "broken": "broken tooth", "wear": "wear", "crack": "root crack",
              "broken+wear": "broken tooth + wear", "broken+wear+crack": "broken tooth + wear + root crack"}

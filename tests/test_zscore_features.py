@@ -1,4 +1,4 @@
-"""Healthy-baseline z-scores (:mod:`rvdiag.features.baseline`, feature sets ``tsa-ci-z`` / ``tsa-mod-z``): an offset
+"""Healthy-baseline z-scores (:mod:`rvdiag.features.zscore`, feature sets ``tsa-ci-z`` / ``tsa-mod-z``): an offset
 that depends on the operating point hides a fault from the raw feature and not from the z-scores; thin bins
 borrow from their neighbours; the model survives save and load; ``rvdiag train`` takes the name."""
 
@@ -11,7 +11,7 @@ import pytest
 
 from rvdiag.errors import ParameterError
 from rvdiag.features import make_features
-from rvdiag.features.baseline import HealthyBaselineFeatures
+from rvdiag.features.zscore import HealthyBaselineFeatures
 from rvdiag.features.timedomain import TimeDomainFeatures
 from rvdiag.models.pipelines import load_classical, make_classical_model, save_classical
 
@@ -141,3 +141,35 @@ def test_rvdiag_train_takes_tsa_ci_z(tmp_path, capsys):
     code, out, err = run_cli(["evaluate", tmp_path / "m", store, "--json", "-q"], capsys)
     assert code == 0, err
     assert json.loads(out)["n_samples"] == 12
+
+
+def test_a_model_saved_before_the_move_to_zscore_still_loads(tmp_path):
+    """features/baseline.py became features/zscore.py: a model.skops written before names the old module, and
+    loads through rvdiag.registry.MOVED_TYPES (no module is left at the old path)."""
+    import importlib.util
+    import io
+    import zipfile
+
+    import skops.io as sio
+
+    from rvdiag.registry import MOVED_TYPES, TRUSTED_TYPES
+
+    X, y = _tsa_windows()
+    p = make_classical_model("svm", "tsa-ci-z", features_kw={"fs": FS, "speed_column": "output_speed_deg_s",
+                                                            "min_count": 8}).fit(X, y)
+    save_classical(p, tmp_path / "m")
+    f = tmp_path / "m" / "model.skops"
+    src, out = zipfile.ZipFile(io.BytesIO(f.read_bytes())), io.BytesIO()
+    with zipfile.ZipFile(out, "w") as dst:  # the file as the module's old home wrote it
+        for info in src.infolist():
+            body = src.read(info)
+            if info.filename == "schema.json":
+                body = body.replace(b'"rvdiag.features.zscore"', b'"rvdiag.features.baseline"')
+            dst.writestr(info, body)
+    f.write_bytes(out.getvalue())
+    old = "rvdiag.features.baseline.HealthyBaselineFeatures"
+    assert old in sio.get_untrusted_types(data=f.read_bytes()) and old not in TRUSTED_TYPES
+    assert MOVED_TYPES[old] in TRUSTED_TYPES and importlib.util.find_spec("rvdiag.features.baseline") is None
+    q = load_classical(tmp_path / "m")
+    assert type(q.steps[0][1]) is HealthyBaselineFeatures
+    np.testing.assert_array_equal(q.predict(X), p.predict(X))

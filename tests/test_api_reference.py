@@ -1,0 +1,36 @@
+"""The API reference (docs/api, ``make docs``) covers every package of rvdiag but the command line."""
+
+from __future__ import annotations
+
+import ast
+
+from conftest import REPO
+
+#: packages the reference leaves out: the command line is documented by ``rvdiag --help`` and docs/
+NOT_IN_REFERENCE = {"cli", "configs"}
+
+
+def _listed() -> list[str]:
+    tree = ast.parse((REPO / "docs" / "api" / "conf.py").read_text())
+    node = next(n for n in tree.body if isinstance(n, ast.AnnAssign | ast.Assign)
+                and "PACKAGES" in ast.unparse(n).split("=")[0])
+    return [name for name, _ in ast.literal_eval(node.value)]
+
+
+def test_every_package_is_in_the_reference():
+    packages = {p.parent.name for p in (REPO / "src" / "rvdiag").glob("*/__init__.py")}
+    listed = _listed()
+    assert len(listed) == len(set(listed))
+    assert packages - NOT_IN_REFERENCE <= set(listed), sorted(packages - NOT_IN_REFERENCE - set(listed))
+    assert "errors" in listed  # the exceptions a caller catches
+
+
+def test_doctests_are_collected_from_the_package():
+    """``make test`` runs the docstring examples: pytest's testpaths hold src/rvdiag, and the root conftest.py
+    collects the modules with an example."""
+    import tomllib
+
+    options = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["pytest"]["ini_options"]
+    assert "src/rvdiag" in options["testpaths"]
+    assert {"ELLIPSIS", "NUMBER"} <= set(options["doctest_optionflags"].split())
+    assert "DoctestModule" in (REPO / "conftest.py").read_text()
