@@ -51,3 +51,16 @@ def test_the_demo_prints_healthy_recall_and_the_crack_free_decision_with_its_rea
 def test_without_the_merge_only_the_six_states_are_printed():
     lines = _demo().summary_lines(_metrics(merge=False))
     assert len(lines) == 2 and "healthy recall 50.0 %" in lines[0]
+
+
+def test_the_demo_prints_the_prediction_sets_per_state():
+    from rvdiag.models.conformal import set_metrics
+
+    m = _metrics(merge=False)
+    inside = np.zeros((60, 6), bool)
+    inside[np.arange(60), np.repeat(np.arange(6), 10)] = True
+    inside[:10, 3] = True  # the healthy samples' sets also hold T4
+    m["sets"] = set_metrics(inside, np.repeat(LABELS, 10), LABELS, {c: 0.95 if c == "T1" else 0.9 for c in LABELS})
+    lines = _demo().summary_lines(m)
+    assert len(lines) == 3 and lines[2].startswith("prediction sets: coverage 100.0 % (stated 90.8 %), mean size 1.17")
+    assert "T1 100.0 % of 95 % (size 2.00)" in lines[2]

@@ -62,7 +62,7 @@ def test_indices_where(store):
 def test_train_and_evaluate_where_and_merge(store, tmp_path, capsys):
     out = tmp_path / "m"
     code, _, err = run_cli(["train", store, "--model", "svm", "--features", "spectrum", "--where", "simulation<2",
-                            "-o", out], capsys)
+                            "--calibration-fraction", "0", "-o", out], capsys)
     assert code == 0, err
     assert "32 training samples" in err  # 4 classes x 2 simulations x 4 windows
     card = json.loads((out / "card.json").read_text())

@@ -136,9 +136,16 @@ def _print(res: dict) -> None:
     con.print(t)
     p = res["probabilities"][res["diagnosis"]]
     recall = res.get("model_recall")
-    con.print(f"diagnosis: [bold]{res['state']}[/bold] (mean probability {p:.3f} over {res['n_windows']} windows"
+    several = bool(res.get("set")) and res.get("set_state") is None
+    if several:  # the answer is the set; the single most probable state is not one the model can stand behind
+        con.print(f"diagnosis: [bold]{res['set_text']}[/bold]", soft_wrap=True)
+    con.print(f"{'most probable' if several else 'diagnosis'}: [bold]{res['state']}[/bold] (mean probability "
+              f"{p:.3f} over {res['n_windows']} windows"
               + ("" if recall is None else f"; the model recognises {100 * recall:.0f} % of its held-out "
                                            f"{res['diagnosis']} samples") + ")", soft_wrap=True)
+    if not several:
+        con.print(f"prediction set: [bold]{res['set_text']}[/bold]" if res.get("set_text") else res.get("set_note"),
+                  soft_wrap=True)
     if res.get("current_lines"):
         cl = res["current_lines"]
         lt = Table(title=f"motor-current lines (output speed {cl['output_speed_deg_s']:.4g} deg/s from "

@@ -24,7 +24,8 @@ def register(app: typer.Typer) -> None:
         data: Path = typer.Argument(..., help="Sample store (.zarr) to score."),
         split: str = typer.Option("test", "--split", help="test | train | all (or any split of the store)."),
         json_out: bool = opt.json_flag("Print accuracy, precision_macro, recall_macro, f1_macro, kappa, "
-                                       "per_class, confusion as JSON."),
+                                       "per_class, confusion and the prediction sets (sets: stated_coverage, "
+                                       "coverage, mean_size, per_state) as JSON."),
         report: Path = typer.Option(None, "--report", help="Write a self-contained HTML report here."),
         by: str = typer.Option(None, "--by",
                                help="Also give the accuracy per value/bin of a metadata column, e.g. noise_snr_db "
@@ -97,6 +98,7 @@ def register(app: typer.Typer) -> None:
             typer.echo(json.dumps(res.to_dict(), indent=2))
         else:
             _print(ev, loaded, data)
+            typer.echo(sets_line(res.sets, res.sets_note))
             if res.merged is not None:
                 typer.echo(f"merged {','.join(f'{a}={b}' for a, b in merge_map.items())}: {headline(res.merged)}; "
                            + ", ".join(f"{c} recall {100 * v['recall']:.1f} %"
@@ -111,6 +113,16 @@ def register(app: typer.Typer) -> None:
             typer.echo(f"report: {report.resolve()}", err=json_out)
         if plot is not None:
             typer.echo(f"plot: {plot.resolve()}", err=json_out)
+
+
+def sets_line(sets: dict | None, note: str | None) -> str:
+    """The prediction sets' coverage and size in one line, per state; or why there are none."""
+    if sets is None:
+        return note or "no prediction sets"
+    per = "; ".join(f"{c} {100 * v['coverage']:.1f} % of {100 * v['stated_coverage']:g} % (size {v['mean_size']:.2f})"
+                    for c, v in sets["per_state"].items())
+    return (f"prediction sets: coverage {100 * sets['coverage']:.1f} % (stated {100 * sets['stated_coverage']:.1f} %), "
+            f"mean size {sets['mean_size']:.2f}, {100 * sets['singletons']:.1f} % of one state; per state: {per}")
 
 
 def _monitor(loaded, data, split, where, baseline, json_out, merge, others: dict) -> bool:

@@ -20,6 +20,15 @@ class.
 cracked) instead of one six-class classifier and decodes each sample to the state of largest joint probability
 (:mod:`rvdiag.models.multilabel`); the model still predicts T1..T6.
 
+Prediction sets (:mod:`rvdiag.models.conformal`): ``--calibration split`` (default) holds
+``--calibration-fraction`` (0.2) of each state's training reducers (metadata column ``unit``) out of the fit and
+calibrates class-conditional conformal sets on them; ``--calibration cross`` scores every training reducer by a
+model fitted on the other ``--calibration-folds`` (3) folds of reducers and keeps the model fitted on all (K more
+fits).  Stated coverage ``--healthy-coverage`` (0.95) for the healthy state, ``--fault-coverage`` (0.90) for each
+fault; the card's ``prediction_sets`` holds the thresholds and where they came from, and ``evaluate`` /
+``diagnose`` give the sets.  There are none (the card says why) where a state would get fewer calibration samples
+than its coverage needs (19 for 95 %, 9 for 90 %), or with ``--calibration-fraction 0``.
+
 ``--streaming`` (CNN models) reads the training samples from the store a block at a time instead of loading the
 split (:mod:`rvdiag.models.streaming`): memory stays flat whatever the library's size.  A CNN streams without being
 asked when its training split's signals exceed 2 GiB (``--no-streaming`` loads it anyway); smaller stores train in
@@ -42,7 +51,8 @@ from rvdiag.cli import _options as opt
 from rvdiag.cli._progress import bar_columns, progress_bars, stderr_console
 from rvdiag.errors import ParameterError
 from rvdiag.registry import CLASSICAL_MODELS, CNN_MODELS, OLD_MODEL_NAMES, RECOMMENDED_TRAINING
-from rvdiag.workflows.training import check_class_counts
+from rvdiag.models.conformal import FAULT_COVERAGE, HEALTHY_COVERAGE
+from rvdiag.workflows.training import DEFAULT_CALIBRATION_FRACTION, check_class_counts
 
 #: Python parameters of :class:`rvdiag.models.torch_estimator.CNNClassifier` -> the options that set them.
 CNN_OPTION_NAMES = {"max_epochs": "--epochs", "batch_size": "--batch-size", "n_iter_no_change": "--patience",
@@ -158,6 +168,20 @@ def register(app: typer.Typer) -> None:
         alpha: float = typer.Option(None, "--alpha",
                                     help="baseline-monitor: the alarm's false-alarm rate per healthy record "
                                          "(default 0.01; docs/monitoring.md)."),
+        calibration: str = typer.Option(
+            "split", "--calibration",
+            help="How the prediction sets are calibrated: split (hold --calibration-fraction of the reducers out of "
+                 "the fit) | cross (score every training reducer by a model fitted on the other "
+                 "--calibration-folds folds, then fit on all: K more fits, no reducer lost; docs/models.md)."),
+        calibration_folds: int = typer.Option(3, "--calibration-folds", help="--calibration cross: folds of reducers."),
+        calibration_fraction: float = typer.Option(
+            DEFAULT_CALIBRATION_FRACTION, "--calibration-fraction",
+            help="Share of each state's training reducers (metadata column unit) held out of the fit to calibrate "
+                 "the prediction sets (--calibration split; docs/models.md); 0: no sets."),
+        healthy_coverage: float = typer.Option(HEALTHY_COVERAGE, "--healthy-coverage",
+                                               help="Stated coverage of the healthy state (T1) in the sets."),
+        fault_coverage: float = typer.Option(FAULT_COVERAGE, "--fault-coverage",
+                                             help="Stated coverage of each fault state in the sets."),
     ) -> None:
         """Train a classifier on the train split of a store and save it as a model directory.
 
@@ -186,7 +210,9 @@ def register(app: typer.Typer) -> None:
                               representation=representation, snr_db=snr_db, bearing_geometry=bearing_geometry,
                               rpm_column=rpm_column, speed_column=speed_column, conditions=conditions or (),
                               streaming=streaming, multilabel=multilabel, echo=echo,
-                              fit=functools.partial(_fit, quiet=quiet or json_out))
+                              fit=functools.partial(_fit, quiet=quiet or json_out), calibration=calibration,
+                              calibration_folds=calibration_folds, calibration_fraction=calibration_fraction,
+                              healthy_coverage=healthy_coverage, fault_coverage=fault_coverage)
         if json_out:
             typer.echo(json.dumps(res.to_dict(), indent=2))
             return

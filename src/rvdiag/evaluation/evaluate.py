@@ -25,6 +25,8 @@ class Evaluation:
     X : ndarray, the evaluated samples
     meta : dict of metadata columns of the evaluated samples
     warnings : list of str (fs mismatch...)
+    sets, sets_note : the prediction sets' metrics, or why there are none (:func:`set_metrics_of` fills them)
+    proba : ndarray (n, k) or None, the class probabilities (kept for a model with a prediction-set calibration)
     """
 
     metrics: dict
@@ -34,6 +36,9 @@ class Evaluation:
     meta: dict
     split: str
     warnings: list[str] = field(default_factory=list)
+    sets: dict | None = None
+    sets_note: str | None = None
+    proba: np.ndarray | None = None
 
 
 def check_store_matches(card: dict, store) -> list[str]:
@@ -86,10 +91,16 @@ def evaluate_on_store(loaded, store, split: str = "test", where=()) -> Evaluatio
         raise ModelFileError(f"the split {split!r} of {store.path} is empty"
                              + (f" where {' and '.join(where)}" if where else ""))
     X = loaded.inputs(s.X, s.meta, where=f"the store {store.path}")
-    y_pred = predict_in_chunks(loaded.estimator, X).astype(str)
+    proba = None
+    if loaded.card.get("prediction_sets") and hasattr(loaded.estimator, "predict_proba"):
+        # one pass gives the prediction sets too: every rvdiag classifier predicts the argmax of predict_proba
+        proba = predict_in_chunks(loaded.estimator, X, method="predict_proba").astype(float)
+        y_pred = np.asarray(loaded.estimator.classes_)[proba.argmax(axis=1)].astype(str)
+    else:
+        y_pred = predict_in_chunks(loaded.estimator, X).astype(str)
     y_true = np.asarray(s.y).astype(str)
     m = classification_metrics(y_true, y_pred, labels=[str(c) for c in loaded.card["classes"]])
-    return Evaluation(m, y_true, y_pred, s.X, s.meta, split, warnings)
+    return Evaluation(m, y_true, y_pred, s.X, s.meta, split, warnings, proba=proba)
 
 
 def _level_key(level: float) -> int:
@@ -204,10 +215,36 @@ def report_html(loaded, store, ev: Evaluation, max_tsne: int = 600, seed: int = 
         "config": store.attrs.get("config"), "config_hash": store.attrs.get("config_hash"),
     }
     title = f"rvdiag evaluation: {loaded.card.get('model')} on {Path(store.path).name} ({ev.split})"
+    sets, sets_note = set_metrics_of(loaded, ev)
     return render_report(title=title, metrics=ev.metrics, card=loaded.card, store_info=store_info,
                          examples=examples, fs=store.fs, frequencies=freqs, embedding=emb,
                          embedding_labels=ev.y_true[pick], notes=notes,
-                         indicators=indicators_by_class(ev, store.fs, seed=seed, notes=notes))
+                         indicators=indicators_by_class(ev, store.fs, seed=seed, notes=notes),
+                         sets=sets, sets_note=sets_note)
+
+
+def set_metrics_of(loaded, ev: Evaluation) -> tuple[dict | None, str | None]:
+    """The prediction sets' coverage and size on the evaluated samples (``rvdiag evaluate --json`` key ``sets``:
+    :func:`rvdiag.models.conformal.set_metrics` with ``calibration``, where the model's calibration came from), and
+    None; or None and why there are none (a model trained before rvdiag stored a calibration, or trained with
+    ``--calibration-fraction 0``).  Computed once per evaluation and kept on it."""
+    from rvdiag.models import conformal
+
+    if ev.sets is not None or ev.sets_note is not None:
+        return ev.sets, ev.sets_note
+    ps = conformal.from_card(loaded.card)
+    if ps is None:
+        ev.sets_note = (f"no prediction sets: {loaded.card['prediction_sets_note']}"
+                        if loaded.card.get("prediction_sets_note") else conformal.NOT_CALIBRATED)
+        return None, ev.sets_note
+    P = ev.proba
+    if P is None:
+        X = loaded.inputs(ev.X, ev.meta, where="the evaluated samples")
+        P = predict_in_chunks(loaded.estimator, X, method="predict_proba").astype(float)
+    ev.sets = {**conformal.set_metrics(ps.contains(P), ev.y_true, ps.classes, ps.coverage),
+               "calibration": {"n_calibration": ps.n_calibration, "n_reducers": ps.n_groups,
+                               "method": ps.source.get("method"), "refit": ps.source.get("refit")}}
+    return ev.sets, None
 
 
 def merged_metrics(ev: Evaluation, merge: dict[str, str], labels) -> dict:

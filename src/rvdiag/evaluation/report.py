@@ -123,11 +123,31 @@ def characteristic_frequencies_for(store_attrs: Mapping[str, Any], meta: Mapping
     return None
 
 
+def sets_section(sets: Mapping[str, Any] | None, note: str | None) -> str:
+    """The section "Prediction sets": per state, the stated coverage, the share of its samples whose set holds it
+    and the mean set size (:mod:`rvdiag.models.conformal`); or why there are none."""
+    head = "<h2>Prediction sets</h2>"
+    if sets is None:
+        return head + f"<p class='muted'>{html.escape(note or 'no prediction sets')}</p>"
+    rows = "".join(
+        f"<tr class='{'bad' if v['coverage'] < v['stated_coverage'] - 0.03 else ''}'><td>{html.escape(c)}</td>"
+        f"<td>{_pct(v['stated_coverage'])}</td><td>{_pct(v['coverage'])}</td><td>{v['mean_size']:.2f}</td>"
+        f"<td>{v['n']}</td></tr>" for c, v in sets["per_state"].items())
+    return (head + "<table><tr><th>state</th><th>stated coverage</th><th>coverage</th><th>mean set size</th>"
+            f"<th>samples</th></tr>{rows}<tr><td><b>all</b></td><td>{_pct(sets['stated_coverage'])}</td>"
+            f"<td>{_pct(sets['coverage'])}</td><td>{sets['mean_size']:.2f}</td><td>{sets['n']}</td></tr></table>"
+            "<p class='muted'>Each sample gets the set of states the model cannot rule out (class-conditional "
+            "split-conformal, calibrated on training reducers held out of the fit). Coverage: the share of a "
+            "state's samples whose set holds that state; red: more than 3 points below the stated coverage. "
+            f"{_pct(sets['singletons'])} of the sets name one state.</p>")
+
+
 def render_report(*, title: str, metrics: Mapping[str, Any], card: Mapping[str, Any],
                   store_info: Mapping[str, Any], examples: Mapping[str, np.ndarray] | None = None,
                   fs: float | None = None, frequencies: Mapping[str, float] | None = None,
                   embedding: np.ndarray | None = None, embedding_labels=None, notes: Sequence[str] = (),
-                  indicators: Mapping[str, Any] | None = None) -> str:
+                  indicators: Mapping[str, Any] | None = None, sets: Mapping[str, Any] | None = None,
+                  sets_note: str | None = None) -> str:
     """The report as an HTML string.
 
     Parameters
@@ -144,6 +164,8 @@ def render_report(*, title: str, metrics: Mapping[str, Any], card: Mapping[str, 
         listed in the "Caveats" section before the library config and announced under the title
     indicators : the gear condition indicators per class, from
         :func:`rvdiag.evaluation.evaluate.indicators_by_class` (section "Gear condition indicators")
+    sets, sets_note : the prediction sets' coverage and size (:func:`rvdiag.evaluation.evaluate.set_metrics_of`),
+        or None and the reason there are none (section "Prediction sets")
     """
     labels = metrics["labels"]
     parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
@@ -181,6 +203,7 @@ def render_report(*, title: str, metrics: Mapping[str, Any], card: Mapping[str, 
                  "papers' per-state accuracy). Rows: green &ge; 99 %, red &lt; 90 %.</p></div>"
                  f"<div>{_img(cm_png, 'confusion matrix')}<p class='muted'>Rows: true state; columns: "
                  "diagnosis; shading: share of the row.</p></div></div>")
+    parts.append(sets_section(sets, sets_note))
     parts.append(limits_section(card, metrics, store_info))
     if embedding is not None and len(embedding):
         png = plots.figure_to_base64(plots.plot_tsne(embedding, embedding_labels))

@@ -65,27 +65,10 @@ from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.utils.validation import check_is_fitted
 
 from rvdiag.errors import ParameterError
+from rvdiag.models.conformal import conformal_rank, conformal_threshold
 
 DETECTORS = ("ledoit-wolf", "elliptic-envelope")
 CALIBRATIONS = ("cv+", "split")
-
-
-def conformal_threshold(scores, alpha: float) -> float:
-    """The split-conformal threshold of calibration ``scores`` for a false-alarm rate ``alpha``: their
-    ceil((n + 1)(1 - alpha))-th smallest value (Lei et al. 2018, Eq. 2); ``inf`` when that exceeds n (too few
-    calibration records for this ``alpha``: no alarm can be guaranteed below it).
-
-    >>> conformal_threshold(np.arange(1.0, 100.0), 0.01)  # n = 99: the 99th smallest
-    99.0
-    """
-    s = np.sort(np.asarray(scores, dtype=np.float64).ravel())
-    k = conformal_rank(s.size, alpha)
-    return float(s[k - 1]) if 1 <= k <= s.size else math.inf
-
-
-def conformal_rank(n: int, alpha: float) -> int:
-    """ceil((n + 1)(1 - alpha)), the rank of the conformal quantile among n calibration scores (> n: too few)."""
-    return math.ceil((int(n) + 1) * (1.0 - float(alpha)) - 1e-9)
 
 
 class BaselineMonitor(ClassifierMixin, BaseEstimator):

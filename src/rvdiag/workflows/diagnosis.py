@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from rvdiag.errors import DataFileError, ParameterError
-from rvdiag.workflows.records import SPEED_META, flat_reason, recognition, record_speed, state_name
+from rvdiag.workflows.records import SPEED_META, fault_name, flat_reason, recognition, record_speed, state_name
 
 
 @dataclass
@@ -35,6 +35,9 @@ class Diagnosis:
     ``reason``), ``state`` its name, ``probabilities`` the windows' mean probabilities, ``windows`` each window's
     start, prediction and probabilities, ``model_recall`` the model's held-out recall of the answer, ``warnings`` the
     lines that qualify it; ``indicators`` (vibration) or ``current_lines`` (motor current) describe the signal.
+    ``set`` is the prediction set (the states the model cannot rule out, most probable first; :func:`record_set`),
+    ``set_coverage`` its stated coverage, ``set_state`` the one state when the set has one, ``set_text`` the set in
+    words; a model without a calibration leaves them None and says why in ``set_note``.
     """
 
     diagnosis: str | None = None
@@ -62,6 +65,12 @@ class Diagnosis:
     channel: str | None = None
     model: str | None = None
     signal: str = "vibration"
+    set: list[str] | None = None
+    set_coverage: float | None = None
+    set_coverage_per_state: dict | None = None
+    set_state: str | None = None
+    set_text: str | None = None
+    set_note: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready values (``rvdiag diagnose --json``): the keys of the signal's kind only (indicators or current
@@ -243,6 +252,32 @@ def trust_warnings(loaded, res: dict, speed: dict, load: float | None, fs: float
     return out
 
 
+def record_set(loaded, res: dict) -> dict:
+    """The prediction set of the record (:mod:`rvdiag.models.conformal`, applied to the windows' mean probability,
+    as the diagnosis is) and of each window (``windows[i]["set"]``): ``set`` (the states, most probable first),
+    ``set_coverage`` (the smallest stated coverage of the model's states: the set holds the true state at least this
+    often, whatever it is), ``set_coverage_per_state``, ``set_state`` (the one state when the set has one, else
+    None), ``set_text`` (in words); or those None and ``set_note`` (no calibration, or a record not recognised)."""
+    from rvdiag.models import conformal
+
+    ps = conformal.from_card(loaded.card)
+    empty = {"set": None, "set_coverage": None, "set_coverage_per_state": None, "set_state": None,
+             "set_text": None}
+    if ps is None:
+        note = (f"no prediction set: {loaded.card['prediction_sets_note']}" if loaded.card.get("prediction_sets_note")
+                else conformal.NOT_CALIBRATED)
+        return {**empty, "set_note": note}
+    if res.get("probabilities") is None:
+        return {**empty, "set_note": "no prediction set: the record is not recognised"}
+    states = ps.prediction_set([res["probabilities"][c] for c in ps.classes])[0]
+    cover = min(ps.coverage.values())
+    for w in res["windows"]:
+        w["set"] = ps.prediction_set([w["probabilities"][c] for c in ps.classes])[0]
+    return {"set": states, "set_coverage": cover, "set_coverage_per_state": dict(ps.coverage),
+            "set_state": states[0] if len(states) == 1 else None,
+            "set_text": conformal.describe_set(states, cover, lambda c: fault_name(c) or c), "set_note": None}
+
+
 def build_diagnosis(loaded, sig, values: dict, *, is_current: bool, output_speed: float | None = None,
                     load: float | None = None) -> dict:
     """The whole answer of ``rvdiag diagnose`` for one record (the dict of ``--json``), apart from its printing:
@@ -276,6 +311,7 @@ def build_diagnosis(loaded, sig, values: dict, *, is_current: bool, output_speed
     else:
         res["state"] = state_name(res["diagnosis"])
         res["model_recall"] = class_limits(loaded.card.get("metrics")).get("recall", {}).get(res["diagnosis"])
+    res.update(record_set(loaded, res))
     res["operating_point"] = {"output_speed_deg_s": speed.get("output_speed_deg_s"),
                               "speed_source": speed.get("detail") or speed.get("error"), "load_Nm": load}
     res["warnings"] += trust_warnings(loaded, res, speed, load, sig.fs, x)
@@ -342,4 +378,4 @@ def diagnose(model, record, *, output_speed: float | None = None, load: float | 
 
 
 __all__ = ["Diagnosis", "build_diagnosis", "diagnose", "diagnose_signal", "file_current_lines", "file_indicators",
-           "is_current_model", "model_metadata", "read_model_record", "trust_warnings"]
+           "is_current_model", "model_metadata", "read_model_record", "record_set", "trust_warnings"]

@@ -19,7 +19,9 @@ from rvdiag.errors import ParameterError
 @dataclass
 class Evaluation:
     """A classifier scored on a split (:func:`evaluate`); :meth:`to_dict` is what ``rvdiag evaluate --json`` prints:
-    the ``metrics`` with ``by``, ``merged``, ``records``, ``snr`` and ``bound`` where they were asked for."""
+    the ``metrics`` with ``by``, ``merged``, ``records``, ``snr`` and ``bound`` where they were asked for, and
+    ``sets`` (the prediction sets: ``stated_coverage``, ``coverage``, ``mean_size``, ``per_state``; null with
+    ``sets_note`` for a model without a calibration)."""
 
     metrics: dict
     split: str
@@ -29,6 +31,10 @@ class Evaluation:
     snr: list[dict] | None = None
     bound: list[dict] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    #: the prediction sets' coverage and size (:func:`rvdiag.evaluation.evaluate.set_metrics_of`), or None with
+    #: ``sets_note`` saying why (a model trained without a calibration)
+    sets: dict | None = None
+    sets_note: str | None = None
     #: the per-sample evaluation (:class:`rvdiag.evaluation.evaluate.Evaluation`), for a report
     details: Any = field(default=None, repr=False, compare=False)
 
@@ -45,6 +51,9 @@ class Evaluation:
             out["snr"] = self.snr
         if self.bound:
             out["bound"] = self.bound
+        out["sets"] = self.sets
+        if self.sets is None:
+            out["sets_note"] = self.sets_note
         return out
 
     def plot(self, ax=None, title: str = ""):
@@ -120,7 +129,7 @@ def evaluate(model, data, *, split: str = "test", where: Sequence[str] = (), by:
     """
     from rvdiag.datasets import SampleStore
     from rvdiag.evaluation.evaluate import (accuracy_against_snr, accuracy_by, evaluate_on_store, merged_metrics,
-                                            record_metrics)
+                                            record_metrics, set_metrics_of)
 
     store = data if isinstance(data, SampleStore) else SampleStore.open(data)
     ev = evaluate_on_store(model, store, split, list(where or ()))
@@ -128,9 +137,11 @@ def evaluate(model, data, *, split: str = "test", where: Sequence[str] = (), by:
     curve = accuracy_against_snr(model, ev, list(snr_db), seed) if snr_db else None
     merged = merged_metrics(ev, merge, model.card["classes"]) if merge else None
     by_record = record_metrics(model, ev, "unit", merge) if records else None
+    sets, sets_note = set_metrics_of(model, ev)
     return Evaluation(metrics=dict(ev.metrics), split=ev.split,
                       by=None if groups is None else {"column": by, "groups": groups}, merged=merged,
-                      records=by_record, snr=curve, bound=list(bounds), warnings=list(ev.warnings), details=ev)
+                      records=by_record, snr=curve, bound=list(bounds), warnings=list(ev.warnings), sets=sets,
+                      sets_note=sets_note, details=ev)
 
 
 __all__ = ["Evaluation", "evaluate", "parse_merge", "read_bound"]

@@ -150,15 +150,22 @@ def record_speed(sig, meta: dict[str, float] | None = None, params=None) -> dict
 FLAT_FRACTION = 1e-9
 
 
-def state_name(c: str) -> str:
-    """``T2 (broken tooth)``: a state with its fault's name (:data:`rvdiag.gears.faults.STATES`); other classes as
-    they are."""
+def fault_name(c: str) -> str | None:
+    """``broken tooth`` for ``T2``: the words for a state of :data:`rvdiag.gears.faults.FAULT_KINDS`; None for other
+    classes."""
     from rvdiag.gears.faults import FAULT_KINDS as STATES
 
     names = {"healthy": "healthy", "broken": "broken tooth", "wear": "wear", "crack": "root crack",
              "broken+wear": "broken tooth + wear", "broken+wear+crack": "broken tooth + wear + root crack"}
     kind = STATES.get(str(c))
-    return str(c) if kind is None else f"{c} ({names.get(kind, kind)})"
+    return None if kind is None else names.get(kind, kind)
+
+
+def state_name(c: str) -> str:
+    """``T2 (broken tooth)``: a state with its fault's name (:data:`rvdiag.gears.faults.STATES`); other classes as
+    they are."""
+    name = fault_name(c)
+    return str(c) if name is None else f"{c} ({name})"
 
 
 def flat_reason(x: np.ndarray, L: int) -> str | None:

@@ -20,8 +20,13 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from rvdiag.errors import ParameterError, StoreError
+from rvdiag.models.conformal import FAULT_COVERAGE, HEALTHY_COVERAGE
 from rvdiag.registry import CLASSICAL_MODELS, CNN_MODELS, RECOMMENDED_TRAINING
 from rvdiag.workflows.training_store import signal_info, training_store_info
+
+#: share of each state's training reducers held out of the fit to calibrate the prediction sets (``--calibration
+#: split``)
+DEFAULT_CALIBRATION_FRACTION = 0.2
 
 
 @dataclass
@@ -73,12 +78,23 @@ def train(data, out, *, model: str | None = None, features: str | None = None,
           snr_db: float | None = None, bearing_geometry: str | None = None, rpm_column: str = "rpm",
           speed_column: str = "output_speed_deg_s", conditions: Sequence[str] = (), streaming: bool | None = None,
           multilabel: bool = False, echo: Callable[[str], None] | None = None,
-          fit: Callable[..., None] | None = None) -> TrainResult:
+          fit: Callable[..., None] | None = None, calibration: str = "split", calibration_folds: int = 3,
+          calibration_fraction: float = DEFAULT_CALIBRATION_FRACTION, healthy_coverage: float = HEALTHY_COVERAGE,
+          fault_coverage: float = FAULT_COVERAGE) -> TrainResult:
     """Train a classifier on the ``train`` split of the store ``data`` and save it to the directory ``out`` (module
     docstring).  The keywords are those of ``rvdiag train`` (``conditions``: its ``--where``); ``echo`` gets the
     progress lines (default: none), ``fit(est, X, y, label, groups=, source=)`` fits one estimator (default
     :func:`fit_plain`; the command line's draws progress bars).  ``out`` is written whole (replaced if it exists:
     refuse an existing one before calling).
+
+    Prediction sets (:mod:`rvdiag.models.conformal`; card ``prediction_sets``): ``calibration="split"`` holds
+    ``calibration_fraction`` of each state's training reducers (metadata column ``unit``) out of the fit and
+    calibrates on them; ``"cross"`` scores every training reducer by a model fitted on the other
+    ``calibration_folds`` folds of reducers and applies the thresholds to the model fitted on all (K more fits, no
+    reducer lost; measured better on the demo: bench/HISTORY.md).  Stated coverage ``healthy_coverage`` for the
+    healthy state, ``fault_coverage`` for each fault.  No sets (card ``prediction_sets_note`` says why) with
+    ``calibration_fraction`` 0, without a ``unit`` column, or where a state would get fewer calibration samples than
+    its coverage needs (then nothing is held out).
 
     Raises
     ------
@@ -90,10 +106,26 @@ def train(data, out, *, model: str | None = None, features: str | None = None,
     from rvdiag.io.windows import covering_starts
     from rvdiag.models.persistence import save_model
 
+    from rvdiag.evaluation.metrics import healthy_class
+    from rvdiag.models.conformal import stated_coverages
+
     echo = echo or (lambda msg: None)
     fit = fit or fit_plain
     out = Path(out)
     check_counts(repeat, epochs)
+    if calibration not in ("split", "cross"):
+        raise ParameterError(f"--calibration must be split or cross, got {calibration!r}")
+    if calibration == "cross" and calibration_folds < 2:
+        raise ParameterError(f"--calibration-folds must be >= 2, got {calibration_folds}")
+    if not 0.0 <= calibration_fraction < 1.0:
+        raise ParameterError(f"--calibration-fraction must lie in [0, 1), got {calibration_fraction}")
+
+    def coverage_of(classes) -> dict[str, float]:
+        classes = [str(c) for c in classes]
+        return stated_coverages(classes, healthy=healthy_class(classes), healthy_coverage=healthy_coverage,
+                                fault_coverage=fault_coverage)
+
+    coverage_of([])  # the coverages are checked before any work
     model = model or RECOMMENDED_TRAINING["model"]
     new_estimator = functools.partial(build_estimator, model, features, epochs=epochs, device=device,
                                       batch_size=batch_size, lr=lr, input_length=input_length,
@@ -130,24 +162,45 @@ def train(data, out, *, model: str | None = None, features: str | None = None,
     stream = _streaming_choice(streaming, model, snr_db, store)
     where = f"the store {data}"
     if stream:
-        from rvdiag.models.streaming import DEFAULT_BUFFER_SAMPLES, StoreSamples, predict_store
+        from rvdiag.models.streaming import DEFAULT_BUFFER_SAMPLES, StoreSamples, predict_proba_store, predict_store
 
+        if calibration == "cross":
+            raise ParameterError("--calibration cross fits the folds in memory and does not combine with "
+                                 "--streaming (use --calibration split)")
         tr = StoreSamples(store, train_idx, meta_cols, where=where)
         te = StoreSamples(store, store.indices("test"), meta_cols, where=where) if "test" in store.splits() else None
-        Xtr = Xte = None
+        held, cal_note = calibration_split(tr, calibration_fraction, seed, coverage_of(store.classes))
+        cal, folds = None, None
+        if held is not None:
+            cal = StoreSamples(store, tr.index[held], meta_cols, where=where)
+            tr = StoreSamples(store, tr.index[~held], meta_cols, where=where)
+        Xtr = Xte = Xcal = None
     else:
         tr = store.load(index=train_idx) if conditions else store.load("train")
         te = store.load("test") if "test" in store.splits() else None
+        cal, folds = None, None
+        if calibration == "cross":
+            folds, cal_note = calibration_folds_of(tr, calibration_folds, seed, coverage_of(store.classes))
+        else:
+            held, cal_note = calibration_split(tr, calibration_fraction, seed, coverage_of(store.classes))
+            if held is not None:
+                tr, cal = subset(tr, ~held), subset(tr, held)
         if snr_db is not None:
             tr, te = _with_noise(tr, snr_db, [seed, 0]), (None if te is None else _with_noise(te, snr_db, [seed, 1]))
+            cal = None if cal is None else _with_noise(cal, snr_db, [seed, 3])
         Xtr = with_metadata(tr.X, tr.meta, meta_cols, where=where)
         Xte = None if te is None else with_metadata(te.X, te.meta, meta_cols, where=where)
+        Xcal = None if cal is None else with_metadata(cal.X, cal.meta, meta_cols, where=where)
     labels = [c for c in store.classes if c in set(tr.y.tolist())]
     if len(labels) < 2:
         raise StoreError(f"{data}: the train split holds fewer than 2 classes")
     echo(f"{data}: {len(tr.y)} training samples of {store.length} points, {len(labels)} classes"
          + (f", {len(te.y)} test samples" if te is not None else ", no test split")
-         + (f"; streamed from the store, {DEFAULT_BUFFER_SAMPLES} samples at a time" if stream else ""))
+         + (f"; streamed from the store, {DEFAULT_BUFFER_SAMPLES} samples at a time" if stream else "")
+         + (f"; {len(cal.y)} samples of {_n_groups(cal)} held-out training reducers calibrate the prediction sets"
+            if cal is not None else f"; every training reducer calibrates the prediction sets, scored by "
+                                    f"{calibration_folds} fold models" if folds is not None
+            else f"; no prediction sets ({cal_note})"))
 
     runs, first = [], None
     for r in range(repeat):
@@ -174,11 +227,43 @@ def train(data, out, *, model: str | None = None, features: str | None = None,
         if r == 0:
             first = (est, metrics)
     est, metrics = first
+    extra: dict = {}
+    classes = [str(c) for c in est.classes_]
+    if cal is not None:
+        from rvdiag.evaluation.evaluate import predict_in_chunks
+        from rvdiag.models.conformal import PredictionSets
+
+        P = predict_proba_store(est, cal) if stream else predict_in_chunks(est, Xcal, method="predict_proba")
+        sets = PredictionSets.calibrate(P, cal.y, classes, coverage_of(classes), groups=cal.meta["unit"],
+                                        source=calibration_source(cal, calibration_fraction, seed))
+        extra["prediction_sets"] = sets.to_card()
+    elif folds is not None:
+        from rvdiag.models.conformal import PredictionSets
+
+        P = np.zeros((len(tr.y), len(classes)))
+        for k in range(calibration_folds):
+            part = folds != k
+            fold_est = new_estimator(seed=seed, fs=store.fs)
+            fit(fold_est, Xtr[part], np.asarray(tr.y)[part], f"calibration fold {k + 1}/{calibration_folds}",
+                groups=validation_groups(store, subset(tr, part)))
+            if [str(c) for c in fold_est.classes_] != classes:
+                raise StoreError(f"calibration fold {k + 1} lacks a class: use --calibration split")
+            P[~part] = fold_est.predict_proba(Xtr[~part])
+        sets = PredictionSets.calibrate(
+            P, tr.y, classes, coverage_of(classes), groups=tr.meta["unit"],
+            source={"method": "cross", "refit": True, "folds": int(calibration_folds), "seed": [int(seed), 5],
+                    "what": "every training reducer (metadata column unit), scored by the model fitted on the "
+                            "other folds of reducers; the thresholds apply to the model fitted on all",
+                    "n_calibration": int(len(tr.y))})
+        extra["prediction_sets"] = sets.to_card()
+    else:
+        extra["prediction_sets"] = None
+        extra["prediction_sets_note"] = cal_note
     novelty, op_range = _novelty_and_range(est, store, train_idx, tr, te, Xtr, Xte, meta_cols, seed, stream,
                                            where)
-    store_info = training_store_info(store, data, len(tr.y))
-    extra = {} if snr_db is None else {"added_noise": {"snr_db": float(snr_db), "seed": [seed, 0],
-                                                       "applies_to": "train and test splits"}}
+    store_info = training_store_info(store, data, len(tr.y) + (0 if cal is None else len(cal.y)))
+    extra.update({} if snr_db is None else {"added_noise": {"snr_db": float(snr_db), "seed": [seed, 0],
+                                                            "applies_to": "train and test splits"}})
     extra["operating_range"] = op_range
     if conditions:
         extra["train_where"] = conditions
@@ -192,12 +277,78 @@ def train(data, out, *, model: str | None = None, features: str | None = None,
         summary = repeat_summary(runs)
         extra["repeat"] = {"seeds": list(range(seed, seed + repeat)), **summary}
     repeat_file = {} if summary is None else {"repeat.json": json.dumps(summary, indent=2).encode()}
-    # a calibration step after fitting (e.g. conformal prediction sets) goes here, its card fields into ``extra``
     save_model(est, out, model=model, features=(features or "wpd") if model in CLASSICAL_MODELS else None,
                fs=store.fs, training_store=store_info, metrics=metrics or {}, seed=seed, extra=extra,
                novelty=novelty, files=repeat_file)
     return TrainResult(model_dir=str(out), metrics=metrics, repeat=summary, model=model, estimator=est,
-                       n_train=int(len(tr.y)), streamed=bool(stream))
+                       n_train=int(len(tr.y) + (0 if cal is None else len(cal.y))), streamed=bool(stream))
+
+
+def calibration_split(tr, fraction: float, seed: int, coverage: dict[str, float]):
+    """The training samples held out to calibrate the prediction sets (:func:`rvdiag.models.conformal.split_by_group`:
+    whole reducers, the metadata column ``unit``, ``fraction`` of each state's, drawn with ``[seed, 4]``), as a
+    boolean mask, and None; or None and the reason there are none (``fraction`` 0, no ``unit`` column, a state
+    with too few held-out samples for its stated ``coverage``: then nothing is held out and the fit keeps every
+    sample)."""
+    from rvdiag.models.conformal import min_calibration_samples, split_by_group
+
+    if fraction <= 0:
+        return None, "--calibration-fraction 0"
+    units = tr.meta.get("unit")
+    if units is None:
+        return None, "the store has no reducer column (unit) to hold whole reducers out of the fit"
+    held = split_by_group(tr.y, units, fraction, [seed, 4])
+    y = np.asarray(tr.y).astype(str)
+    for c in np.unique(y):
+        n, need = int(np.sum(held & (y == c))), min_calibration_samples(coverage[str(c)])
+        if n < need:
+            return None, (f"{n} held-out sample(s) of {c}, fewer than the {need} a {100 * coverage[str(c)]:g} % set "
+                          "needs: build more reducers (simulations) or raise --calibration-fraction")
+    return held, None
+
+
+def calibration_folds_of(tr, folds: int, seed: int, coverage: dict[str, float]):
+    """The fold of each training sample for ``--calibration cross`` (:func:`rvdiag.models.conformal.group_folds`
+    over the reducers, metadata column ``unit``, drawn with ``[seed, 5]``), and None; or None and the reason there
+    are no sets (no ``unit`` column, a state with fewer reducers than folds or fewer samples than its coverage
+    needs)."""
+    from rvdiag.models.conformal import group_folds, min_calibration_samples
+
+    units = tr.meta.get("unit")
+    if units is None:
+        return None, "the store has no reducer column (unit) to fold the reducers"
+    y = np.asarray(tr.y).astype(str)
+    for c in np.unique(y):
+        n, need = int(np.sum(y == c)), min_calibration_samples(coverage[str(c)])
+        if n < need:
+            return None, f"{n} training sample(s) of {c}, fewer than the {need} a {100 * coverage[str(c)]:g} % set needs"
+    try:
+        return group_folds(y, units, folds, [seed, 5]), None
+    except ParameterError as exc:
+        return None, str(exc)
+
+
+def calibration_source(cal, fraction: float, seed: int) -> dict:
+    """Where the held-out calibration samples came from, for the card."""
+    held = {str(c): sorted({str(u) for u in np.asarray(cal.meta["unit"])[np.asarray(cal.y) == c]})
+            for c in np.unique(np.asarray(cal.y))}
+    return {"method": "split", "refit": False, "fraction": float(fraction), "seed": [int(seed), 4],
+            "n_calibration": int(len(cal.y)),
+            "what": "whole training reducers (metadata column unit) held out of the fit, per state",
+            "held_out_reducers": held}
+
+
+def subset(samples, mask):
+    """The loaded samples (:class:`rvdiag.datasets.store.Samples`) where ``mask`` holds."""
+    import dataclasses
+
+    return dataclasses.replace(samples, X=samples.X[mask], y=np.asarray(samples.y)[mask],
+                               meta={k: np.asarray(v)[mask] for k, v in samples.meta.items()},
+                               index=np.asarray(samples.index)[mask])
+
+
+def _n_groups(cal) -> int:
+    return int(len({(str(c), str(u)) for c, u in zip(cal.y, cal.meta["unit"])}))
 
 
 def _with_noise(samples, snr_db: float, seed: list[int]):
