@@ -252,7 +252,7 @@ def tone_model(tone_store, tmp_path_factory):
     out = tmp_path_factory.mktemp("conformal") / "model"
     try:
         main([str(a) for a in ["train", tone_store, "--model", "svm", "--features", "spectrum", "--out", out,
-                               "--seed", "0", "--quiet", "--calibration-fraction", "0.25"]])
+                               "--seed", "0", "--quiet", "--calibration", "split", "--calibration-fraction", "0.25"]])
     except SystemExit as exc:  # pragma: no cover - a failure shows here
         assert exc.code == 0
     return out

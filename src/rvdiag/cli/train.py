@@ -20,7 +20,8 @@ class.
 cracked) instead of one six-class classifier and decodes each sample to the state of largest joint probability
 (:mod:`rvdiag.models.multilabel`); the model still predicts T1..T6.
 
-Prediction sets (:mod:`rvdiag.models.conformal`): ``--calibration split`` (default) holds
+Prediction sets (:mod:`rvdiag.models.conformal`): ``--calibration cross`` is the default (``split`` with
+``--streaming``); ``--calibration split`` holds
 ``--calibration-fraction`` (0.2) of each state's training reducers (metadata column ``unit``) out of the fit and
 calibrates class-conditional conformal sets on them; ``--calibration cross`` scores every training reducer by a
 model fitted on the other ``--calibration-folds`` (3) folds of reducers and keeps the model fitted on all (K more
@@ -169,10 +170,11 @@ def register(app: typer.Typer) -> None:
                                     help="baseline-monitor: the alarm's false-alarm rate per healthy record "
                                          "(default 0.01; docs/monitoring.md)."),
         calibration: str = typer.Option(
-            "split", "--calibration",
-            help="How the prediction sets are calibrated: split (hold --calibration-fraction of the reducers out of "
-                 "the fit) | cross (score every training reducer by a model fitted on the other "
-                 "--calibration-folds folds, then fit on all: K more fits, no reducer lost; docs/models.md)."),
+            None, "--calibration", show_default=False,
+            help="How the prediction sets are calibrated: cross (the default: score every training reducer by a "
+                 "model fitted on the other --calibration-folds folds, then fit on all: K more fits, no reducer "
+                 "lost) | split (hold --calibration-fraction of the reducers out of the fit; the default with "
+                 "--streaming; docs/models.md)."),
         calibration_folds: int = typer.Option(3, "--calibration-folds", help="--calibration cross: folds of reducers."),
         calibration_fraction: float = typer.Option(
             DEFAULT_CALIBRATION_FRACTION, "--calibration-fraction",
