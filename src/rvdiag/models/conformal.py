@@ -60,7 +60,7 @@ import numpy as np
 
 from rvdiag.errors import ModelFileError, ParameterError
 
-#: the stated coverage of the healthy state's set membership by default (issue 37: no healthy record gets a set
+#: the stated coverage of the healthy state's set membership by default (no healthy record gets a set
 #: without T1 at more than 5 %)
 HEALTHY_COVERAGE = 0.95
 #: the stated coverage of each fault state by default
