@@ -222,16 +222,14 @@ def _mesh_lines_mean(X: np.ndarray, fs: float, speed: float) -> dict:
 
 def _baseline_rows(base, speed: float, load: float | None, tolerances: dict | None) -> np.ndarray:
     """The baseline windows of the record's operating point (:func:`rvdiag.monitoring.pairing.match_baseline`, at the
-    card's tolerances); without a load, or with no baseline within the tolerances, those at the nearest speed."""
+    card's tolerances; a ParameterError when none lies within them, as the record's scoring would raise); without a
+    load, those at the nearest speed."""
     from rvdiag.monitoring.pairing import match_baseline
 
     if load is not None and all(c in base.meta for c in OPERATING_COLUMNS):
         tol = {k: float(t) for k, t in (tolerances or {}).items() if k in ("speed_tolerance", "load_tolerance")}
-        try:
-            return match_baseline({OPERATING_COLUMNS[0]: [speed], OPERATING_COLUMNS[1]: [float(load)]},
-                                  {c: base.meta[c] for c in OPERATING_COLUMNS}, **tol)[0]
-        except ParameterError:
-            pass
+        return match_baseline({OPERATING_COLUMNS[0]: [speed], OPERATING_COLUMNS[1]: [float(load)]},
+                              {c: base.meta[c] for c in OPERATING_COLUMNS}, **tol)[0]
     speeds = np.asarray(base.meta[OPERATING_COLUMNS[0]], dtype=float)
     return np.flatnonzero(np.isclose(speeds, speeds[int(np.argmin(np.abs(speeds - speed)))]))
 
