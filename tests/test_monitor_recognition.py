@@ -7,10 +7,11 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from rvdiag.features.mesh_lines import mesh_lines
 from rvdiag.kinematics import characteristic_frequencies
-from rvdiag.monitoring.diagnosis import LEVEL_FACTOR, level_check_against_baseline, mesh_check_against_baseline
+from rvdiag.monitoring.diagnosis import LEVEL_FACTOR, MASK_DB, level_check_against_baseline, mesh_check_against_baseline
 from rvdiag.params import ReducerParams
 
 FS, L, SPEED = 48000.0, 12000, 30.0
@@ -57,3 +58,63 @@ def test_a_record_far_outside_the_baselines_level_is_not_recognised():
     assert not loud["recognised"] and "above the baseline's range" in loud["reason"]
     quiet = level_check_against_baseline(rec, 0.01 * rng.standard_normal(L), base)
     assert not quiet["recognised"] and "below" in quiet["reason"]
+
+
+def test_a_line_masked_by_added_energy_is_a_changed_machine_a_lost_line_is_not():
+    """A broken tooth's impacts raise the floor around the mesh lines (rvdiag.features.mesh_lines.confirm_speed):
+    the line is still there, under more energy, and the record goes on to its index.  A disconnected sensor adds no
+    energy at the reducer's orders: its line is lost, and it stays "not recognised".  Both read on the mean of the
+    record's windows (a record of 4 windows here)."""
+    rng = np.random.default_rng(2)
+    k = 4
+    tk = np.arange(k * L) / FS
+    base = _base([np.sin(2 * np.pi * FCS * t) + 0.05 * rng.standard_normal(L) for _ in range(3)])
+    speed = {"output_speed_deg_s": SPEED}
+    masked = np.sin(2 * np.pi * FCS * tk) + 30.0 * rng.standard_normal(k * L)
+    rec = _recognition_of(masked)
+    assert not rec["recognised"]
+    out = mesh_check_against_baseline(rec, masked, base, FS, speed, L)
+    lines = out["checks"]["mesh_lines"]
+    assert out["recognised"] and "stage2" in lines["baseline"] and "stage2" in lines["masked"]
+    assert lines["record_lines"]["stage2"]["amplitude"] >= lines["baseline_lines"]["stage2"]["amplitude"] * 10 ** (
+        -MASK_DB / 20)
+    disconnected = 0.01 * rng.standard_normal(k * L)
+    out = mesh_check_against_baseline(_recognition_of(disconnected), disconnected, base, FS, speed, L)
+    assert not out["recognised"] and "the machine's baseline shows" in out["reason"] and "stage2" in out["reason"]
+    assert out["checks"]["mesh_lines"]["masked"] == []
+
+
+def test_a_current_monitor_does_not_read_vibration_mesh_lines_on_its_records(monkeypatch):
+    """monitor_record of a motor-current monitor skips the vibration mesh-line check (a phase current has no mesh
+    line to show); the same record under a vibration monitor is refused by it."""
+    from pathlib import Path
+
+    import rvdiag.monitoring.diagnosis as diagnosis
+    from rvdiag.datasets.store import Samples
+    from rvdiag.monitoring.baseline import Baseline
+
+    class Scored(Exception):
+        pass
+
+    def scored(*args, **kwargs):
+        raise Scored
+
+    monkeypatch.setattr(diagnosis, "paired_features", scored)
+    rng = np.random.default_rng(3)
+    X = np.array([np.sin(2 * np.pi * FCS * t) + 0.05 * rng.standard_normal(L) for _ in range(3)])
+    meta = {"output_speed_deg_s": np.full(3, SPEED), "load_Nm": np.full(3, 20.0)}
+    base = Baseline(path=Path("base.zarr"), n_records=3, operating_points=[{"output_speed_deg_s": SPEED,
+                                                                             "load_Nm": 20.0}], fs=FS,
+                    samples=Samples(X=X, y=np.array(["T1"] * 3), meta=meta, index=np.arange(3)))
+    record = SimpleNamespace(data=rng.standard_normal(L), fs=FS, path=None, channel=None,
+                             metadata={"output_speed_deg_s": SPEED, "load_Nm": 20.0})
+
+    def model(signal):
+        card = {"needs_baseline": True, "training_store": {"kind": "simulated", "signal": signal}}
+        return SimpleNamespace(path=Path("mon"), card=card, fs=FS, input_length=L,
+                               estimator=SimpleNamespace(alpha=0.05, threshold_=1.0, features=None))
+
+    vib = diagnosis.monitor_record(model("acceleration"), record, base)
+    assert not vib.recognised and "no mesh line" in vib.reason and "the machine's baseline shows" in vib.reason
+    with pytest.raises(Scored):  # recognised: it goes on to its change against the baseline
+        diagnosis.monitor_record(model("current"), record, base)

@@ -115,6 +115,7 @@ def monitor_record(model, rec, base: Baseline, *, output_speed: float | None = N
         its operating point.
     """
     from rvdiag.datasets.store import Samples
+    from rvdiag.workflows.diagnosis import is_current_model
     from rvdiag.workflows.records import SPEED_META, flat_reason, recognition, record_speed, state_name
 
     if not needs_baseline(model):
@@ -155,10 +156,11 @@ def monitor_record(model, rec, base: Baseline, *, output_speed: float | None = N
         raise ParameterError("the record's load is needed to find its baseline: give --load N_M (output torque)")
     speed = record_speed(rec, values)
     flat = flat_reason(x, L)
-    rec_ok = recognition(model, x, rec.fs, {"novelty": None}, speed, False) if flat is None else \
+    rec_ok = recognition(model, x, rec.fs, {"novelty": None}, speed, is_current_model(model)) if flat is None else \
         {"recognised": False, "reason": flat, "checks": {}}
     bs = base.samples
-    rec_ok = mesh_check_against_baseline(rec_ok, x, bs, float(rec.fs), speed, L)
+    rec_ok = mesh_check_against_baseline(rec_ok, x, bs, float(rec.fs), speed, L, load,
+                                        model.card.get("baseline"))
     rec_ok = level_check_against_baseline(rec_ok, x, bs)
     res.recognised, res.reason, res.checks = rec_ok["recognised"], rec_ok["reason"], rec_ok["checks"]
     res.operating_point = {"output_speed_deg_s": speed.get("output_speed_deg_s"),
@@ -186,28 +188,94 @@ def monitor_record(model, rec, base: Baseline, *, output_speed: float | None = N
     return res
 
 
-def mesh_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float, speed: dict, L: int) -> dict:
-    """The mesh-line check of :func:`rvdiag.workflows.records.recognition`, judged against the machine's own baseline: a
-    record without the reducer's mesh lines is "not recognised" only when the baseline shows them at the nearest
-    operating point.  Both are read on windows of the model's ``L`` points (the same resolution): the record's
-    first window against the baseline window nearest its speed.  Where the baseline shows no line either (a quiet
-    mesh behind a noisy path or a sensor floor, as on a machine whose baseline is what it is), the lines say
-    nothing about this machine and the record goes on to its health index (``checks["mesh_lines"]["baseline"]``
-    says so)."""
-    from rvdiag.features.mesh_lines import mesh_lines
-    from rvdiag.params import ReducerParams
+#: a record's mesh line missing where the baseline shows it is "masked", not gone, when the record's amplitude at
+#: the line is at most this many dB below the baseline's line and its floor there has risen above the baseline's
+MASK_DB = 6.0
 
+
+def _mesh_lines_mean(X: np.ndarray, fs: float, speed: float) -> dict:
+    """The two mesh lines (:func:`rvdiag.features.mesh_lines.mesh_lines`) read on the mean power spectrum of the
+    windows ``X`` (rows of equal length; Welch 1967, the averaged periodogram): ``{name: {"hz", "height_db",
+    "amplitude", "floor"}, "present": [names]}``.  Averaging the windows' power steadies the floor and the line
+    (one window's bins scatter by about 5.6 dB, a chi-square of 2 degrees of freedom) that one window reads."""
+    from rvdiag.features.mesh_lines import LINE_DB
+    from rvdiag.kinematics import characteristic_frequencies
+    from rvdiag.motor.lines import line_height
+    from rvdiag.params import ReducerParams
+    from rvdiag.spectral import amplitude_spectrum
+
+    X = np.atleast_2d(np.asarray(X, dtype=np.float64))
+    amp = np.sqrt(np.mean([np.square(amplitude_spectrum(w, fs)[1]) for w in X], axis=0))
+    df = fs / X.shape[1]
+    cf = characteristic_frequencies(ReducerParams.default(), output_speed_deg_s=float(speed))
+    out: dict = {"present": []}
+    for name, hz in (("stage1", cf.fsp), ("stage2", cf.fcs)):
+        peak, h = line_height(amp, df, float(hz))
+        ok = math.isfinite(h)
+        out[name] = {"hz": float(hz), "height_db": float(h) if ok else None,
+                     "amplitude": float(peak) if ok else None,
+                     "floor": float(peak / 10.0 ** (h / 20.0)) if ok else None}
+        if ok and h >= LINE_DB:
+            out["present"].append(name)
+    return out
+
+
+def _baseline_rows(base, speed: float, load: float | None, tolerances: dict | None) -> np.ndarray:
+    """The baseline windows of the record's operating point (:func:`rvdiag.monitoring.pairing.match_baseline`, at the
+    card's tolerances; a ParameterError when none lies within them, as the record's scoring would raise); without a
+    load, those at the nearest speed."""
+    from rvdiag.monitoring.pairing import match_baseline
+
+    if load is not None and all(c in base.meta for c in OPERATING_COLUMNS):
+        tol = {k: float(t) for k, t in (tolerances or {}).items() if k in ("speed_tolerance", "load_tolerance")}
+        return match_baseline({OPERATING_COLUMNS[0]: [speed], OPERATING_COLUMNS[1]: [float(load)]},
+                              {c: base.meta[c] for c in OPERATING_COLUMNS}, **tol)[0]
+    speeds = np.asarray(base.meta[OPERATING_COLUMNS[0]], dtype=float)
+    return np.flatnonzero(np.isclose(speeds, speeds[int(np.argmin(np.abs(speeds - speed)))]))
+
+
+def mesh_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float, speed: dict, L: int,
+                                load: float | None = None, tolerances: dict | None = None) -> dict:
+    """The mesh-line check of :func:`rvdiag.workflows.records.recognition`, judged against the machine's own baseline.
+
+    A record without the reducer's mesh lines is "not recognised" only when the baseline shows a line that the
+    record has lost.  Both are read the same way, on the mean power spectrum of windows of the model's ``L``
+    points (:func:`_mesh_lines_mean`): all the record's windows against the baseline windows of its operating point
+    (:func:`_baseline_rows`; ``tolerances`` the card's ``baseline`` table).  Where the baseline
+    shows no line either (a quiet mesh behind a noisy path or a sensor floor), the lines say nothing about this
+    machine and the record goes on to its health index (``checks["mesh_lines"]["baseline"]`` says so).
+
+    The record is "not recognised" when it has *lost* a line the baseline shows: the line is missing from the
+    record's reading and not masked.  A missing line is *masked*, not lost, when the record's amplitude at the
+    line stands at most :data:`MASK_DB` below the baseline's line while its floor around the line has risen above
+    the baseline's floor: the mesh's vibration still reaches the sensor, under more energy at the reducer's
+    orders.  That is a changed machine (a broken tooth's impacts raise the floor around the mesh lines;
+    :func:`rvdiag.features.mesh_lines.confirm_speed`), and the record goes on to its health index, which judges
+    the change.  A dead or disconnected sensor, or another machine's signal, adds no energy at the reducer's
+    orders: its amplitude at the line falls with the line, and it stays "not recognised".  Measured on
+    bench/fleet_alarms.py (bench/HISTORY.md, 2026-11-28 "the mesh-line check ..."; docs/fleet.md)."""
     lines = rec.get("checks", {}).get("mesh_lines")
     if rec["recognised"] or lines is None or lines["present"]:
         return rec
     v = float(speed["output_speed_deg_s"])
-    near = int(np.argmin(np.abs(np.asarray(base.meta[OPERATING_COLUMNS[0]], dtype=float) - v)))
-    p = ReducerParams.default()
-    in_base = mesh_lines(np.asarray(base.X[near], dtype=np.float64), fs, p, v)["present"]
-    in_record = mesh_lines(x[:L], fs, p, v)["present"]
-    checks = {**rec["checks"], "mesh_lines": {**lines, "baseline": in_base, "record_window": in_record}}
-    if in_base and not in_record:
-        return {**rec, "checks": checks, "reason": rec["reason"] + f"; the machine's baseline shows {', '.join(in_base)}"}
+    near = _baseline_rows(base, v, load, tolerances)
+    k = max(x.size // L, 1)
+    in_base = _mesh_lines_mean(np.asarray(base.X, dtype=np.float64)[near], fs, v)
+    in_record = _mesh_lines_mean(x[: k * L].reshape(k, L), fs, v)
+    lost, masked = [], []
+    for name in in_base["present"]:
+        if name in in_record["present"]:
+            continue
+        b, r = in_base[name], in_record[name]
+        is_masked = (r["amplitude"] is not None and r["amplitude"] >= b["amplitude"] * 10.0 ** (-MASK_DB / 20.0)
+                     and r["floor"] > b["floor"])
+        (masked if is_masked else lost).append(name)
+    checks = {**rec["checks"], "mesh_lines": {**lines, "baseline": in_base["present"],
+                                              "record_windows": in_record["present"], "masked": masked,
+                                              "baseline_lines": {n: in_base[n] for n in ("stage1", "stage2")},
+                                              "record_lines": {n: in_record[n] for n in ("stage1", "stage2")}}}
+    if lost:
+        return {**rec, "checks": checks, "reason": rec["reason"] + f"; the machine's baseline shows {', '.join(lost)}"}
     return {"recognised": True, "reason": None, "checks": checks}
 
 
@@ -234,4 +302,4 @@ def level_check_against_baseline(rec: dict, x: np.ndarray, base) -> dict:
     return {**rec, "checks": checks}
 
 
-__all__ = ["LEVEL_FACTOR", "MonitorResult", "level_check_against_baseline", "mesh_check_against_baseline", "monitor_record"]
+__all__ = ["LEVEL_FACTOR", "MASK_DB", "MonitorResult", "level_check_against_baseline", "mesh_check_against_baseline", "monitor_record"]
