@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from sqlalchemy import text
 
-from fleet_fakes import FakeJudge, postgres_database, write_record
+from fleet_fakes import ALARM_AT, FakeJudge, postgres_database, write_record
 from rvdiag.errors import AuthError, FleetError
 from rvdiag.fleet import Fleet, Reading
 from rvdiag.fleet import db as fdb
@@ -320,3 +320,23 @@ def test_a_maintenance_ends_the_epoch_it_was_recorded_in(fleet, tmp_path):
     assert feed(fleet, tmp_path, [0.1], start=10)[0]["joint_state"] == "learning"  # 2.5 days in: epoch 2
     with pytest.raises(FleetError, match="a new baseline must start later"):
         commission(fleet, tmp_path, time=T0 + timedelta(days=1))
+
+
+def test_status_gives_the_onset_of_a_rising_index_and_says_why_no_remaining_life(fleet, tmp_path):
+    """The prognosis in the status rows (rvdiag.prognostics.joint_prognosis on the epoch's recognised records): no
+    onset while the index stays healthy; an onset inside the rise once it has lasted; the remaining life not
+    estimated without a failure threshold, with the reason."""
+    commission(fleet, tmp_path)
+    feed(fleet, tmp_path, [0.1] * 30)
+    row = fleet.status()[0]
+    assert row["onset_time"] is None and row["change_alarm_time"] is None and row["change_evidence"] < 100
+    assert row["rul"]["estimated"] is False and "onset" in row["rul"]["reason"]
+    rise = [0.1 + 0.04 * k for k in range(1, 16)]  # stays under the fake monitor's alarm, so no broken tooth
+    assert max(rise) < ALARM_AT
+    feed(fleet, tmp_path, rise, start=31)
+    row = fleet.status()[0]
+    start = T0 + timedelta(hours=6 * 31)  # the rise's first record; the onset estimate may lead it by a record or two
+    assert row["onset_time"] is not None and datetime.fromisoformat(row["onset_time"]) >= start - timedelta(hours=12)
+    assert datetime.fromisoformat(row["change_alarm_time"]) >= datetime.fromisoformat(row["onset_time"])
+    assert row["change_evidence"] >= 100  # 1 / delta
+    assert row["rul"]["estimated"] is False and "threshold" in row["rul"]["reason"]

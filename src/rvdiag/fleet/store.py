@@ -392,8 +392,9 @@ class Fleet:
     def status(self, joint: str | None = None) -> list[dict]:
         """One row per joint (``joint``: that joint's only): ``joint, state, last_index, last_record_time,
         state_since, threshold, n_records, last_fault_state, last_probability, open_alarm`` (and ``epoch``,
-        ``signal``, ``learning_left``, and ``trend``: the health indices of the current epoch's last
-        :data:`TREND_RECORDS` recognised records, oldest first)."""
+        ``signal``, ``learning_left``, ``trend``: the health indices of the current epoch's last
+        :data:`TREND_RECORDS` recognised records, oldest first; and the prognosis of :func:`prognosis_of`:
+        ``onset_time``, ``change_evidence``, ``rul``)."""
         rows = []
         with self._sessions() as s:
             q = select(db.Joint).order_by(db.Joint.path)
@@ -418,7 +419,8 @@ class Fleet:
                     "open_alarm": bool(d["steps"][-1].open_alarm) if d["steps"] and d["state"] != "no-baseline"
                     else False,
                     "epoch": None if d["epoch"] is None else d["epoch"].number, "signal": j.signal_kind,
-                    "learning_left": learn, "trend": [r.health_index for r in judged[-TREND_RECORDS:]]})
+                    "learning_left": learn, "trend": [r.health_index for r in judged[-TREND_RECORDS:]],
+                    **prognosis_of(judged, lastj)})
         return rows
 
     def history(self, joint: str, limit: int | None = None) -> list[dict]:
@@ -592,3 +594,30 @@ def _read_bytes(path: Path) -> bytes:
         raise FleetError(f"{path} is a folder, not a record file") from None
     except OSError as exc:
         raise FleetError(f"cannot read {path}: {exc.strerror or exc}") from None
+
+
+def prognosis_of(judged: list, last) -> dict:
+    """The onset and remaining life of a joint from its current epoch's recognised records in time order
+    (:func:`rvdiag.prognostics.joint_prognosis`): ``onset_time`` and ``change_alarm_time`` (None before the change
+    detector alarms), ``change_evidence`` (the conformal test martingale's value; it alarms at 1/delta, so a healthy joint ever alarms
+    with probability at most delta, 1 % per joint-life), and ``rul``: ``{"estimated": false, "reason"}`` or the
+    remaining life's ``median_days``, ``p10_days``, ``p90_days``, ``p_before``.  The joint's first records fill the
+    detector's ranking pool (its commissioning records have no index against themselves).  A joint has no failure
+    threshold on its health index yet, so ``rul`` says so unless a broken tooth already decides it; the Python API
+    takes a threshold (docs/prognostics.md)."""
+    from rvdiag.errors import ParameterError
+    from rvdiag.prognostics import joint_prognosis
+
+    recs = [r for r in judged if r.health_index is not None and math.isfinite(float(r.health_index))]
+    if not recs:
+        return {"onset_time": None, "change_alarm_time": None, "change_evidence": None,
+                "rul": {"estimated": False, "reason": "no recognised record with a health index yet"}}
+    try:
+        p = joint_prognosis([r.time for r in recs], health_index=[float(r.health_index) for r in recs],
+                            baseline_scores=[], threshold=None,
+                            fault_state=None if last is None else last.fault_state).to_dict()
+    except ParameterError as exc:
+        return {"onset_time": None, "change_alarm_time": None, "change_evidence": None,
+                "rul": {"estimated": False, "reason": str(exc)}}
+    return {"onset_time": p["onset_time"], "change_alarm_time": p["alarm_time"], "change_evidence": p["evidence"],
+            "rul": p["rul"]}
