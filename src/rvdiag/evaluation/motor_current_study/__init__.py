@@ -36,7 +36,7 @@ of one simulation land on both sides and the split scores are optimistic (a
 :class:`rvdiag.errors.SplitLeakWarning`).  ``test_store`` gives the honest figure.
 
 The module has no command-line logic: :mod:`rvdiag.cli.mcsa` parses the options and draws the progress bars
-(this module reports its stages to :mod:`rvdiag.progress
+(this package reports its stages to :mod:`rvdiag.progress`).
 
 The package, one module per concern:
 
