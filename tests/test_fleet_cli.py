@@ -168,3 +168,26 @@ def test_the_watcher_picks_up_a_file_that_appears(env, capsys):
     t.join(timeout=10)
     assert [r["filename"] for r in fleet.history(J)] == ["new.npy"]
     assert counts["ingested"] == 1 and counts["refused"] == 0
+
+
+def test_serve_takes_the_upload_limit_and_the_read_token_rule(env, capsys, monkeypatch):
+    """``fleet serve --max-upload-mb --read-token`` reach the app (uvicorn stubbed: the app is read back); a bad limit
+    is one error line before anything starts."""
+    from fastapi.testclient import TestClient
+
+    setup_joint(env, capsys)
+    fail(["fleet", "serve", "--max-upload-mb", "0"], capsys, "--max-upload-mb must be a positive number")
+    served = {}
+    monkeypatch.setattr("uvicorn.run", lambda app, host, port: served.update(app=app, host=host, port=port))
+    ok(["fleet", "serve", "--max-upload-mb", "0.001", "--read-token"], capsys)
+    assert served["host"] == "127.0.0.1" and served["port"] == 8000
+    token = ok(["fleet", "token", "create", "--name", "plc"], capsys)[0].strip()
+    with TestClient(served["app"]) as client:
+        assert client.get("/api/joints").status_code == 401  # reads need a token
+        auth = {"Authorization": f"Bearer {token}"}
+        assert client.get("/api/joints", headers=auth).status_code == 200
+        big = client.post(f"/api/joints/{J}/records", files={"file": ("r.npy", b"0" * 4096)}, headers=auth)
+        assert big.status_code == 413  # over 0.001 MiB
+    ok(["fleet", "serve", "--open-reads"], capsys)
+    with TestClient(served["app"]) as client:
+        assert client.get("/api/joints").status_code == 200

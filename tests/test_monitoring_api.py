@@ -21,7 +21,7 @@ from rvdiag.workflows import load_model, read_record
 from test_monitoring_cli import FS, L, OPS, baseline_store, params_attrs, record, record_file
 from test_monitoring_cli import paired  # noqa: F401  (the module-scoped paired store)
 
-#: the keys of ``rvdiag diagnose --baseline --json`` that MonitorResult must carry (INTERFACES.md, section A)
+#: the keys of ``rvdiag diagnose --baseline --json`` that MonitorResult must carry
 CONTRACT = ("health_index", "p_value", "alarm", "false_alarm_rate", "threshold", "state", "state_name",
             "probability", "probabilities", "changes", "recognised", "reason", "operating_point", "warnings",
             "n_windows", "windows")

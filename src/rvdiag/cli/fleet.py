@@ -8,6 +8,7 @@ that cannot be read, a database of a newer schema, a bad time) is one ``error:``
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import List, Optional
 
@@ -271,8 +272,16 @@ def register(app: typer.Typer) -> None:
 
     @fleet_app.command("serve")
     def serve(host: str = typer.Option("127.0.0.1", "--host", help="Address to bind (default: this machine only)."),
-              port: int = typer.Option(8000, "--port"), db: str = _db()) -> None:
-        """Serve the HTTP API and the dashboard."""
+              port: int = typer.Option(8000, "--port"),
+              max_upload_mb: Optional[float] = typer.Option(
+                  None, "--max-upload-mb", help="Largest upload accepted, MiB (default: env "
+                                                "RVDIAG_FLEET_MAX_UPLOAD_MB, else 64)."),
+              read_token: Optional[bool] = typer.Option(
+                  None, "--read-token/--open-reads", help="Whether reading the API and the pages needs a token too "
+                                                         "(default: env RVDIAG_FLEET_READ_TOKEN=1, else open reads; "
+                                                         "writes always need a read-write token)."),
+              db: str = _db()) -> None:
+        """Serve the HTTP API and the dashboard (docs/fleet-api.md)."""
         from rvdiag.fleet import Fleet
 
         try:
@@ -281,7 +290,11 @@ def register(app: typer.Typer) -> None:
             raise FleetError("this rvdiag has no fleet HTTP API (rvdiag.fleet.api)") from None
         import uvicorn
 
-        uvicorn.run(create_app(Fleet.open(db)), host=host, port=port)
+        if max_upload_mb is not None and not (math.isfinite(max_upload_mb) and max_upload_mb > 0):
+            raise FleetError(f"--max-upload-mb must be a positive number, got {max_upload_mb:g}")
+        app = create_app(Fleet.open(db), read_needs_token=read_token,
+                         max_upload=None if max_upload_mb is None else int(max_upload_mb * 2 ** 20))
+        uvicorn.run(app, host=host, port=port)
 
     @fleet_app.command("watch")
     def watch(folder: Path = typer.Argument(..., help="Folder tree DIR/site/robot/joint/FILE."),

@@ -182,7 +182,7 @@ def create_app(fleet, *, max_upload: int | None = None, read_needs_token: bool |
     Parameters
     ----------
     fleet : rvdiag.fleet.Fleet
-        An open fleet store; the app calls only its public methods (INTERFACES.md B), from worker threads.
+        An open fleet store; the app calls only its public methods, from worker threads.
     max_upload : int, optional
         Largest request body accepted, bytes; default env ``RVDIAG_FLEET_MAX_UPLOAD_MB`` (MiB), else
         :data:`DEFAULT_MAX_UPLOAD` (64 MiB).
