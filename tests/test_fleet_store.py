@@ -340,3 +340,20 @@ def test_status_gives_the_onset_of_a_rising_index_and_says_why_no_remaining_life
     assert datetime.fromisoformat(row["change_alarm_time"]) >= datetime.fromisoformat(row["onset_time"])
     assert row["change_evidence"] >= 100  # 1 / delta
     assert row["rul"]["estimated"] is False and "threshold" in row["rul"]["reason"]
+
+
+def test_the_operating_point_is_read_from_the_name_as_read_record_reads_it(tmp_path):
+    """One reading of --meta-regex (rvdiag.workflows.records.name_metadata): a group ``load`` is the load as
+    ``load_Nm`` is; a value that is not a number, a name it does not match, two groups for one column: refused."""
+    from rvdiag.errors import RvdiagError
+
+    for regex in (r"_(?P<speed_dps>[\d.]+)dps_(?P<load>[\d.]+)Nm", r"_(?P<speed_dps>[\d.]+)dps_(?P<load_Nm>[\d.]+)Nm"):
+        assert Reading(meta_regex=regex).operating_point("r_44.5dps_120Nm.npy") == {"output_speed_deg_s": 44.5,
+                                                                                     "load_Nm": 120.0}
+    assert Reading(load=50.0, meta_regex=r"_(?P<speed_dps>\d+)dps").operating_point("a_30dps.csv") == {
+        "output_speed_deg_s": 30.0, "load_Nm": 50.0}
+    for regex, name, match in ((r"_(?P<load>[a-z]+)Nm", "r_highNm.npy", "not a number"),
+                               (r"_(?P<load>\d+)Nm", "r.npy", "does not match --meta-regex"),
+                               (r"(?P<load>\d+)_(?P<load_Nm>\d+)", "1_2.npy", "both give 'load_Nm'")):
+        with pytest.raises(RvdiagError, match=match):
+            Reading(meta_regex=regex).operating_point(name)

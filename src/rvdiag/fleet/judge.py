@@ -9,7 +9,6 @@ same methods (``describe``, ``read``, ``make_baseline``, ``judge``).
 from __future__ import annotations
 
 import json
-import re
 import threading
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -30,8 +29,8 @@ class Reading:
     commission`` / ``ingest``, the form fields of the HTTP route).
 
     ``output_speed`` (deg/s at the output) and ``load`` (N m): the record's operating point, else from the file name
-    by ``meta_regex`` (named groups ``output_speed_deg_s`` or ``speed_dps``, and ``load_Nm``); the speed may be left
-    out, then the monitor measures it from the record.  ``time_regex``: a regular expression on the file name whose
+    by ``meta_regex`` (named groups ``output_speed_deg_s`` or ``speed_dps``, and ``load_Nm`` or ``load``); the speed
+    may be left out, then the monitor measures it from the record.  ``time_regex``: a regular expression on the file name whose
     group ``time`` (or whole match) is the record's ISO time."""
 
     channel: str | None = None
@@ -51,25 +50,20 @@ class Reading:
         return cls(**d)
 
     def operating_point(self, filename: str) -> dict:
-        """``{"output_speed_deg_s", "load_Nm"}`` of a file: the given values, else those of :attr:`meta_regex`."""
+        """``{"output_speed_deg_s", "load_Nm"}`` of a file: the given values, else those :attr:`meta_regex` reads
+        from its name (:func:`rvdiag.workflows.records.name_metadata`, as ``read_record`` reads them)."""
+        from rvdiag.workflows.records import name_metadata
+
         speed, load = self.output_speed, self.load
-        if self.meta_regex:
-            try:
-                m = re.search(self.meta_regex, Path(filename).name)
-            except re.error as exc:
-                raise ParameterError(f"--meta-regex {self.meta_regex!r} is not a regular expression: {exc}") from None
-            if m is None:
-                raise ParameterError(f"{Path(filename).name}: the name does not match --meta-regex "
-                                     f"{self.meta_regex!r}")
-            g = m.groupdict()
-            try:
-                if speed is None and (g.get("output_speed_deg_s") or g.get("speed_dps")):
-                    speed = float(g.get("output_speed_deg_s") or g.get("speed_dps"))
-                if load is None and g.get("load_Nm"):
-                    load = float(g["load_Nm"])
-            except ValueError as exc:
-                raise ParameterError(f"{Path(filename).name}: --meta-regex gives a value that is not a number "
-                                     f"({exc})") from None
+        name = Path(filename).name
+        md = name_metadata(self.meta_regex, name)
+        if speed is None:
+            speed = md.get("output_speed_deg_s", md.get("speed_dps"))
+        if load is None:
+            load = md.get("load_Nm")
+        for v in (speed, load):
+            if isinstance(v, str):
+                raise ParameterError(f"{name}: --meta-regex gives a value that is not a number ({v!r})")
         return {"output_speed_deg_s": None if speed is None else float(speed),
                 "load_Nm": None if load is None else float(load)}
 

@@ -5,11 +5,12 @@ diagnosis of a classifier (:mod:`rvdiag.workflows.diagnosis`) and of a monitor (
 
 from __future__ import annotations
 
-import numpy as np
-
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from rvdiag.errors import ParameterError
 from rvdiag.io.readers import MeasuredSignal
@@ -55,35 +56,13 @@ def read_record(path, *, channel: str | None = None, fs: float | None = None, an
     DataFileError, ParameterError
         An unreadable file, no such channel, a name that does not match ``meta_regex``, two angle sources.
     """
-    import re
-
-    from rvdiag.errors import DataFileError
     from rvdiag.io import read_signal
     from rvdiag.io.angles import SPEED_GROUPS, AngleSpec
 
     path = Path(path)
     sig = read_signal(path, channel_regex=channel, fs=fs)
-    metadata: dict[str, Any] = {}
-    speed_groups = False
-    if meta_regex is not None:
-        try:
-            pat = re.compile(meta_regex)
-        except re.error as exc:
-            raise ParameterError(f"invalid --meta-regex {meta_regex!r}: {exc}") from None
-        m = pat.search(path.name)
-        if m is None:
-            raise DataFileError(f"{path}: the name does not match --meta-regex {meta_regex!r}")
-        speed_groups = bool(set(SPEED_GROUPS) & {k for k, v in m.groupdict().items() if v})
-        for k, v in m.groupdict().items():
-            if v in (None, ""):
-                continue
-            col = LOAD_GROUPS.get(k, k)
-            if col in metadata:
-                raise ParameterError(f"--meta-regex: the groups {k} and {col} both give {col!r}: keep one")
-            try:
-                metadata[col] = float(v)
-            except ValueError:
-                metadata[col] = v
+    metadata = name_metadata(meta_regex, path.name, where=str(path))
+    speed_groups = bool(set(SPEED_GROUPS) & set(metadata))
     angle = None
     if angle_channel is not None or tacho_channel is not None or ppr is not None or speed_groups:
         angle = AngleSpec(angle_channel=angle_channel, tacho_channel=tacho_channel, ppr=ppr,
@@ -91,6 +70,38 @@ def read_record(path, *, channel: str | None = None, fs: float | None = None, an
                           else None).validate()
     return Record(data=sig.data, fs=sig.fs, channel=sig.channel, path=sig.path, format=sig.format,
                   scalars=sig.scalars, attrs=sig.attrs, metadata=metadata, angle=angle)
+
+
+def name_metadata(meta_regex: str | None, name: str, where: str | None = None) -> dict[str, Any]:
+    """The values the named groups of ``meta_regex`` read from a file ``name``: numbers as floats, other text as
+    it is, a group ``load`` as the column ``load_Nm`` (:data:`LOAD_GROUPS`), empty groups left out; ``{}`` without
+    a regular expression.  The one reading of ``--meta-regex`` on a record's name (``read_record``, the fleet's
+    operating points).  :class:`ParameterError` for an invalid expression or two groups giving one column,
+    :class:`DataFileError` for a name it does not match (``where`` names the file in the message, default
+    ``name``)."""
+    from rvdiag.errors import DataFileError
+
+    if meta_regex is None:
+        return {}
+    try:
+        pat = re.compile(meta_regex)
+    except re.error as exc:
+        raise ParameterError(f"invalid --meta-regex {meta_regex!r}: {exc}") from None
+    m = pat.search(name)
+    if m is None:
+        raise DataFileError(f"{where or name}: the name does not match --meta-regex {meta_regex!r}")
+    metadata: dict[str, Any] = {}
+    for k, v in m.groupdict().items():
+        if v in (None, ""):
+            continue
+        col = LOAD_GROUPS.get(k, k)
+        if col in metadata:
+            raise ParameterError(f"--meta-regex: the groups {k} and {col} both give {col!r}: keep one")
+        try:
+            metadata[col] = float(v)
+        except ValueError:
+            metadata[col] = v
+    return metadata
 
 
 def load_model(model_dir):
