@@ -18,8 +18,9 @@ LAYERS = {
     "params": 1,
     "gears": 2, "kinematics": 2,
     "dynamics": 3, "motor": 3,
-    "library": 4, "datasets": 4, "io": 4, "updating": 4,
+    "library": 4, "datasets": 4, "io": 4,
     "features": 5,
+    "updating": 5,  # the model's updating and its observability, which takes the features' synchronous average
     "models": 6,
     "evaluation": 7,
     "workflows": 8,  # the application layer: read a record, train, evaluate, diagnose (rvdiag.workflows)

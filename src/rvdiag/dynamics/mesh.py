@@ -261,7 +261,8 @@ def extend_off_path(k_slots: np.ndarray, e_slots: np.ndarray, droll: float, pair
         e_slots[s_, fill] = best_e[fill]
 
 
-def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_cycle: int = 360) -> MeshTable:
+def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_cycle: int = 360,
+                          tooth_errors_m: Any = None) -> MeshTable:
     """Potential-energy TVMS of :mod:`rvdiag.gears` over one relative sun revolution (Z1 mesh cycles), with
     the separation of every tooth pair.
 
@@ -279,6 +280,10 @@ def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_c
     runout, the once-per-revolution part, is a manufacturing error of :mod:`rvdiag.dynamics.manufacturing`).
     The table's ``error_m`` is the load-shared separation ``sum k_j e_j / sum k_j`` (the profile deviation a
     single-spring model would use).
+
+    ``tooth_errors_m`` (one per sun tooth, m along the line of action), when given, replaces the sun teeth's
+    position errors drawn from ``[modification] error_seed`` (the profile slope deviation of the grade stays): a
+    specimen's measured or identified pattern, or a perturbed one (a sensitivity study).
     """
     pair = GearPair.sun_planet(params)
     z1 = params.stage1.sun_teeth
@@ -300,10 +305,17 @@ def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_c
         tip_relief_length=md.tip_relief_length, root_relief_length=md.root_relief_length,
         shape="parabolic" if md.relief_exponent == 2 else "linear")
     sep = relief_separation(roll, L, mod)
+    teeth = None
     if md.iso1328_grade > 0:
         tol = iso1328_tolerances(params.stage1.module, params.stage1.module * z1, md.iso1328_grade)
         sep = sep + profile_slope_separation(roll, L, tol)
-        sep = sep + tooth_position_errors(z1, tol, md.error_seed)[np.mod(pair_index, z1)]
+        teeth = tooth_position_errors(z1, tol, md.error_seed)
+    if tooth_errors_m is not None:
+        teeth = np.asarray(tooth_errors_m, dtype=float).ravel()
+        if teeth.size != z1 or not np.all(np.isfinite(teeth)):
+            raise ParameterError(f"tooth_errors_m must hold {z1} finite values (one per sun tooth), got {teeth.size}")
+    if teeth is not None:
+        sep = sep + teeth[np.mod(pair_index, z1)]
     if deviation is not None:
         sep = sep + deviation
     # slot of each pair, periodic over one revolution (the table wraps from sun tooth Z1 - 1 to tooth 0): pairs
