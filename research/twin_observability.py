@@ -34,7 +34,7 @@ def base_params() -> ReducerParams:
 
 def simulate(a) -> None:
     base = base_params()
-    op = ob.OperatingPoint(revolutions=a.revolutions, substeps=a.substeps)
+    op = ob.OperatingPoint(revolutions=a.revolutions, substeps=a.substeps, period_revs=a.period)
     pars = ob.reducer_parameters(base)
     if a.only:
         keep = set(a.only.split(","))
@@ -53,7 +53,8 @@ def simulate(a) -> None:
     print(f"{a.draws} draws in {time.perf_counter() - t0:.0f} s", flush=True)
     save = {"names": json.dumps([p.name for p in pars]), "nuisance": json.dumps([p.name for p in nuis]),
             "vibration_power": J.vibration_power,
-            "seconds": time.perf_counter() - t0, "revolutions": a.revolutions, "substeps": a.substeps}
+            "seconds": time.perf_counter() - t0, "revolutions": a.revolutions, "substeps": a.substeps,
+            "period": a.period}
     for s in ob.OBSERVATIONS:
         save[f"lin_{s}"] = J.linearity[s]
         save[f"nuisance_lin_{s}"] = G.linearity[s]
@@ -88,7 +89,8 @@ SETS = (("vibration",), ("te",), ("current",), ("te", "current"), ("vibration", 
 def report(a) -> None:
     base, J, G, D, z = load(a.out)
     prior = ob.sun_tooth_prior(base)
-    op = ob.OperatingPoint(revolutions=int(z["revolutions"]))
+    period = int(z["period"]) if "period" in z else 1
+    op = ob.OperatingPoint(revolutions=int(z["revolutions"]), period_revs=period)
     print(f"# {a.out}: {len(J.parameters)} parameters, simulated in {float(z['seconds']):.0f} s; vibration RMS "
           f"{np.sqrt(J.vibration_power):.3f} m/s^2 (floor 20 dB below: {np.sqrt(J.vibration_power) / 10:.3f})")
     print("\n## linearity: ||J_h - J_2h|| / ||J_h|| per signal (vibration / te / current; nan: a zero column)")
@@ -210,7 +212,7 @@ def compare(a) -> None:
 
 def harmonics(J, base, op, prior) -> None:
     """Where each tooth-error harmonic's sensitivity lies: its share at sun orders that N divides."""
-    N = base.stage1.n_planets
+    N = base.stage1.n_planets * op.period_revs                # lines in orders of the period: sun order n is n k
     L, names = ob.prior_square_root(J.parameters, prior)
     print(f"\n## tooth-error harmonics: share of each column's energy (at its prior spread) at orders divisible by "
           f"N = {N}, and its norm")
@@ -218,15 +220,19 @@ def harmonics(J, base, op, prior) -> None:
         K = J.columns[s].shape[0] // 2
         orders = np.arange(1, K + 1)
         even = np.concatenate([orders % N == 0, orders % N == 0])
+        low = np.concatenate([orders <= 5 * op.period_revs, orders <= 5 * op.period_revs])
         Jz = J.columns[s] @ L
         for j, nm in enumerate(names):
             if not nm.startswith("sun tooth"):
                 continue
             c = Jz[:, j]
             e = float(np.sum(c ** 2))
-            low = np.concatenate([orders <= 5, orders <= 5])
+            per = c[:K] ** 2 + c[K:] ** 2
+            top = np.argsort(per)[::-1][:4]
+            tops = ", ".join(f"{orders[t] / op.period_revs:g} ({per[t] / e:.2f})" for t in top)
             print(f"  {s:9s} {nm:24s} |J L| {np.sqrt(e):.3e}; share at orders N divides {np.sum(c[even] ** 2) / e:.3f}"
-                  f"; at orders 1-5: {np.sum(c[low] ** 2) / e:.3f}, of which odd {np.sum(c[low & ~even] ** 2) / e:.3f}")
+                  f"; at orders 1-5: {np.sum(c[low] ** 2) / e:.3f}, of which odd {np.sum(c[low & ~even] ** 2) / e:.3f}"
+                  f"; largest sun orders (share): {tops}")
 
 
 def main() -> None:
@@ -235,6 +241,7 @@ def main() -> None:
     ap.add_argument("--report", action="store_true", help="report from --out without simulating")
     ap.add_argument("--revolutions", type=int, default=3)
     ap.add_argument("--substeps", type=int, default=4)
+    ap.add_argument("--period", type=int, default=1, help="averaging period in sun revolutions (3: the cranks' too)")
     ap.add_argument("--draws", type=int, default=16)
     ap.add_argument("--only", default="", help="comma-separated parameter names (default: all)")
     ap.add_argument("--summary", action="store_true", help="the tables of docs/twin.md (implies --report)")

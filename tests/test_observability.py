@@ -142,6 +142,20 @@ def test_the_sun_tooth_prior_is_the_drawn_errors_covariance():
     assert sorted(names) == sorted(f"sun tooth harmonic {h}" for h in (1, 1, 2, 2, 3, 3, 4, 4, 5, 5))
 
 
+def test_the_averaging_period_must_divide_the_record():
+    assert ob.OperatingPoint(revolutions=6, period_revs=3).max_order(_params(), "current") == 100   # 500 Hz in thirds of 15 Hz
+    with pytest.raises(ParameterError):
+        ob.OperatingPoint(revolutions=4, period_revs=3)
+    with pytest.raises(ParameterError):
+        ob.OperatingPoint(period_revs=0)
+
+
+def _params():
+    from rvdiag.params import ReducerParams
+
+    return ReducerParams.default()
+
+
 # --------------------------------------------------------------------------- the simulator's sensitivities
 def test_explicit_tooth_errors_reproduce_the_drawn_mesh_table():
     from rvdiag.dynamics.mesh import mesh_table_from_gears

@@ -4,6 +4,8 @@
 - :mod:`rvdiag.updating.space`: the tuned parameters, their bounds and scales;
 - :mod:`rvdiag.updating.tuner`: the seeded global + local search (:func:`update_parameters`);
 - :mod:`rvdiag.updating.annotate`: the updated parameter file, every changed value commented.
+- :mod:`rvdiag.updating.observability`: which of a reducer's own parameters (sun tooth errors, runouts, path,
+  stiffnesses) a commissioning record can identify: the whitened Jacobian's singular values (docs/twin.md).
 """
 
 from __future__ import annotations

@@ -225,7 +225,13 @@ class OperatingPoint:
     the carrier) recorded after ``transient_s`` of run-in, the sampling rate and the integrator's sub-steps, and
     the highest order kept of each signal (``max_hz`` / the sun's relative frequency): the accelerometer's band
     (10 kHz), the output encoder's read rate's Nyquist (4 kHz of an 8 kHz position loop) and the drive logger's
-    (500 Hz of 1 kHz)."""
+    (500 Hz of 1 kHz).
+
+    ``period_revs`` is the averaging period in sun revolutions: 1 is the sun's TSA (what the angle-domain features
+    compute), whose lines are the sun's whole orders; ``Z2 / Z1`` when that is whole (3 for the RV-20E) is the
+    period of the cranks and planets as well (they turn once relative to the carrier per 3 sun revolutions), whose
+    average keeps the lines at every third of a sun order too, where the planets' runouts and the cranks' errors
+    lie.  ``revolutions`` must be a multiple of it."""
 
     output_speed_deg_s: float = 45.0
     load_Nm: float = 90.0
@@ -236,6 +242,12 @@ class OperatingPoint:
     samples_per_rev: int = 2048
     max_hz: Mapping[str, float] = field(default_factory=lambda: {"vibration": 10000.0, "te": 4000.0,
                                                                  "current": 500.0})
+    period_revs: int = 1
+
+    def __post_init__(self) -> None:
+        if int(self.period_revs) < 1 or int(self.revolutions) % int(self.period_revs):
+            raise ParameterError(f"revolutions ({self.revolutions}) must be a whole multiple of period_revs "
+                                 f"({self.period_revs}) >= 1")
 
     def sun_hz(self, params: ReducerParams, speed: float = 1.0) -> float:
         """The sun's frequency relative to the carrier (Hz) at ``speed`` times the operating point's."""
@@ -244,7 +256,10 @@ class OperatingPoint:
         return sun_speed_hz(params, None, self.output_speed_deg_s * speed) * (1.0 - 1.0 / params.ratio)
 
     def max_order(self, params: ReducerParams, signal: str) -> int:
-        return int(min(float(self.max_hz[signal]) / self.sun_hz(params), self.samples_per_rev // 2 - 1))
+        """The highest line kept of ``signal``, in orders of the averaging period (``period_revs`` sun
+        revolutions)."""
+        k = self.period_revs
+        return int(min(float(self.max_hz[signal]) * k / self.sun_hz(params), k * self.samples_per_rev // 2 - 1))
 
 
 def sun_synchronous_lines(x, fs: float, rev_hz: float, samples_per_rev: int, max_order: int) -> np.ndarray:
@@ -369,8 +384,9 @@ def observations(states: dict, params: ReducerParams, op: OperatingPoint, *, gai
     transmission error ``(q_m + e_c cos th_m + e_s sin th_m) / i - q_H`` (``encoder = (e_c, e_s)``), and ``i_q``."""
     from rvdiag.dynamics.transfer import apply_path
 
-    fs, f_rel, n_pre = states["fs"], states["f_rel"], states["n_pre"]
-    spr = op.samples_per_rev
+    fs, n_pre = states["fs"], states["n_pre"]
+    f_rel = states["f_rel"] / op.period_revs                   # the averaging period's frequency
+    spr = op.samples_per_rev * op.period_revs
     vib = gain * apply_path(states["sensor"][:1], fs, params.mounting)[0, n_pre:]
     t = (np.arange(vib.size)) / fs
     th_m = 2.0 * np.pi * states["motor_hz"] * t
