@@ -92,6 +92,12 @@ def test_a_parameter_that_does_not_enter_the_output_has_a_zero_singular_value():
     assert r.identifiable(1.0) == [n for n, s in zip(r.names, r.crb_sd) if s < 1.0]
 
 
+def test_pitch_deviations_take_the_difference_of_neighbouring_positions():
+    r = ob.Observability(("te",), [], np.zeros(0), np.zeros((0, 0)), np.zeros(0), np.zeros(0), np.zeros(3),
+                         np.zeros(3), np.zeros(3), np.diag([1.0, 4.0, 9.0]))
+    assert np.allclose(r.pitch_posterior_m() ** 2, [1 + 9, 4 + 1, 9 + 4])
+
+
 def test_known_singular_values_scale_with_records_and_length():
     """One parameter, one observation line: sensitivity s at prior spread 1 and line variance sigma^2/(2 f T)."""
     J = np.zeros((2, 1))

@@ -573,8 +573,8 @@ class Observability:
 
     ``singular_values`` (descending) and ``directions`` (columns, in prior-spread units over ``names``) of
     ``C^-1/2 J L``; ``crb_sd`` and ``posterior_sd`` per column of ``L`` as a share of its prior spread (``inf``
-    where the bound is unbounded); ``tooth_crb_m``, ``tooth_posterior_m`` per sun tooth's position error (m) and
-    ``tooth_prior_m`` its prior RMS."""
+    where the bound is unbounded); ``tooth_crb_m``, ``tooth_posterior_m`` per sun tooth's position error (m),
+    ``tooth_prior_m`` its prior RMS and ``tooth_posterior_cov_m2`` the teeth's posterior covariance."""
 
     signals: tuple[str, ...]
     names: list[str]
@@ -585,6 +585,15 @@ class Observability:
     tooth_crb_m: np.ndarray
     tooth_posterior_m: np.ndarray
     tooth_prior_m: np.ndarray
+    tooth_posterior_cov_m2: np.ndarray | None = None
+
+    def pitch_posterior_m(self) -> np.ndarray:
+        """The posterior spread of each sun tooth's single pitch deviation ``f_pt,j = e_j - e_(j-1)`` (m), from the
+        teeth's posterior covariance."""
+        C = self.tooth_posterior_cov_m2
+        z = C.shape[0]
+        D = np.eye(z) - np.roll(np.eye(z), -1, axis=1)
+        return np.sqrt(np.diag(D @ C @ D.T))
 
     def identifiable(self, threshold: float = 1.0) -> list[str]:
         """Names whose bound is below ``1 / threshold`` of their prior spread."""
@@ -632,7 +641,7 @@ def analyse(jac: Jacobian, nuisance: Jacobian | None, signals: Sequence[str], *,
     prior_m = np.sqrt(np.sum(Lt**2, axis=1))
     post_m = np.sqrt(np.einsum("ij,jk,ik->i", Lt, pos, Lt))
     crb_m = np.sqrt(_bounded_sum(Lt @ V, inv_w))
-    return Observability(sig, names, sv, V, crb, np.sqrt(np.diag(pos)), crb_m, post_m, prior_m)
+    return Observability(sig, names, sv, V, crb, np.sqrt(np.diag(pos)), crb_m, post_m, prior_m, Lt @ pos @ Lt.T)
 
 
 def _bounded_sum(A: np.ndarray, inv_w: np.ndarray) -> np.ndarray:
