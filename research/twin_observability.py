@@ -44,10 +44,10 @@ def simulate(a) -> None:
     def prog(i, n, name):
         print(f"  {i}/{n} {name} {time.perf_counter() - t0:.0f} s", flush=True)
 
-    J = ob.jacobian(base, op, pars, progress=prog)
+    J = ob.jacobian(base, op, pars, progress=prog, check_linearity=not a.no_linearity)
     print(f"parameters: {len(pars)} in {time.perf_counter() - t0:.0f} s", flush=True)
     nuis = ob.run_to_run_parameters()
-    G = ob.jacobian(base, op, nuis, progress=prog)
+    G = ob.jacobian(base, op, nuis, progress=prog, check_linearity=not a.no_linearity)
     print(f"run-to-run columns in {time.perf_counter() - t0:.0f} s", flush=True)
     D = ob.run_to_run_draws(base, op, a.draws, seed=0) if a.draws else {s: np.zeros((0, 0)) for s in ob.OBSERVATIONS}
     print(f"{a.draws} draws in {time.perf_counter() - t0:.0f} s", flush=True)
@@ -253,6 +253,7 @@ def main() -> None:
     ap.add_argument("--substeps", type=int, default=4)
     ap.add_argument("--period", type=int, default=1, help="averaging period in sun revolutions (3: the cranks' too)")
     ap.add_argument("--draws", type=int, default=16)
+    ap.add_argument("--no-linearity", action="store_true", help="skip the +-2h differences (half the simulations)")
     ap.add_argument("--only", default="", help="comma-separated parameter names (default: all)")
     ap.add_argument("--summary", action="store_true", help="the tables of docs/twin.md (implies --report)")
     ap.add_argument("--plot", default="", help="with --summary: write the singular values' figure here")
