@@ -49,7 +49,7 @@ PACKAGES = [
     ("gears", "gear geometry, mesh stiffness, tooth faults"),
     ("dynamics", "the 27-DOF model and its integrator"),
     ("motor", "the servo motor and its phase currents"),
-    ("updating", "fitting a reducer model to a measured healthy record"),
+    ("updating", "fitting a reducer model to a measured healthy record; what a record can identify"),
     ("library", "health states and simulated fault-sample libraries"),
     ("datasets", "the Zarr sample store"),
     ("io", "measured signal files"),

@@ -10,9 +10,14 @@ revolutions relative to the carrier (the period of the sun's tooth errors and of
   compute its TSA (:func:`rvdiag.features.orders.resample_to_angle`, :func:`rvdiag.features.orders.tsa`);
 - ``"te"``: the transmission error between the motor's encoder and an encoder on the output,
   ``q_m / i - q_H`` (output rad; the vibratory rotor and carrier angles of the model, docs/model.md section 1),
-  plus the motor encoder's once-per-revolution error (a nuisance parameter of its own, ``encoder_cos`` /
-  ``encoder_sin``);
+  plus the motor encoder's once-per-revolution error (a parameter of its own, kind ``"encoder"``);
 - ``"current"``: the drive's q-axis current ``i_q`` (the d-q current the phase lines ``f_e +- k f1`` carry).
+
+``OperatingPoint(period_revs=3)`` averages over 3 sun revolutions instead, the period of the RV-20E's planets and
+cranks too (their runouts and errors lie at a third of a sun order, which the sun's average cancels).  The TE and
+the current are torsional and their sensitivities do not depend on the record's length; the housing sensor is fixed
+while the planets orbit, so the vibration's do (docs/twin.md, "The checks"): take its Jacobian from a record as long
+as the one it stands for.
 
 The model (:func:`observe`) is the simulator's own, noise-free: the same kernels, step grid and start state as
 :func:`rvdiag.dynamics.simulate` (the state is recorded at every sample, so the carrier's angle is available; the
@@ -30,7 +35,7 @@ revolution and every signal of one record.  So one record's observation covarian
 
 and ``n`` records with their own draws give the Fisher information ``n J^T C^-1 J`` (Kay, *Fundamentals of
 Statistical Signal Processing* vol. 1, sec. 3.9, eq. 3.31, the linear Gaussian model; Ljung, *System
-Identification*, 2nd ed., sec. 7.4 and 9.3, the Cramér–Rao bound of a prediction-error estimate).  Parameters are
+Identification*, 2nd ed., ch. 7 and 9, the Cramér–Rao bound of a prediction-error estimate).  Parameters are
 measured in units of their prior spread (``theta = theta_0 + L z``, ``L L^T`` the prior covariance: the tolerance
 the parameter is drawn from), so the whitened Jacobian is ``C^-1/2 J L`` and a direction whose singular value
 exceeds 1 is one the record determines better than the manufacturing tolerance already does (the local
@@ -51,7 +56,6 @@ orders ``h + m Z1`` and ``m Z1 - h`` (:func:`torsional_orders`).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
