@@ -220,6 +220,79 @@ def compare(a) -> None:
             print(f"  {tag} {'+'.join(sig):24s} singular values " + ", ".join(f"{v:.3g}" for v in r.singular_values))
 
 
+def scale_check(a) -> None:
+    """How far the linearisation holds: tooth patterns drawn as specimens' (seeds 100..), scaled by 0.03-1, simulated,
+    and ``||y(d) - y(0) - J d|| / ||y(d) - y(0)||`` per signal (the Jacobian of --out, at its own record length)."""
+    base, J, G, D, z = load(a.out)
+    period = int(z["period"]) if "period" in z else 1
+    op = ob.OperatingPoint(revolutions=int(z["revolutions"]), substeps=int(z["substeps"]), period_revs=period)
+    teeth = [j for j, p in enumerate(J.parameters) if p.kind == "tooth"]
+    t0 = ob.nominal_tooth_errors(base)
+    y0 = ob.observe(base, op, None, t0)
+    from rvdiag.gears.modification import iso1328_tolerances, tooth_position_errors
+
+    s1 = base.stage1
+    tol = iso1328_tolerances(s1.module, s1.module * s1.sun_teeth, base.modification.iso1328_grade)
+    print(f"\n## linearity at the prior's scale ({a.out}): ||y(d) - y(0) - J d|| / ||y(d) - y(0)||, "
+          "vibration / te / current")
+    for k in range(a.scale_check):
+        d = tooth_position_errors(s1.sun_teeth, tol, 100 + k)          # a pattern drawn as a specimen's (seed 100+k)
+        for scale in (0.03, 0.1, 0.3, 1.0):
+            dd = scale * d
+            y = ob.observe(base, op, None, t0 + dd)
+            err = []
+            for s in ob.OBSERVATIONS:
+                dy = y[s] - y0[s]
+                pred = J.columns[s][:, teeth] @ dd
+                err.append(np.linalg.norm(dy - pred) / max(np.linalg.norm(dy), 1e-300))
+            print(f"  pattern {k}, {scale:4.2f} x prior ({np.sqrt(np.mean(dd ** 2)) * 1e6:.3f} um RMS): "
+                  + " / ".join(f"{e:.3f}" for e in err), flush=True)
+
+
+def gauss_newton_check(a) -> None:
+    """Can the tooth pattern be found from the prior's mean?  A specimen with the nominal reducer's every other
+    parameter and the pattern of seed 100 (drawn as a specimen's), its noise-free lines of ``--gn-signal`` as the
+    data; Gauss-Newton with the prior as regulariser (the MAP of the linearised model at each iterate), a fresh
+    teeth-only Jacobian (central differences) at each iterate, from a zero pattern.  Prints the RMS error of the
+    positions after each iteration against the prior RMS and the bound of one 1 s record."""
+    from rvdiag.gears.modification import iso1328_tolerances, tooth_position_errors
+
+    base = base_params()
+    s1 = base.stage1
+    op = ob.OperatingPoint(revolutions=a.revolutions, substeps=a.substeps)
+    tol = iso1328_tolerances(s1.module, s1.module * s1.sun_teeth, base.modification.iso1328_grade)
+    truth = tooth_position_errors(s1.sun_teeth, tol, 100)
+    sig = tuple(a.gn_signal.split("+"))
+    pars = ob.reducer_parameters(base, planets=False, path=False, stiffness=False, damping=False, encoder=False)
+    y_true = ob.observe(base, op, None, truth)
+    P = ob.sun_tooth_prior(base)
+    w, V = np.linalg.eigh(P)
+    keep = w > 1e-9 * w.max()
+    Pinv = (V[:, keep] / w[keep]) @ V[:, keep].T                  # on the zero-mean teeth; the mean is held at 0
+    noise = ob.NoiseModel()
+    t = np.zeros(s1.sun_teeth)
+    t_start = time.perf_counter()
+    print(f"\n## Gauss-Newton from a zero pattern on {'+'.join(sig)} ({a.revolutions} revolutions, noise-free data, "
+          f"weights of a 1 s record); truth RMS {np.sqrt(np.mean(truth ** 2)) * 1e6:.3f} um")
+    for it in range(a.gn_iterations + 1):
+        err = np.sqrt(np.mean((t - truth) ** 2))
+        print(f"  iteration {it}: RMS error {err * 1e6:.4f} um ({err / np.sqrt(np.mean(np.diag(P))):.4f} of the prior "
+              f"RMS), {time.perf_counter() - t_start:.0f} s", flush=True)
+        if it == a.gn_iterations:
+            break
+        J = ob.jacobian(base, op, pars, check_linearity=False, teeth0=t)
+        y = J.nominal
+        A = np.zeros((len(t), len(t)))
+        g = np.zeros(len(t))
+        for s in sig:
+            wgt = 1.0 / noise.line_variance(s, 1.0, J.vibration_power)
+            A += wgt * J.columns[s].T @ J.columns[s]
+            g += wgt * J.columns[s].T @ (y_true[s] - y[s])
+        step = np.linalg.lstsq(A + Pinv, g - Pinv @ t, rcond=None)[0]
+        t = t + step
+        t = t - t.mean()
+
+
 def harmonics(J, base, op, prior) -> None:
     """Where each tooth-error harmonic's sensitivity lies: its share at sun orders that N divides."""
     N = base.stage1.n_planets * op.period_revs                # lines in orders of the period: sun order n is n k
@@ -258,7 +331,18 @@ def main() -> None:
     ap.add_argument("--summary", action="store_true", help="the tables of docs/twin.md (implies --report)")
     ap.add_argument("--plot", default="", help="with --summary: write the singular values' figure here")
     ap.add_argument("--against", default="", help="compare --out's Jacobian with this file's (implies --report)")
+    ap.add_argument("--scale-check", type=int, default=0, metavar="K",
+                    help="simulate K prior-drawn tooth patterns at 0.03-1 x and compare with J d (implies --report)")
+    ap.add_argument("--gn-check", action="store_true", help="Gauss-Newton for the tooth pattern of a specimen")
+    ap.add_argument("--gn-signal", default="te", help="signals for --gn-check, joined by + (e.g. vibration+te)")
+    ap.add_argument("--gn-iterations", type=int, default=5)
     a = ap.parse_args()
+    if a.gn_check:
+        gauss_newton_check(a)
+        return
+    if a.scale_check:
+        scale_check(a)
+        return
     if a.against:
         compare(a)
         return
