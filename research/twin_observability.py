@@ -250,11 +250,12 @@ def scale_check(a) -> None:
 
 
 def gauss_newton_check(a) -> None:
-    """Can the tooth pattern be found from the prior's mean?  A specimen with the nominal reducer's every other
-    parameter and the pattern of seed 100 (drawn as a specimen's), its noise-free lines of ``--gn-signal`` as the
-    data; Gauss-Newton with the prior as regulariser (the MAP of the linearised model at each iterate), a fresh
-    teeth-only Jacobian (central differences) at each iterate, from a zero pattern.  Prints the RMS error of the
-    positions after each iteration against the prior RMS and the bound of one 1 s record."""
+    """Can the tooth pattern be found from the prior's mean?  A specimen with the pattern of seed 100 (drawn as a
+    specimen's) and, with ``--gn-factors``, its stiffness and damping factors drawn from their prior (uniform
+    +-10 %, seed 100) and estimated too (else nominal and known); its lines of ``--gn-signal`` as the data, with
+    ``--gn-noise`` the white noise of one 1 s record added (seed 7).  Gauss-Newton with the prior as regulariser
+    (the MAP step of the linearised model at each iterate), a fresh Jacobian (central differences) at each iterate,
+    from a zero pattern and nominal factors.  Prints the RMS error of the positions after each iteration."""
     from rvdiag.gears.modification import iso1328_tolerances, tooth_position_errors
 
     base = base_params()
@@ -263,34 +264,55 @@ def gauss_newton_check(a) -> None:
     tol = iso1328_tolerances(s1.module, s1.module * s1.sun_teeth, base.modification.iso1328_grade)
     truth = tooth_position_errors(s1.sun_teeth, tol, 100)
     sig = tuple(a.gn_signal.split("+"))
-    pars = ob.reducer_parameters(base, planets=False, path=False, stiffness=False, damping=False, encoder=False)
-    y_true = ob.observe(base, op, None, truth)
+    pars = ob.reducer_parameters(base, planets=False, path=False, stiffness=a.gn_factors, damping=a.gn_factors,
+                                 encoder=False)
+    teeth = [j for j, p in enumerate(pars) if p.kind == "tooth"]
+    facs = [j for j, p in enumerate(pars) if p.kind == "factor"]
+    rng = np.random.default_rng(100)
+    f_true = {pars[j]: float(rng.uniform(-0.1, 0.1)) for j in facs}
+    y_true = ob.observe(base, op, ob.Perturbation(dict(f_true)), truth)
+    noise = ob.NoiseModel()
+    if a.gn_noise:
+        nrng = np.random.default_rng(7)
+        for s in sig:
+            y_true[s] = y_true[s] + np.sqrt(noise.line_variance(s, 1.0, y_true["_vibration_power"])) * \
+                nrng.standard_normal(y_true[s].size)
     P = ob.sun_tooth_prior(base)
     w, V = np.linalg.eigh(P)
     keep = w > 1e-9 * w.max()
-    Pinv = (V[:, keep] / w[keep]) @ V[:, keep].T                  # on the zero-mean teeth; the mean is held at 0
-    noise = ob.NoiseModel()
-    t = np.zeros(s1.sun_teeth)
+    n = len(pars)
+    Pinv = np.zeros((n, n))
+    Pinv[np.ix_(teeth, teeth)] = (V[:, keep] / w[keep]) @ V[:, keep].T   # the teeth's mean is held at 0
+    for j in facs:
+        Pinv[j, j] = 1.0 / pars[j].prior_sd ** 2
+    theta = np.zeros(n)                                               # teeth (m), then factors (1 + v)
     t_start = time.perf_counter()
-    print(f"\n## Gauss-Newton from a zero pattern on {'+'.join(sig)} ({a.revolutions} revolutions, noise-free data, "
-          f"weights of a 1 s record); truth RMS {np.sqrt(np.mean(truth ** 2)) * 1e6:.3f} um")
+    print(f"\n## Gauss-Newton from a zero pattern on {'+'.join(sig)} ({a.revolutions} revolutions, "
+          f"{'noise of a 1 s record' if a.gn_noise else 'noise-free data'}, weights of a 1 s record; "
+          f"{len(facs)} factors estimated too); truth RMS {np.sqrt(np.mean(truth ** 2)) * 1e6:.3f} um")
     for it in range(a.gn_iterations + 1):
-        err = np.sqrt(np.mean((t - truth) ** 2))
-        print(f"  iteration {it}: RMS error {err * 1e6:.4f} um ({err / np.sqrt(np.mean(np.diag(P))):.4f} of the prior "
-              f"RMS), {time.perf_counter() - t_start:.0f} s", flush=True)
+        err = np.sqrt(np.mean((theta[teeth] - truth) ** 2))
+        ferr = (np.sqrt(np.mean([(theta[j] - f_true[pars[j]]) ** 2 for j in facs])) if facs else 0.0)
+        print(f"  iteration {it}: teeth RMS error {err * 1e6:.4f} um ({err / np.sqrt(np.mean(np.diag(P))):.4f} of the "
+              f"prior RMS); factors RMS error {ferr:.4f}; {time.perf_counter() - t_start:.0f} s", flush=True)
         if it == a.gn_iterations:
             break
-        J = ob.jacobian(base, op, pars, check_linearity=False, teeth0=t)
-        y = J.nominal
-        A = np.zeros((len(t), len(t)))
-        g = np.zeros(len(t))
+        here = ob._split(ob.Perturbation({pars[j]: theta[j] for j in facs}), base, theta[teeth])[0]
+        J = ob.jacobian(here, op, pars, check_linearity=False, teeth0=theta[teeth])
+        A = np.zeros((n, n))
+        g = np.zeros(n)
         for s in sig:
             wgt = 1.0 / noise.line_variance(s, 1.0, J.vibration_power)
-            A += wgt * J.columns[s].T @ J.columns[s]
-            g += wgt * J.columns[s].T @ (y_true[s] - y[s])
-        step = np.linalg.lstsq(A + Pinv, g - Pinv @ t, rcond=None)[0]
-        t = t + step
-        t = t - t.mean()
+            Js = J.columns[s].copy()
+            Js[:, facs] /= 1.0 + theta[facs]                          # d/dv of (1 + v_k)(1 + u): per unit of v
+            A += wgt * Js.T @ Js
+            g += wgt * Js.T @ (y_true[s] - J.nominal[s])
+        step = np.linalg.lstsq(A + Pinv, g - Pinv @ theta, rcond=None)[0]
+        if a.gn_trust > 0 and facs:                                   # a trust region on the factors: the step
+            big = np.max(np.abs(step[facs])) / a.gn_trust            # scaled so that none moves by more
+            step = step / max(big, 1.0)
+        theta = theta + step
+        theta[teeth] -= theta[teeth].mean()
 
 
 def harmonics(J, base, op, prior) -> None:
@@ -336,6 +358,10 @@ def main() -> None:
     ap.add_argument("--gn-check", action="store_true", help="Gauss-Newton for the tooth pattern of a specimen")
     ap.add_argument("--gn-signal", default="te", help="signals for --gn-check, joined by + (e.g. vibration+te)")
     ap.add_argument("--gn-iterations", type=int, default=5)
+    ap.add_argument("--gn-factors", action="store_true", help="--gn-check: the stiffness and damping factors unknown")
+    ap.add_argument("--gn-noise", action="store_true", help="--gn-check: the noise of one 1 s record on the data")
+    ap.add_argument("--gn-trust", type=float, default=0.0,
+                    help="--gn-check: largest factor change per iteration (the whole step scaled to it; 0: none)")
     a = ap.parse_args()
     if a.gn_check:
         gauss_newton_check(a)
