@@ -307,7 +307,10 @@ def gauss_newton_check(a) -> None:
             Js[:, facs] /= 1.0 + theta[facs]                          # d/dv of (1 + v_k)(1 + u): per unit of v
             A += wgt * Js.T @ Js
             g += wgt * Js.T @ (y_true[s] - J.nominal[s])
-        step = np.linalg.lstsq(A + Pinv, g - Pinv @ theta, rcond=None)[0]
+        move = teeth if it < a.gn_teeth_first else list(range(n))    # the first steps hold the factors
+        M = np.ix_(move, move)
+        step = np.zeros(n)
+        step[move] = np.linalg.lstsq((A + Pinv)[M], (g - Pinv @ theta)[move], rcond=None)[0]
         if a.gn_trust > 0 and facs:                                   # a trust region on the factors: the step
             big = np.max(np.abs(step[facs])) / a.gn_trust            # scaled so that none moves by more
             step = step / max(big, 1.0)
@@ -360,6 +363,8 @@ def main() -> None:
     ap.add_argument("--gn-iterations", type=int, default=5)
     ap.add_argument("--gn-factors", action="store_true", help="--gn-check: the stiffness and damping factors unknown")
     ap.add_argument("--gn-noise", action="store_true", help="--gn-check: the noise of one 1 s record on the data")
+    ap.add_argument("--gn-teeth-first", type=int, default=0, metavar="K",
+                    help="--gn-check: the first K iterations move the teeth only (the factors held)")
     ap.add_argument("--gn-trust", type=float, default=0.0,
                     help="--gn-check: largest factor change per iteration (the whole step scaled to it; 0: none)")
     a = ap.parse_args()
