@@ -23,7 +23,9 @@ from pathlib import Path
 import numpy as np
 
 from rvdiag.errors import ParameterError, StoreError
+from rvdiag.evaluation.metrics import binomial_interval
 from rvdiag.monitoring.baseline import open_baseline_store, teeth, reducer_type
+from rvdiag.monitoring.life import sensor_faulty
 from rvdiag.datasets.store import Samples
 from rvdiag.monitoring.pairing import (RECORD_COLUMN, baseline_records, is_paired, paired_features, per_record,
                                        roles, subset, with_load_column)
@@ -185,15 +187,6 @@ def first_row(s, fx):
 
 
 # ---------------------------------------------------------------------------------------------------- evaluate
-def binomial_interval(k: int, n: int, level: float = 0.95) -> list[float]:
-    """The Clopper-Pearson interval of a rate of ``k`` events in ``n`` trials (Clopper & Pearson, Biometrika 26
-    (1934) 404-413; :meth:`scipy.stats.binomtest`'s ``proportion_ci(method="exact")``)."""
-    from scipy.stats import binomtest
-
-    ci = binomtest(int(k), int(n)).proportion_ci(confidence_level=level, method="exact")
-    return [float(ci.low), float(ci.high)]
-
-
 def score(m, mon, base, fs, baseline_fs, tolerances, where, merge=None) -> dict:
     """The state's classification metrics beside the alarm's rates on the monitored records ``mon``, each record
     decided on the mean change of its windows (:func:`record_means`); with ``merge`` (``{"T4": "T1"}``) also the
@@ -260,6 +253,10 @@ def evaluate_monitor(loaded, store, data, split: str, where=(), baseline: Path |
         raise ParameterError(f"the model {loaded.path} is baseline-referenced and {data} is not a paired store: "
                              "give --baseline BASE.zarr, a healthy store of the same machine")
     s = subset(s, roles(s, "monitored"))
+    # a record with a sensor fault (a life store's drawn dead, clipped or disconnected channel) is not scored, as
+    # the fleet does not score a record it does not recognise
+    bad = sensor_faulty(s.meta)
+    s = subset(s, ~bad)
     s = Samples(X=s.X, y=s.y, meta=with_load_column(s.meta), index=s.index)
     if not len(s.y):
         raise StoreError(f"the split {split!r} of {data} holds no monitored records"
@@ -268,6 +265,8 @@ def evaluate_monitor(loaded, store, data, split: str, where=(), baseline: Path |
         raise ParameterError(f"{data} is sampled at {store.fs:g} Hz, the model at {loaded.fs:g} Hz")
     out = score(m, s, base, store.fs, bfs, loaded.card.get("baseline"), f"the store {data}", merge)
     out["split"] = split
+    if bad.any():
+        out["n_sensor_fault_samples_left_out"] = int(bad.sum())
     return out
 
 
