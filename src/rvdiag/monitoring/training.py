@@ -271,5 +271,5 @@ def evaluate_monitor(loaded, store, data, split: str, where=(), baseline: Path |
 
 
 __all__ = ["DEFAULT_ALPHA", "DEFAULT_CURRENT_MONITOR_FEATURES", "DEFAULT_MONITOR_FEATURES", "MONITOR_FEATURES",
-           "MONITOR_MODEL", "binomial_interval", "calibration_words", "default_monitor_features", "evaluate_monitor",
+           "MONITOR_MODEL", "calibration_words", "default_monitor_features", "evaluate_monitor",
            "headline", "monitor_features", "score", "train_monitor", "wants_monitor"]
