@@ -90,7 +90,8 @@ class CrackGrowth(Growth):
         days = np.asarray(days, dtype=float)
         n = np.clip(days - self.onset_days, 0.0, None) * self.passes_per_day
         a = paris_crack_depth(self.a0_m, n, self.stress_range_MPa, delta_k_th=0.0)
-        return np.where(days >= self.onset_days, np.minimum(a, self.failure_size), 0.0)
+        a = np.where(days >= self.failure_days, self.failure_size, np.minimum(a, self.failure_size))
+        return np.where(days >= self.onset_days, a, 0.0)
 
 
 @dataclass(frozen=True, eq=False)
