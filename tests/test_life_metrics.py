@@ -192,7 +192,8 @@ N_MON, INTERVAL = 14, 7.0
 FATES = [("healthy", None, None), ("wear", 30.0, 90.0), ("broken", 40.0, 40.0), ("wear", 20.0, 70.0),
          ("healthy", None, None), ("broken", 50.0, 50.0), ("wear", 25.0, 80.0), ("healthy", None, None),
          ("healthy", None, None), ("wear", 28.0, 85.0), ("broken", 45.0, 45.0), ("healthy", None, None)]
-SENSOR_FAULT_FROM = {11: 10}   # reducer 11's channel dies at its 10th monitored record
+#: reducer -> the monitored record from which its channel is dead (one training, one held-out reducer)
+SENSOR_FAULT_FROM = {7: 12, 11: 10}
 
 
 def _life_record(rng, fp, speed, load, fate, size):
@@ -235,7 +236,8 @@ def life_store_records(seed: int = 0):
 
 @pytest.fixture(scope="module")
 def life(tmp_path_factory):
-    from rvdiag.cli import main
+    from rvdiag.datasets import SampleStore
+    from rvdiag.monitoring import train_monitor
 
     d = tmp_path_factory.mktemp("life")
     X, y, meta = life_store_records()
@@ -244,11 +246,17 @@ def life(tmp_path_factory):
     plain = {k: v for k, v in meta.items() if not k.startswith("life.")}
     write_store(d / "paired.zarr", X, y, plain, kind="simulated", fs=FS,
                 config={"synthetic": "paired"}, extra_attrs=params_attrs())
-    try:
-        main(["train", str(d / "life.zarr"), "-o", str(d / "monitor"), "--alpha", "0.05", "-q"])
-    except SystemExit as exc:
-        assert not exc.code
-    return {"dir": d, "store": d / "life.zarr", "paired": d / "paired.zarr", "model": d / "monitor", "meta": meta}
+    said = []
+    train_monitor(SampleStore.open(d / "life.zarr"), d / "life.zarr", d / "monitor", features=None, alpha=0.05,
+                  seed=0, echo=said.append)
+    return {"dir": d, "store": d / "life.zarr", "paired": d / "paired.zarr", "model": d / "monitor", "meta": meta,
+            "said": said}
+
+
+def test_training_leaves_sensor_fault_records_out(life):
+    n = N_MON - SENSOR_FAULT_FROM[7]
+    assert f"on {TRAIN * N_MON - n} monitored records" in life["said"][0]
+    assert f"{n} window(s) with a sensor fault (life.sensor_fault) left out" in life["said"][0]
 
 
 def test_evaluate_life_gives_per_reducer_and_pooled_figures(life, capsys):
@@ -320,3 +328,52 @@ def test_evaluate_life_refuses_a_baseline_store(life, capsys):
     code, out, err = run_cli(["evaluate", life["model"], life["store"], "--life", "--baseline", life["paired"]],
                              capsys)
     assert code == 2 and "drop --baseline" in err and err.count("\n") == 1
+
+
+# ------------------------------------------------------------------- a life store built by the library's plan
+LIFE_CONFIG = {
+    "mode": "split-by-simulation", "seed": 4, "simulator": "rvdiag.library.synthetic:simulate",
+    "signal": {"fs": 4000.0, "duration_s": 0.5, "transient_s": 0.05, "segment_length": 1000, "hop": 1000},
+    "operation": {"output_speed_deg_s": 45.0, "load_Nm": {"min": 50.0, "max": 130.0}, "noise_snr_db": 20.0,
+                  "noise_mode": "floor"},
+    "randomise": {"stiffness_pct": 10.0, "damping_pct": 10.0, "specimen": True,
+                  "path_resonance_hz": {"min": 1500.0, "max": 9000.0}},
+    "baseline": {"operating_points": [[45.0, 50.0], [45.0, 130.0]], "records_per_point": 3},
+    "split": {"reducers": 10, "test_reducers": 4},
+    "history": {"records": 12, "interval_days": 14.0, "sensor_fault_share": 0.3, "onset_days": {"min": 7, "max": 35},
+                "crack_days": {"min": 40, "max": 80}, "wear_coefficient": {"min": 1e-16, "max": 2e-16},
+                "fates": {"healthy": 0.3, "wear": 0.3, "crack": 0.2, "broken": 0.2}},
+}
+
+
+def test_evaluate_life_on_a_store_the_library_builds(tmp_path, capsys):
+    """``rvdiag library`` life plan (synthetic simulator) -> ``train`` -> ``evaluate --life``: the life figures of
+    each held-out reducer, its fate and its sensor-fault records as the store's columns say, and the threshold of
+    the training reducers that reach failure (seed 4 draws: held out a crack and a healthy reducer whose sensors
+    fail, a broken tooth, a healthy reducer; in training wear and a crack that reach failure; about 20 s)."""
+    from rvdiag.datasets import SampleStore
+    from rvdiag.library import LibraryConfig, build_library
+
+    path = tmp_path / "life.zarr"
+    build_library(LibraryConfig.from_dict(LIFE_CONFIG, source="life.toml"), path, workers=0, progress=False)
+    code, out, err = run_cli(["train", path, "-o", tmp_path / "m", "--alpha", "0.05", "-q"], capsys)
+    assert code == 0, err
+    code, out, err = run_cli(["evaluate", tmp_path / "m", path, "--split", "test", "--life", "--json"], capsys)
+    assert code == 0, err
+    life = json.loads(out)["life"]
+    m = SampleStore.open(path).meta
+    test = (m["split"] == "test") & (m["role"] == "monitored")
+    reducers = {str(r) for r in np.unique(m["reducer"][test])}
+    assert set(life["per_reducer"]) == reducers and len(reducers) == 4
+    for r in reducers:
+        rows = test & (m["reducer"].astype(str) == r)
+        assert life["per_reducer"][r]["fates"] == {str(m["life.fate"][rows][0]): 1}
+        dead = len(np.unique(m["unit"][rows & (m["life.sensor_fault"].astype(str) != "")]))
+        assert life["per_reducer"][r]["n_records_left_out"] == dead
+        assert life["per_reducer"][r]["outcome"]["n_records"] == 12 - dead
+    p = life["pooled"]
+    assert p["n_histories"] == 4 and p["lifetime_false_alarm"]["bound"] == 0.01
+    assert p["fates"] == {"broken": 1, "crack": 1, "healthy": 2} and p["n_records_left_out"] > 0
+    assert set(p["detection_delay_records"]) == {"T2", "T4"}
+    t = life["threshold"]
+    assert {"T3", "T4"} <= set(t["per_state"]) and t["*"]["n_reducers"] >= 2 and t["reference_level"] > 0

@@ -107,6 +107,15 @@ def check_reducer_split(tr, te, data) -> None:
                          "referenced model is scored on held-out reducers: split the store by reducer")
 
 
+def monitored_records(s: Samples) -> tuple[Samples, int]:
+    """The monitored samples of ``s`` without those with a sensor fault (a life store's drawn dead, clipped or
+    disconnected channel, :func:`rvdiag.monitoring.life.sensor_faulty`): neither trained on nor scored, as the fleet
+    neither judges nor counts a record it does not recognise; and how many were left out."""
+    mon = roles(s, "monitored")
+    bad = mon & sensor_faulty(s.meta)
+    return subset(s, mon & ~bad), int(bad.sum())
+
+
 def train_monitor(store, data, out: Path, *, features: str | None, alpha: float | None, seed: int,
                   conditions=(), echo=print, warn=None) -> dict:
     """Fit and save a baseline monitor on a paired store (module docstring); returns its test evaluation (or
@@ -130,11 +139,10 @@ def train_monitor(store, data, out: Path, *, features: str | None, alpha: float 
     base = baseline_records(store)
     idx = store.indices("train", list(conditions))
     tr = store.load(index=idx)
-    tr = subset(tr, roles(tr, "monitored"))
+    tr, left_out = monitored_records(tr)
     te = None
     if "test" in store.splits():
-        te = store.load("test")
-        te = subset(te, roles(te, "monitored"))
+        te, _ = monitored_records(store.load("test"))
     check_reducer_split(tr, te, data)
     if len(set(tr.y.tolist())) < 2:
         raise StoreError(f"{data}: the monitored records of the train split hold fewer than 2 states")
@@ -143,7 +151,8 @@ def train_monitor(store, data, out: Path, *, features: str | None, alpha: float 
          f"reducer's baseline at the nearest operating point) on {n_rec(tr)} monitored records ({len(tr.y)} windows) "
          f"of {len(np.unique(tr.meta['reducer']))} reducers" + (f", scoring {n_rec(te)} of "
                                                                f"{len(np.unique(te.meta['reducer']))} held-out "
-                                                               "reducers" if te is not None else ", no test split"))
+                                                               "reducers" if te is not None else ", no test split")
+         + (f"; {left_out} window(s) with a sensor fault (life.sensor_fault) left out" if left_out else ""))
     fx.fit(first_row(tr, fx))
     D, _ = paired_features(fx, tr, base, fs=store.fs, baseline_fs=store.fs, where=f"the store {data}")
     D, y, reducers, counts = per_record(D, tr, f"the store {data}")  # one row per record: its windows' mean
@@ -252,11 +261,7 @@ def evaluate_monitor(loaded, store, data, split: str, where=(), baseline: Path |
     else:
         raise ParameterError(f"the model {loaded.path} is baseline-referenced and {data} is not a paired store: "
                              "give --baseline BASE.zarr, a healthy store of the same machine")
-    s = subset(s, roles(s, "monitored"))
-    # a record with a sensor fault (a life store's drawn dead, clipped or disconnected channel) is not scored, as
-    # the fleet does not score a record it does not recognise
-    bad = sensor_faulty(s.meta)
-    s = subset(s, ~bad)
+    s, bad = monitored_records(s)
     s = Samples(X=s.X, y=s.y, meta=with_load_column(s.meta), index=s.index)
     if not len(s.y):
         raise StoreError(f"the split {split!r} of {data} holds no monitored records"
@@ -265,8 +270,8 @@ def evaluate_monitor(loaded, store, data, split: str, where=(), baseline: Path |
         raise ParameterError(f"{data} is sampled at {store.fs:g} Hz, the model at {loaded.fs:g} Hz")
     out = score(m, s, base, store.fs, bfs, loaded.card.get("baseline"), f"the store {data}", merge)
     out["split"] = split
-    if bad.any():
-        out["n_sensor_fault_samples_left_out"] = int(bad.sum())
+    if bad:
+        out["n_sensor_fault_samples_left_out"] = bad
     return out
 
 
