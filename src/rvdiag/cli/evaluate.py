@@ -187,9 +187,9 @@ def _print_life(life: dict) -> None:
                f"healthy histories ever alarming {pct(fa['rate'])}{ci} of {fa['n']} (bound {pct(fa['bound'])})")
     for state, d in p["detection_delay_records"].items():
         w = p["detected_within_3"][state]
-        typer.echo(f"  {state}: delay median {d['median'] if d['median'] is not None else 'never'}, p90 "
-                   f"{d['p90'] if d['p90'] is not None else 'never'} records; within 3 records {pct(w['share'])} "
-                   f"of {w['n']}")
+        rec = (lambda v: "never" if v is None else f"{v:g}")
+        typer.echo(f"  {state}: delay median {rec(d['median'])}, p90 {rec(d['p90'])} records; within 3 records "
+                   f"{pct(w['share'])} of {w['n']}")
     for name, r in (("remaining life", p), ("linear extrapolation", p["baseline"])):
         c, a = r["rul_coverage_80"], r["alpha_lambda"]
         typer.echo(f"  {name}: 80 % interval holds the truth in {pct(c['rate'])} of {c['n']}, alpha-lambda "

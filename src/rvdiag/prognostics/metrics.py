@@ -24,7 +24,8 @@ pooled, JSON-ready:
     prognostic performance", IJPHM 1(1), sec. 5): t_lambda = t_P + 0.5 (EoL - t_P), t_P the alarm and EoL the true
     failure time; the prediction is made at the first record at or after t_lambda (the last record before the
     failure when none is).  Scored on the histories whose fault grows to a failure (not a sudden broken tooth) and
-    that alarm before it; a history whose remaining life is then "not estimated" counts as a miss.
+    that alarm before it (an alarm before the onset too: the product predicts from whatever alarm it has); a
+    history whose remaining life is then "not estimated" counts as a miss.
 ``alpha_lambda``
     the share of the same histories that meet alpha-lambda accuracy (Saxena et al. 2010, eq. 11) with alpha 0.2 and
     beta 0.5: at least half the predicted time-of-failure draws lie strictly within +-alpha (EoL - t_lambda) of
