@@ -74,8 +74,8 @@ class Life:
         """``(state, severities, life columns)`` of the record ``index`` at ``days`` since commissioning.
 
         The state follows the size: T1 before the onset and while the size is below the state's smallest simulable
-        severity (``minimum``, the lower end of its validity interval: :data:`rvdiag.library.states.SEVERITY_PARAMETERS`;
-        the truth columns keep the size); then wear T3 (``wear_depth`` = the size, capped at its interval's upper end),
+        severity (``minimum``, the lower end of its validity interval:
+        :data:`rvdiag.library.states.SEVERITY_PARAMETERS`; the truth columns keep the size); then wear T3 (``wear_depth`` = the size, capped at its interval's upper end),
         a crack T4 (``crack_depth`` = the size at the drawn angle) until its failure, then T2 at the drawn broken
         fraction, a broken tooth T2 from its onset."""
         g = self.growth
@@ -147,3 +147,30 @@ def draw_life(history: Any, rng: np.random.Generator, params: Any) -> Life:
     return Life(growth, angle, broken, mesh_passes(params, 24.0, duty, "sun"), kind, since,
                 minimum={k: p.lo for k, p in SEVERITY_PARAMETERS.items()},
                 maximum={k: p.hi for k, p in SEVERITY_PARAMETERS.items()})
+
+
+def summarize(meta: Mapping[str, Any]) -> dict[str, Any] | None:
+    """What a store's life histories hold (``rvdiag library info``), from its metadata columns; ``None`` for a store
+    without them: reducers per fate, records per reducer, the last record's day, the reducers whose fault fails
+    (reaches its failure threshold) by their last record, and the reducers with a sensor fault."""
+    if "life.fate" not in meta:
+        return None
+    reducer = np.asarray(meta["reducer"])
+    fate, days = np.asarray(meta["life.fate"]).astype(str), np.asarray(meta["life.time_days"], dtype=float)
+    failure = np.asarray(meta["life.failure_days"], dtype=float)
+    fault = np.asarray(meta["life.sensor_fault"]).astype(str)
+    record = np.asarray(meta["life.record"])
+    out: dict[str, Any] = {"reducers": int(np.unique(reducer).size), "fates": {}, "failed_by_last_record": {},
+                           "records_per_reducer": int(np.unique(record).size), "last_day": float(days.max()),
+                           "sensor_faults": {}}
+    for f in FATES:
+        mine = fate == f
+        if not mine.any():
+            continue
+        out["fates"][f] = int(np.unique(reducer[mine]).size)
+        if f != "healthy":
+            out["failed_by_last_record"][f] = int(np.unique(reducer[mine & (failure <= days.max())]).size)
+    for kind in SENSOR_FAULTS:
+        if (fault == kind).any():
+            out["sensor_faults"][kind] = int(np.unique(reducer[fault == kind]).size)
+    return out

@@ -128,8 +128,9 @@ def draw_history(kind: str, seed: int, params, spec: HistorySpec = HistorySpec()
         growth = wear_growth(params, spec.duty, onset, k, spec.wear_fail_m, k_ref=k_ref,
                              hours_ref_max=24.0 * 3000.0 * spec.k_wear_range[1] / k_ref)
     elif kind == "crack":
-        growth = crack_growth(params, spec.duty, onset, spec.crack_a0_m,
-                              spec.crack_fail_fraction * sun_root_chord(params), float(rng.uniform(*spec.crack_days_range)))
+        a_fail = spec.crack_fail_fraction * sun_root_chord(params)
+        growth = crack_growth(params, spec.duty, onset, spec.crack_a0_m, a_fail,
+                              float(rng.uniform(*spec.crack_days_range)))
     elif kind == "broken":
         growth = broken_step(onset, 1.0)
     else:
