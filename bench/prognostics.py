@@ -45,10 +45,12 @@ ROOT = Path(__file__).resolve().parents[1]
 STATE = {"broken": "T2", "crack": "T4", "wear": "T3"}
 
 
-def life_history(h, seed: int, spec: HistorySpec) -> LifeHistory:
-    """A synthetic history (:func:`draw_history`) as :func:`rvdiag.prognostics.metrics.life_metrics` scores it."""
+def life_history(h, seed: int, spec: HistorySpec, fleet_pool: bool = False) -> LifeHistory:
+    """A synthetic history (:func:`draw_history`) as :func:`rvdiag.prognostics.metrics.life_metrics` scores it
+    (``fleet_pool``: without its commissioning scores, as the fleet ranks a joint's records)."""
     return LifeHistory(days=h.days, score=h.health_index, fate=h.kind, onset_days=h.onset_day,
-                       failure_days=h.failure_day, state=STATE.get(h.kind), baseline_scores=h.baseline,
+                       failure_days=h.failure_day, state=STATE.get(h.kind),
+                       baseline_scores=() if fleet_pool else h.baseline,
                        threshold=h.threshold_index, reference_level=spec.reference_level, seed=seed,
                        name=f"{h.kind}-{h.seed}")
 
@@ -117,13 +119,17 @@ def main() -> None:
                     help="remaining-life models (rvdiag.prognostics.rul.MODELS), each against linear extrapolation")
     ap.add_argument("--horizon", action="store_true",
                     help="also ProgPy's prognostic horizon (a prediction at every record from alarm to failure)")
+    ap.add_argument("--fleet-pool", action="store_true",
+                    help="rank each record among the joint's earlier monitored records only, as rvdiag fleet and "
+                         "evaluate --life do (its commissioning records have no index); no CUSUM / Page-Hinkley")
     ap.add_argument("--log", action="store_true")
     args = ap.parse_args()
     params = ReducerParams.default()
     spec = HistorySpec(n_baseline=args.baseline, n_records=args.records, scale_spread=args.scale_spread)
     t0 = time.perf_counter()
     lines = [f"histories: {args.healthy} healthy x {args.records} records, {args.faults} per fault; "
-             f"{args.baseline} commissioning records; delta = {args.delta}; record every {spec.interval_days} days; "
+             f"{args.baseline} commissioning records" + (" (not ranked: the fleet's pool)" if args.fleet_pool else "")
+             + f"; delta = {args.delta}; record every {spec.interval_days} days; "
              f"reducer scale spread {spec.scale_spread}; "
              f"index threshold at failure {spec.threshold_index:.2f}"]
 
@@ -132,16 +138,19 @@ def main() -> None:
     hists, synthetic, index_gt_1 = [], [], 0
     for s in range(args.healthy):
         h = draw_history("healthy", 10_000 + s, params, spec)
-        hists.append(life_history(h, s, spec))
+        hists.append(life_history(h, s, spec, args.fleet_pool))
         index_gt_1 += bool(np.any(h.health_index > 1.0))
     for kind in STATE:
         for s in range(args.faults):
             h = draw_history(kind, 20_000 + 1000 * list(STATE).index(kind) + s, params, spec)
-            hists.append(life_history(h, s, spec))
+            hists.append(life_history(h, s, spec, args.fleet_pool))
             synthetic.append((h, s))
-    outcomes = score_histories(hists, delta=args.delta, models=models, classical=True)
-    res = summarise(outcomes, delta=args.delta, models=models, classical=True)
-    dets = {"martingale": res, "cusum": res["baseline"]["cusum"], "page_hinkley": res["baseline"]["page_hinkley"]}
+    classical = not args.fleet_pool
+    outcomes = score_histories(hists, delta=args.delta, models=models, classical=classical)
+    res = summarise(outcomes, delta=args.delta, models=models, classical=classical)
+    dets = {"martingale": res}
+    if classical:
+        dets.update(cusum=res["baseline"]["cusum"], page_hinkley=res["baseline"]["page_hinkley"])
 
     lines.append("healthy histories ever alarming (share, CI95):")
     for name, d in dets.items():
@@ -184,7 +193,8 @@ def main() -> None:
     print(text)
     if args.log:
         cmd = ".venv/bin/python bench/prognostics.py " + " ".join(
-            f"--{k.replace('_', '-')} {v}" for k, v in vars(args).items() if k != "log")
+            f"--{k.replace('_', '-')}" + ("" if isinstance(v, bool) else f" {v}")
+            for k, v in vars(args).items() if k != "log" and v is not False)
         with open(ROOT / "bench" / "HISTORY.md", "a") as f:
             f.write(f"\n## {dt.date.today()} prognostics on synthetic life histories (bench/prognostics.py)\n"
                     f"Command: `{cmd}`\n\n```\n{text}\n```\n")
