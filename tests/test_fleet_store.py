@@ -380,5 +380,9 @@ def test_a_failure_index_gives_the_remaining_life_and_its_change_is_an_event(fle
     assert rul["estimated"] is True, rul
     assert rul["p10_days"] <= rul["median_days"] <= rul["p90_days"]
     assert 2.0 < rul["median_days"] < 30.0
+    from rvdiag.fleet import web
+
+    page = web.joint_page(fleet, J)
+    assert f"median {web.fmt_number(rul['median_days'], 3)} days" in page and "to failure index\n      2, if the duty stays" in page
     assert fleet.set_failure_index(J, None, by="cy")["failure_index"] is None
     assert fleet.status()[0]["rul"]["estimated"] is False
