@@ -26,7 +26,7 @@ from rvdiag.params import ReducerParams
 sys.path.insert(0, str(Path(__file__).parent))
 from conftest import run_cli  # noqa: E402
 from test_library_build import assert_same_store  # noqa: E402
-from test_paired_library import ARM, PAIRED, paired  # noqa: E402
+from test_paired_library import ARM, PAIRED, build_interrupted_then_resumed, paired  # noqa: E402
 
 HISTORY = {"records": 4, "interval_days": 60.0, "fates": {"healthy": 0.25, "wear": 0.25, "crack": 0.25,
                                                            "broken": 0.25},
@@ -303,27 +303,6 @@ def test_library_info_describes_a_life_store(store, capsys):
 
 
 def test_resume_after_an_interruption_gives_the_same_store(store, tmp_path):
-    import rvdiag.library.build as build
-    import rvdiag.library.work_units as work_units
-
-    part = tmp_path / "part.zarr"
-    calls = []
-    real = build._run_checked
-
-    def dies_on_the_eighth(unit, job):
-        calls.append(unit.index)
-        if len(calls) == 8:
-            raise KeyboardInterrupt
-        return real(unit, job)
-
-    build._run_checked = dies_on_the_eighth
-    work_units._TWIN_POWERS.clear()
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            build_library(life(), part, workers=0, progress=False)
-    finally:
-        build._run_checked = real
-    work_units._TWIN_POWERS.clear()
-    report = build_library(life(), part, workers=0, progress=False)
+    report = build_interrupted_then_resumed(life(), tmp_path / "part.zarr", 8)
     assert report.skipped == 7 and report.built == 30 - 7
-    assert_same_store(store, part)
+    assert_same_store(store, tmp_path / "part.zarr")
