@@ -25,8 +25,8 @@ from rvdiag.params import ReducerParams
 
 sys.path.insert(0, str(Path(__file__).parent))
 from conftest import run_cli  # noqa: E402
-from test_library_build import assert_same_store  # noqa: E402
-from test_paired_library import ARM, PAIRED, build_interrupted_then_resumed, paired  # noqa: E402
+from test_library_build import assert_same_store, interrupted_build  # noqa: E402
+from test_paired_library import ARM, PAIRED, paired  # noqa: E402
 
 HISTORY = {"records": 4, "interval_days": 60.0, "fates": {"healthy": 0.25, "wear": 0.25, "crack": 0.25,
                                                            "broken": 0.25},
@@ -302,7 +302,13 @@ def test_library_info_describes_a_life_store(store, capsys):
     assert "life histories: 5 reducers, 6 records each" in out
 
 
-def test_resume_after_an_interruption_gives_the_same_store(store, tmp_path):
-    report = build_interrupted_then_resumed(life(), tmp_path / "part.zarr", 8)
-    assert report.skipped == 7 and report.built == 30 - 7
-    assert_same_store(store, tmp_path / "part.zarr")
+def test_resume_after_an_interruption_gives_the_same_store(store, tmp_path, monkeypatch):
+    import rvdiag.library.work_units as work_units
+
+    path = tmp_path / "part.zarr"
+    work_units._TWIN_POWERS.clear()
+    interrupted_build(life(), path, monkeypatch, after=7)
+    work_units._TWIN_POWERS.clear()  # a new process: no healthy twins kept
+    report = build_library(life(), path, workers=0, progress=False)
+    assert (report.skipped, report.built) == (7, 30 - 7)
+    assert_same_store(store, path)

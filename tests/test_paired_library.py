@@ -208,36 +208,31 @@ def test_signal_carries_the_records_gain(store, tmp_path):
     np.testing.assert_allclose(xa.X, xb.X * gain[:, None].astype(np.float32), rtol=1e-6, atol=1e-6 * np.abs(xb.X).max())
 
 
-def build_interrupted_then_resumed(cfg, path, die_at: int):
-    """Build ``cfg`` into ``path``, interrupted (KeyboardInterrupt) as the ``die_at``-th simulation starts, then
-    resumed in a fresh state (no healthy twins kept, as a new process); the resumed build's report."""
+def test_resume_is_bit_identical(store, tmp_path):
     import rvdiag.library.build as build
     import rvdiag.library.work_units as work_units
 
+    part = tmp_path / "part.zarr"
     calls = []
     real = build._run_checked  # the task: the unit's result with its warnings
 
-    def dies(unit, job):
+    def dies_on_the_tenth(unit, job):
         calls.append(unit.index)
-        if len(calls) == die_at:
+        if len(calls) == 10:
             raise KeyboardInterrupt
         return real(unit, job)
 
-    build._run_checked = dies
+    build._run_checked, saved = dies_on_the_tenth, build._run_checked
     work_units._TWIN_POWERS.clear()  # each process starts without twins
     try:
         with pytest.raises(KeyboardInterrupt):
-            build_library(cfg, path, workers=0, progress=False)
+            build_library(paired(), part, workers=0, progress=False)
     finally:
-        build._run_checked = real
+        build._run_checked = saved
     work_units._TWIN_POWERS.clear()
-    return build_library(cfg, path, workers=0, progress=False)
-
-
-def test_resume_is_bit_identical(store, tmp_path):
-    report = build_interrupted_then_resumed(paired(), tmp_path / "part.zarr", 10)
+    report = build_library(paired(), part, workers=0, progress=False)
     assert report.skipped == 9 and report.built == 28 - 9
-    assert_same_store(store, tmp_path / "part.zarr")
+    assert_same_store(store, part)
 
 
 # ---------------------------------------------------------------------- a config without [baseline]
