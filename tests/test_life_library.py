@@ -282,6 +282,9 @@ def test_store_carries_each_records_truth(store):
             x = data.X[rows]
             assert np.all(x == x[0, 0])
     assert set(meta["life.sensor_fault"]) > {""}
+    from rvdiag.library import config_from_store
+
+    assert plan_digest(make_plan(config_from_store(SampleStore.open(store).attrs))) == plan_digest(make_plan(life()))
 
 
 def test_train_accepts_a_life_store(store, tmp_path, capsys):
