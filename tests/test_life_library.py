@@ -25,7 +25,7 @@ from rvdiag.params import ReducerParams
 
 sys.path.insert(0, str(Path(__file__).parent))
 from conftest import run_cli  # noqa: E402
-from test_library_build import assert_same_store  # noqa: E402
+from test_library_build import assert_same_store, interrupted_build  # noqa: E402
 from test_paired_library import ARM, PAIRED, paired  # noqa: E402
 
 HISTORY = {"records": 4, "interval_days": 60.0, "fates": {"healthy": 0.25, "wear": 0.25, "crack": 0.25,
@@ -282,6 +282,9 @@ def test_store_carries_each_records_truth(store):
             x = data.X[rows]
             assert np.all(x == x[0, 0])
     assert set(meta["life.sensor_fault"]) > {""}
+    from rvdiag.library import config_from_store
+
+    assert plan_digest(make_plan(config_from_store(SampleStore.open(store).attrs))) == plan_digest(make_plan(life()))
 
 
 def test_train_accepts_a_life_store(store, tmp_path, capsys):
@@ -302,28 +305,13 @@ def test_library_info_describes_a_life_store(store, capsys):
     assert "life histories: 5 reducers, 6 records each" in out
 
 
-def test_resume_after_an_interruption_gives_the_same_store(store, tmp_path):
-    import rvdiag.library.build as build
+def test_resume_after_an_interruption_gives_the_same_store(store, tmp_path, monkeypatch):
     import rvdiag.library.work_units as work_units
 
-    part = tmp_path / "part.zarr"
-    calls = []
-    real = build._run_checked
-
-    def dies_on_the_eighth(unit, job):
-        calls.append(unit.index)
-        if len(calls) == 8:
-            raise KeyboardInterrupt
-        return real(unit, job)
-
-    build._run_checked = dies_on_the_eighth
+    path = tmp_path / "part.zarr"
     work_units._TWIN_POWERS.clear()
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            build_library(life(), part, workers=0, progress=False)
-    finally:
-        build._run_checked = real
-    work_units._TWIN_POWERS.clear()
-    report = build_library(life(), part, workers=0, progress=False)
-    assert report.skipped == 7 and report.built == 30 - 7
-    assert_same_store(store, part)
+    interrupted_build(life(), path, monkeypatch, after=7)
+    work_units._TWIN_POWERS.clear()  # a new process: no healthy twins kept
+    report = build_library(life(), path, workers=0, progress=False)
+    assert (report.skipped, report.built) == (7, 30 - 7)
+    assert_same_store(store, path)

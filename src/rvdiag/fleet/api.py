@@ -18,6 +18,7 @@ request that misses a field or a record the joint's monitor refused (stored as r
                                                 again, 422 rejected with its reason
 ``POST /api/joints/{joint}/ack``                acknowledge its alarm: JSON ``{"note": "..."}``
 ``POST /api/joints/{joint}/maintenance``        record maintenance: JSON ``{"note": "..."}``
+``POST /api/joints/{joint}/failure-index``      set its failure index: JSON ``{"failure_index": 8.0, "note": "..."}``
 ``GET  /``, ``/joints/{joint}``, ``/alarms``    the dashboard's pages (:mod:`rvdiag.fleet.web`)
 ==============================================  =====================================================================
 
@@ -97,6 +98,14 @@ class Note(BaseModel):
     """The body of an acknowledgement or a maintenance entry."""
 
     note: str = Field(min_length=1, max_length=2000, description="what was seen or done (kept in the event log)")
+
+
+class FailureIndex(BaseModel):
+    """The body of a change of the joint's failure index."""
+
+    failure_index: float | None = Field(description="the health index the joint's remaining life is counted to; "
+                                                    "null removes it", gt=0, allow_inf_nan=False)
+    note: str = Field("", max_length=2000, description="why (kept in the event log)")
 
 
 def check_joint_name(joint: str) -> str:
@@ -386,6 +395,13 @@ def create_app(fleet, *, max_upload: int | None = None, read_needs_token: bool |
         who = writer(authorization)
         check_joint_name(joint)
         return _json(fleet.maintenance(joint, by=who, note=body.note))
+
+    @app.post("/api/joints/{joint:path}/failure-index", tags=["write"])
+    def failure_index(joint: str, body: FailureIndex, authorization: Annotated[str | None, Header()] = None):
+        """Set or remove the joint's failure index (the health index its remaining life is counted to)."""
+        who = writer(authorization)
+        check_joint_name(joint)
+        return _json(fleet.set_failure_index(joint, body.failure_index, by=who, note=body.note))
 
     # ---- dashboard -----------------------------------------------------------------------------------------------
     links = web.Links(base="/", suffix="", api="/api", read_needs_token=read_needs_token)

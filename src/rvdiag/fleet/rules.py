@@ -69,6 +69,10 @@ class Rules:
         ``CALIBRATION_RANK`` calibration scores above the alarm's threshold.
     records_per_day : float
         How many records a day the joint is expected to send (for the stated rate per year).
+    failure_index : float or None
+        The health index at which the joint counts as failed: the maintenance limit its remaining life is counted
+        to (:func:`rvdiag.prognostics.joint_prognosis`'s ``threshold``); None: the remaining life is not
+        estimated.  It changes no alarm.
     """
 
     alpha: float | None = None
@@ -77,6 +81,7 @@ class Rules:
     m: int = 3
     learning: int | None = None
     records_per_day: float = 4.0
+    failure_index: float | None = None
 
     #: the default learning period puts the threshold at the CALIBRATION_RANK-th largest calibration score
     CALIBRATION_RANK = 1
@@ -104,6 +109,9 @@ class Rules:
             raise FleetError(f"the hysteresis m (consecutive normal records to clear) must be 1-100, got {self.m}")
         if not self.records_per_day > 0:
             raise FleetError(f"records_per_day must be > 0, got {self.records_per_day}")
+        if self.failure_index is not None and (isinstance(self.failure_index, bool) or not isinstance(
+                self.failure_index, (int, float)) or not math.isfinite(self.failure_index) or self.failure_index <= 0):
+            raise FleetError(f"the failure index must be a finite number > 0, got {self.failure_index!r}")
         if self.learning is not None:
             if not (isinstance(self.learning, int) and self.learning >= 1):
                 raise FleetError(f"the learning period must be a whole number of records >= 1, got {self.learning}")
