@@ -35,14 +35,15 @@ from pathlib import Path
 import numpy as np
 
 from rvdiag.evaluation.metrics import binomial_interval
+from rvdiag.library.life import FATE_STATES
 from rvdiag.params import ReducerParams
 from rvdiag.prognostics import ConformalMartingale, joint_prognosis
 from rvdiag.prognostics.metrics import LifeHistory, score_histories, summarise
 from rvdiag.prognostics.synthetic import HistorySpec, draw_history
 
 ROOT = Path(__file__).resolve().parents[1]
-#: the fault state of each synthetic kind at its onset (rvdiag.library.states)
-STATE = {"broken": "T2", "crack": "T4", "wear": "T3"}
+#: the fault state of each synthetic kind at its onset (as a life store's fates), in the order their seeds are drawn
+STATE = {kind: FATE_STATES[kind][0] for kind in ("broken", "crack", "wear")}
 
 
 def life_history(h, seed: int, spec: HistorySpec, fleet_pool: bool = False) -> LifeHistory:

@@ -31,8 +31,9 @@ from test_paired_library import ARM, PAIRED, paired  # noqa: E402
 HISTORY = {"records": 4, "interval_days": 60.0, "fates": {"healthy": 0.25, "wear": 0.25, "crack": 0.25,
                                                            "broken": 0.25},
            "onset_days": {"min": 65.0, "max": 150.0}, "sensor_fault_share": 0.5}
-# seed 248: every fate, a dead sensor, >= 3 training records of every state (rvdiag train's calibration needs them)
-LIFE = {**copy.deepcopy(PAIRED), "history": HISTORY, "seed": 248,
+# seed 286: every fate, a dead sensor, >= 3 training records of every state without a sensor fault (rvdiag train
+# leaves those out, and its calibration needs 3), healthy records of 4 training reducers
+LIFE = {**copy.deepcopy(PAIRED), "history": HISTORY, "seed": 286,
         "baseline": {"operating_points": PAIRED["baseline"]["operating_points"][:2]},
         "split": {"reducers": 5, "test_reducers": 1}}
 LIFE.pop("states")
@@ -70,7 +71,7 @@ def test_a_paired_config_without_history_plans_as_before(cfg, digest):
 
 # ---------------------------------------------------------------------- the plan
 def test_plan_is_deterministic_for_a_seed_and_another_seed_draws_other_lives():
-    a, b, c = make_plan(life()), make_plan(life()), make_plan(life(seed=249))
+    a, b, c = make_plan(life()), make_plan(life()), make_plan(life(seed=287))
     assert plan_digest(a) == plan_digest(b)
     assert [u.seed for u in a] != [u.seed for u in c]
     onsets = lambda p: [u.life["life.onset_days"] for u in p]  # noqa: E731

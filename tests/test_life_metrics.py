@@ -377,3 +377,15 @@ def test_evaluate_life_on_a_store_the_library_builds(tmp_path, capsys):
     assert set(p["detection_delay_records"]) == {"T2", "T4"}
     t = life["threshold"]
     assert {"T3", "T4"} <= set(t["per_state"]) and t["*"]["n_reducers"] >= 2 and t["reference_level"] > 0
+
+
+def test_a_state_with_too_few_training_records_is_refused_in_words():
+    """A state with 2 training records (e.g. once a life store's sensor-fault records are left out) cannot be
+    calibrated 3-fold: a ParameterError naming it, not scikit-learn's traceback."""
+    from rvdiag.monitoring import BaselineMonitor
+
+    rng = np.random.default_rng(0)
+    D = rng.normal(size=(24, 3))
+    y = np.array(["T1"] * 18 + ["T2"] * 4 + ["T3"] * 2)
+    with pytest.raises(ParameterError, match="the state T3 has 2 training record"):
+        BaselineMonitor(alpha=0.1).fit(D, y, groups=np.arange(24) % 6)

@@ -1,6 +1,6 @@
 """A baseline monitor over simulated lives: ``rvdiag evaluate MONITOR LIFE.zarr --life`` (:func:`evaluate_life`).
 
-A life store (``rvdiag library build life``; its columns :data:`LIFE_COLUMNS`) records each reducer at commissioning
+A life store (``rvdiag library build life``; its columns :data:`rvdiag.library.life.LIFE_COLUMNS`) records each reducer at commissioning
 and then every ``interval_days`` over one drawn fate.  Each held-out reducer's monitored records, in ``life.record``
 order, get the monitor's health index against the reducer's own commissioning records (the store's baseline
 records, matched at the nearest operating point as :func:`rvdiag.monitoring.evaluate_monitor` matches them) and its
@@ -33,14 +33,21 @@ from rvdiag.monitoring.baseline import reducer_type
 from rvdiag.monitoring.pairing import (baseline_records, is_paired, paired_features, per_record, roles, subset,
                                        with_load_column)
 
-#: the per-sample columns of a life store (docs/library.md, life histories)
-LIFE_COLUMNS = ("life.record", "life.time_days", "life.load_cycles", "life.fate", "life.onset_days", "life.size",
-                "life.failure_days", "life.sensor_fault")
-#: those :func:`evaluate_life` reads (``life.sensor_fault`` absent: no sensor faults)
+#: the life columns :func:`evaluate_life` reads (``life.sensor_fault`` absent: no sensor faults)
 NEEDED_COLUMNS = ("life.record", "life.time_days", "life.fate", "life.onset_days", "life.failure_days")
 SENSOR_FAULT = "life.sensor_fault"
-#: a fate's fault state at its onset (rvdiag.library.states): a crack is T4 until it breaks the tooth (T2)
-FATE_STATE = {"wear": "T3", "crack": "T4", "broken": "T2", "pitting": "T7", "spalling": "T8"}
+
+
+def fault_state(fate: str) -> str | None:
+    """A fate's fault state at its onset (:data:`rvdiag.library.life.FATE_STATES`: a crack is T4 until it breaks
+    the tooth), the key of the per-state figures; None for a healthy reducer.
+
+    >>> fault_state("crack"), fault_state("healthy")
+    ('T4', None)
+    """
+    from rvdiag.library.life import FATE_STATES
+
+    return None if fate == "healthy" else FATE_STATES.get(fate, (fate,))[0]
 
 
 def is_life_store(meta) -> bool:
@@ -133,7 +140,7 @@ def learn_threshold(rec: dict) -> dict:
         before = np.flatnonzero(ok & (days < failure))
         if before.size:
             at_failure.setdefault(fate, []).append(float(hi[before[-1]]))
-    per_state = {FATE_STATE.get(f, f): {"fate": f, "index": float(np.median(v)), "n_reducers": len(v)}
+    per_state = {fault_state(f): {"fate": f, "index": float(np.median(v)), "n_reducers": len(v)}
                  for f, v in sorted(at_failure.items())}
     pooled = [x for v in at_failure.values() for x in v]
     return {"per_state": per_state,
@@ -164,7 +171,7 @@ def life_histories(rec: dict, threshold: dict | None, reference_level: float | N
             score=np.asarray(rec["health_index"], dtype=float)[rows], fate=fate,
             onset_days=_float(_first(rec["life.onset_days"], rows)),
             failure_days=_float(_first(rec["life.failure_days"], rows)),
-            state=None if fate == "healthy" else FATE_STATE.get(fate, fate), baseline_scores=(),
+            state=fault_state(fate), baseline_scores=(),
             threshold=threshold, reference_level=reference_level,
             predicted_state=np.asarray(rec["state"]).astype(str)[rows],
             sensor_fault=np.asarray(rec["sensor_fault"], dtype=bool)[rows], seed=seed + i, name=str(r)))
@@ -219,5 +226,5 @@ def evaluate_life(loaded, store, data, split: str = "test", *, seed: int = 0) ->
     return out
 
 
-__all__ = ["FATE_STATE", "LIFE_COLUMNS", "check_life_store", "evaluate_life", "is_life_store", "learn_threshold", "life_histories",
+__all__ = ["check_life_store", "evaluate_life", "fault_state", "is_life_store", "learn_threshold", "life_histories",
            "sensor_faulty"]
