@@ -389,3 +389,16 @@ def test_a_state_with_too_few_training_records_is_refused_in_words():
     y = np.array(["T1"] * 18 + ["T2"] * 4 + ["T3"] * 2)
     with pytest.raises(ParameterError, match="the state T3 has 2 training record"):
         BaselineMonitor(alpha=0.1).fit(D, y, groups=np.arange(24) % 6)
+
+
+def test_evaluate_life_refuses_a_classifier(life, capsys, tmp_path):
+    """A classifier has no health index to watch over a life."""
+    X, y, meta = life_store_records()
+    plain = {k: v for k, v in meta.items() if k in ("output_speed_deg_s", "load_Nm", "split", "unit")}
+    write_store(tmp_path / "plain.zarr", X, y, plain, kind="simulated", fs=FS, config={"synthetic": "plain"},
+                extra_attrs=params_attrs())
+    code, out, err = run_cli(["train", tmp_path / "plain.zarr", "-o", tmp_path / "clf", "--model", "svm",
+                              "--features", "time", "-q"], capsys)
+    assert code == 0, err
+    code, out, err = run_cli(["evaluate", tmp_path / "clf", life["store"], "--life"], capsys)
+    assert code == 2 and "--life scores a baseline-referenced model" in err and err.count("\n") == 1, err
