@@ -82,6 +82,18 @@ def test_a_huge_step_is_detected_on_its_third_record_and_cusum_at_once():
     assert out["rul_coverage_80"]["n"] == 0
 
 
+def test_delay_from_the_first_record_whose_true_state_is_faulty():
+    """The huge step's martingale alarms on its third record (delay 2 from the onset); the same history whose first
+    two faulty records are still T1 in truth (a fault below its smallest simulated size) alarms 0 records after its
+    first T3 record."""
+    rng = np.random.default_rng(3)
+    h = LifeHistory(days=7.0 * np.arange(1, 21), score=rng.normal(100.0, 0.1, 20), fate="wear", onset_days=7.0,
+                    failure_days=1e4, state="T3", baseline_scores=rng.normal(1.0, 0.1, 200),
+                    true_state=["T1", "T1"] + ["T3"] * 18)
+    d = life_metrics([h], per_history=False)["pooled"]["detection_delay_records"]["T3"]
+    assert d["median"] == 2 and d["from_first_faulty_record"] == {"median": 0.0, "p90": 0.0, "n": 1}
+
+
 def test_delay_never_and_alarms_before_onset_are_misses():
     base = np.linspace(0.5, 1.5, 20)
     days = 7.0 * np.arange(1, 21)
@@ -274,6 +286,9 @@ def test_evaluate_life_gives_per_reducer_and_pooled_figures(life, capsys):
     assert p["lifetime_false_alarm"]["n"] == 2 and p["lifetime_false_alarm"]["bound"] == 0.01
     assert set(p["detection_delay_records"]) == {"T2", "T3"}
     assert p["alpha_lambda"]["alpha"] == 0.2 and p["alpha_lambda"]["lambda"] == 0.5
+    # reducer 9's wear starts on its record of day 28 at size 0 (state T1): its first T3 record is the next one
+    t3 = p["detection_delay_records"]["T3"]
+    assert t3["from_first_faulty_record"]["n"] == 1 and t3["from_first_faulty_record"]["median"] == t3["median"] - 1
     assert set(p["baseline"]) >= {"rul_coverage_80", "alpha_lambda", "method"}
     # the sensor-fault records of reducer 11 are left out, of the life figures and of the per-record ones
     assert p["n_records_left_out"] == N_MON - SENSOR_FAULT_FROM[11]

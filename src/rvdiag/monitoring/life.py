@@ -174,7 +174,8 @@ def life_histories(rec: dict, threshold: dict | None, reference_level: float | N
             state=fault_state(fate), baseline_scores=(),
             threshold=threshold, reference_level=reference_level,
             predicted_state=np.asarray(rec["state"]).astype(str)[rows],
-            sensor_fault=np.asarray(rec["sensor_fault"], dtype=bool)[rows], seed=seed + i, name=str(r)))
+            sensor_fault=np.asarray(rec["sensor_fault"], dtype=bool)[rows],
+            true_state=np.asarray(rec["label"]).astype(str)[rows], seed=seed + i, name=str(r)))
     return out
 
 

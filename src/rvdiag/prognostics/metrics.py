@@ -15,7 +15,10 @@ pooled, JSON-ready:
     per fault state (the fault's state at its onset: T2 broken tooth, T3 wear, T4 root crack, ...): the delay in
     records from the first record at or after the onset to the martingale's first alarm, ``median`` and ``p90``
     (``inverted_cdf`` quantiles; ``null`` where that quantile is a history never detected: an alarm before the onset
-    is a false alarm and counts as never), ``n``, ``n_detected`` and ``detected_before_failure`` (share).
+    is a false alarm and counts as never), ``n``, ``n_detected`` and ``detected_before_failure`` (share); with the
+    true state per record (:attr:`LifeHistory.true_state`) also ``from_first_faulty_record`` (``median``, ``p90``,
+    ``n``): from the first record whose true state is not T1 (a life store keeps a fault below its smallest
+    simulated size at T1, the signal healthy).
 ``detected_within_3``
     per fault state: the share of histories alarmed within 3 records of the onset (delay 0, 1 or 2), ``ci95``.
 ``rul_coverage_80``
@@ -60,6 +63,8 @@ from rvdiag.prognostics.prognosis import joint_prognosis, model_for_state
 #: the product's remaining-life model: :func:`model_for_state` of the monitor's state at the prediction
 AUTO = "auto"
 HEALTHY_FATE = "healthy"
+#: the true state of a record whose fault is not (yet) simulated
+HEALTHY_STATE = "T1"
 #: fates that fail at their onset (a sudden broken tooth): detection only, no remaining life
 SUDDEN_FATES = ("broken",)
 #: Saxena et al. (2010)'s settings the interface states
@@ -98,6 +103,9 @@ class LifeHistory:
         it (:func:`rvdiag.prognostics.model_for_state`; a broken tooth: not estimated).
     sensor_fault : sequence of bool, optional
         Records with a sensor fault: left out, as the fleet leaves out records it does not recognise.
+    true_state : sequence of str, optional
+        The true state per record (a life store's ``state``: T1 also after the onset while the fault is below its
+        smallest simulated size): the delay is also given from the first record not in ``healthy_state``.
     seed : int
         Seed of the detector's smoothing draws and of the Monte Carlo.
     name : str
@@ -115,6 +123,7 @@ class LifeHistory:
     reference_level: float | None = None
     predicted_state: Sequence[str] | None = None
     sensor_fault: Sequence[bool] | None = None
+    true_state: Sequence[str] | None = None
     seed: int = 0
     name: str = ""
     _kept: dict = field(default_factory=dict, init=False, repr=False)
@@ -130,7 +139,9 @@ class LifeHistory:
             if self.sensor_fault is not None:
                 keep &= ~np.asarray(self.sensor_fault, dtype=bool).ravel()
             ps = None if self.predicted_state is None else np.asarray(self.predicted_state).astype(str)[keep]
-            self._kept.update(days=d[keep], score=s[keep], predicted=ps, n_left_out=int((~keep).sum()))
+            ts = None if self.true_state is None else np.asarray(self.true_state).astype(str)[keep]
+            self._kept.update(days=d[keep], score=s[keep], predicted=ps, true_state=ts,
+                              n_left_out=int((~keep).sum()))
         return self._kept["days"], self._kept["score"], self._kept["predicted"]
 
     def threshold_for(self, state: str | None) -> float | None:
@@ -196,11 +207,17 @@ def _history_outcome(h: LifeHistory, *, delta: float, models: Sequence[str], cla
     dets = _detectors(h, delta, classical) if len(days) else {}
     out = {"name": h.name, "fate": h.fate, "healthy": healthy, "state": None if i_on is None else h.state,
            "n_records": int(len(days)), "n_left_out": h._kept.get("n_left_out", 0), "detectors": {}, "rul": {}}
+    ts = h._kept.get("true_state")
+    faulty = None if ts is None or i_on is None else np.flatnonzero(ts != HEALTHY_STATE)
+    i_vis = int(faulty[0]) if faulty is not None and faulty.size else None
     for name, d in dets.items():
         rec = {"alarmed": d.alarmed, "alarm_index": d.alarm_index}
         if i_on is not None:
             ok = d.alarm_index is not None and d.alarm_index >= i_on
             rec["delay"] = float(d.alarm_index - i_on) if ok else math.inf
+            if i_vis is not None:
+                ok_vis = d.alarm_index is not None and d.alarm_index >= i_vis
+                rec["delay_visible"] = float(d.alarm_index - i_vis) if ok_vis else math.inf
             rec["before_failure"] = bool(ok and (h.fate in SUDDEN_FATES or failure is None
                                                  or days[d.alarm_index] < failure))
         out["detectors"][name] = rec
@@ -257,6 +274,10 @@ def _detection(outcomes: list[dict], detector: str, delta: float | None) -> dict
         delay[state] = {"median": _quantile(dl, 0.5), "p90": _quantile(dl, 0.9), "n": len(dl),
                         "n_detected": int(np.isfinite(dl).sum()),
                         "detected_before_failure": float(np.mean([r["before_failure"] for r in recs]))}
+        vis = np.array([r["delay_visible"] for r in recs if "delay_visible" in r])
+        if vis.size:
+            delay[state]["from_first_faulty_record"] = {"median": _quantile(vis, 0.5), "p90": _quantile(vis, 0.9),
+                                                        "n": int(vis.size)}
         w = _rate(int(np.sum(dl <= 2)), len(dl))
         within[state] = {"share": w["rate"], "ci95": w["ci95"], "n": w["n"]}
     return {"lifetime_false_alarm": fa, "detection_delay_records": delay, "detected_within_3": within}
