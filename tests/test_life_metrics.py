@@ -301,6 +301,13 @@ def test_evaluate_life_gives_per_reducer_and_pooled_figures(life, capsys):
     assert t["per_state"]["T3"]["n_reducers"] == 3 and t["per_state"]["T3"]["index"] > t["reference_level"] > 0
     assert "train split" in t["source"]
     json.dumps(res, allow_nan=False)
+    # the CLI hands evaluate_life the records evaluate_monitor has already scored: the same figures as its own
+    from rvdiag.datasets import SampleStore
+    from rvdiag.monitoring import evaluate_life
+    from rvdiag.workflows import load_model
+
+    own = evaluate_life(load_model(life["model"]), SampleStore.open(life["store"]), life["store"])
+    assert json.loads(json.dumps(own)) == lf
 
 
 def test_evaluate_life_follows_life_record_order(life):
@@ -331,7 +338,8 @@ def test_evaluate_life_human_output(life, capsys):
 
 @pytest.mark.parametrize("extra, msg", [
     ([], "has no life-history columns (life.record, life.time_days, life.fate"),
-    (["--where", "load_Nm>0"], "--life scores whole histories: drop --where"),
+    (["--where", "load_Nm>0"], "--life scores whole histories of a life store against its own commissioning "
+                               "records: drop --where"),
 ])
 def test_evaluate_life_refuses_in_one_line(life, capsys, extra, msg):
     store = life["paired"] if not extra else life["store"]

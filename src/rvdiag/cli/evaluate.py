@@ -138,9 +138,9 @@ def sets_line(sets: dict | None, note: str | None) -> str:
 def _monitor(loaded, data, split, where, baseline, json_out, merge, others: dict, life: bool = False,
              seed: int = 0) -> bool:
     """Score a baseline-referenced model (:func:`rvdiag.monitoring.evaluate_monitor`; always per record, ``--merge``
-    as for any model; ``life``: also :func:`rvdiag.monitoring.evaluate_life`, key ``life``) and say True; False for
+    as for any model; ``life``: also the figures over a life store's lives, key ``life``) and say True; False for
     any other model."""
-    from rvdiag.monitoring import evaluate_life, evaluate_monitor, needs_baseline
+    from rvdiag.monitoring import evaluate_monitor, needs_baseline
 
     if not needs_baseline(loaded):
         if baseline is not None:
@@ -152,19 +152,9 @@ def _monitor(loaded, data, split, where, baseline, json_out, merge, others: dict
     from rvdiag.datasets import SampleStore
     from rvdiag.workflows.evaluation import parse_merge
 
-    if life and baseline is not None:
-        raise ParameterError("--life scores a life store against its own commissioning records: drop --baseline")
-    if life and where:
-        raise ParameterError("--life scores whole histories: drop --where")
     merge_map = parse_merge(merge, loaded.card["classes"]) if merge is not None else None
-    store = SampleStore.open(data)
-    if life:
-        from rvdiag.monitoring.life import check_life_store
-
-        check_life_store(store, data)  # before the (longer) per-record scoring
-    res = evaluate_monitor(loaded, store, data, split, where or (), baseline, merge_map)
-    if life:
-        res["life"] = evaluate_life(loaded, store, data, split, seed=seed)
+    res = evaluate_monitor(loaded, SampleStore.open(data), data, split, where or (), baseline, merge_map, life=life,
+                           seed=seed)
     if json_out:
         typer.echo(json.dumps(res, indent=2))
     else:

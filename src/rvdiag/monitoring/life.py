@@ -30,8 +30,8 @@ import numpy as np
 from rvdiag.datasets.store import Samples
 from rvdiag.errors import ParameterError, StoreError
 from rvdiag.monitoring.baseline import reducer_type
-from rvdiag.monitoring.pairing import (baseline_records, is_paired, paired_features, per_record, roles, subset,
-                                       with_load_column)
+from rvdiag.monitoring.pairing import (baseline_records, is_paired, paired_features, per_record, record_ids, roles,
+                                       subset, with_load_column)
 
 #: the life columns :func:`evaluate_life` reads (``life.sensor_fault`` absent: no sensor faults)
 NEEDED_COLUMNS = ("life.record", "life.time_days", "life.fate", "life.onset_days", "life.failure_days")
@@ -74,13 +74,15 @@ def check_life_store(store, data) -> None:
         raise ParameterError(f"--life: {data} has no commissioning (role 'baseline') records to score against")
 
 
-def _records(m, s: Samples, base: Samples, fs, bfs, tolerances, where: str) -> dict:
-    """One row per monitored record of ``s`` (its windows' mean change): reducer, record, time, truth, the
-    monitor's health index and most probable state (NaN / "" for a record with a sensor fault, not scored)."""
+def _records(m, s: Samples, base: Samples, fs, bfs, tolerances, where: str, scored=None) -> dict:
+    """One row per monitored record of ``s``: reducer, record, time, truth, the monitor's health index and most
+    probable state (NaN / "" for a record with a sensor fault, not scored).  ``scored``: ``(record ids, rows)`` of
+    the records without a sensor fault, already computed (:func:`rvdiag.monitoring.training.record_rows`)."""
     faulty = sensor_faulty(s.meta)
-    ids = np.asarray(s.meta["unit"])
-    _, first = np.unique(ids, return_index=True)
-    first = np.sort(first)
+    units = np.asarray(s.meta["unit"])
+    _, first = np.unique(units, return_index=True)
+    first = np.sort(first)                               # each record's first window, in store order
+    ids = units[first]
     rec = {k: np.asarray(s.meta[k])[first] for k in ("reducer", *NEEDED_COLUMNS)}
     rec["label"] = np.asarray(s.y).astype(str)[first]
     rec["sensor_fault"] = faulty[first]
@@ -88,14 +90,13 @@ def _records(m, s: Samples, base: Samples, fs, bfs, tolerances, where: str) -> d
     rec["state"] = np.full(first.size, "", dtype=object)
     ok = ~faulty
     if ok.any():
-        good = subset(s, ok)
-        D, _ = paired_features(m.features, good, base, fs=fs, baseline_fs=bfs, card_tolerances=tolerances,
-                               where=where)
-        means, _, _, _ = per_record(D, good, where)
-        good_ids = np.asarray(good.meta["unit"])
-        _, gfirst = np.unique(good_ids, return_index=True)
-        order = good_ids[np.sort(gfirst)]          # records in the order per_record gives them
-        pos = {u: i for i, u in enumerate(ids[first])}
+        if scored is None:
+            good = subset(s, ok)
+            means, _, _, _ = per_record(paired_features(m.features, good, base, fs=fs, baseline_fs=bfs,
+                                                        card_tolerances=tolerances, where=where)[0], good, where)
+            scored = (record_ids(good.meta), means)
+        order, means = scored
+        pos = {u: i for i, u in enumerate(ids)}
         at = np.array([pos[u] for u in order])
         rec["health_index"][at] = m.health_index(means)
         rec["state"][at] = m.predict(means).astype(str)
@@ -185,11 +186,13 @@ def _monitored(store, split: str, data) -> Samples:
     return Samples(X=s.X, y=s.y, meta=with_load_column(s.meta), index=s.index)
 
 
-def evaluate_life(loaded, store, data, split: str = "test", *, seed: int = 0) -> dict:
+def evaluate_life(loaded, store, data, split: str = "test", *, seed: int = 0, scored=None) -> dict:
     """Change detection and remaining life over the lives of ``split``'s reducers of the life store ``store``
     (module docstring), per reducer and pooled: :func:`rvdiag.prognostics.metrics.life_metrics`'s figures
     (``lifetime_false_alarm``, ``detection_delay_records``, ``detected_within_3``, ``rul_coverage_80``,
-    ``alpha_lambda``, ``baseline``) with the ``threshold`` they used and ``split``.
+    ``alpha_lambda``, ``baseline``) with the ``threshold`` they used and ``split``.  ``scored``: ``(record ids,
+    rows)`` of the split's monitored records without a sensor fault, when :func:`rvdiag.monitoring.evaluate_monitor`
+    has computed them (their change against the commissioning records is not computed twice).
 
     Raises
     ------
@@ -209,7 +212,7 @@ def evaluate_life(loaded, store, data, split: str = "test", *, seed: int = 0) ->
     test = _monitored(store, split, data)
     if not len(test.y):
         raise StoreError(f"the split {split!r} of {data} holds no monitored records")
-    rec = _records(m, test, base, fs, fs, tol, where)
+    rec = _records(m, test, base, fs, fs, tol, where, scored)
     train_split = "train" if split != "train" else None
     threshold = {"per_state": {}, "*": {"index": None, "n_reducers": 0}, "reference_level": None,
                  "source": "no train split to learn it from: the remaining life is not estimated"}
