@@ -1,5 +1,5 @@
 """``rvdiag evaluate MODEL_DIR DATA.zarr [--split test|train|all] [--where COND]... [--merge A=B,...] [--records] [--json]
-[--report FILE.html] [--snr-db=LEVELS [--plot FILE.png] [--bound BOUND.json]] [--baseline BASE.zarr]``.
+[--report FILE.html] [--snr-db=LEVELS [--plot FILE.png] [--bound BOUND.json]] [--baseline BASE.zarr] [--life]``.
 
 A classifier is scored by :func:`rvdiag.workflows.evaluate`, a baseline-referenced model (card ``needs_baseline``)
 by :func:`rvdiag.monitoring.evaluate_monitor`; this module parses the options and prints (``--json``: the result's
