@@ -51,6 +51,7 @@ def register(app: typer.Typer) -> None:
     """Add the ``separability`` command to ``app``."""
 
     @app.command("separability")
+    @opt.fault_severity_options
     def separability_cmd(
         pair: str = typer.Option("T1,T4", "--pair", help="The two states, e.g. T1,T4 (the crack; default) or "
                                  "T5,T6."),
@@ -65,16 +66,7 @@ def register(app: typer.Typer) -> None:
         snr_db: str = opt.snr_db("SNRs in dB, comma-separated (per-sample convention of the library's noise); "
                                  "--snr-db=-5,0,5 (the '=' lets the list start with a minus).",
                                  "-5,0,5,10,15,20,30"),
-        wear_depth_mm: Optional[float] = opt.tooth_fault("wear_depth_mm"),
-        crack_depth_mm: Optional[float] = opt.tooth_fault("crack_depth_mm"),
-        crack_angle: Optional[float] = opt.tooth_fault("crack_angle"),
-        broken_fraction: Optional[float] = opt.tooth_fault("broken_fraction"),
-        pit_area_fraction: Optional[float] = opt.surface_fault("pit_area_fraction"),
-        pit_radius_mm: Optional[float] = opt.surface_fault("pit_radius_mm"),
-        pit_depth_mm: Optional[float] = opt.surface_fault("pit_depth_mm"),
-        spall_width_fraction: Optional[float] = opt.surface_fault("spall_width_fraction"),
-        spall_length_fraction: Optional[float] = opt.surface_fault("spall_length_fraction"),
-        spall_depth_mm: Optional[float] = opt.surface_fault("spall_depth_mm"),
+        severities: Optional[dict] = None,  # the ten fault-severity options (opt.fault_severity_options)
         params: Optional[Path] = opt.params(),
         params_b: Optional[Path] = typer.Option(None, "--params-b", help="Reducer parameter TOML of the pair's "
                                                 "second state (default: --params): another specimen, e.g. "
@@ -115,10 +107,6 @@ def register(app: typer.Typer) -> None:
         ranges = parse_run_to_run(run_to_run) if run_to_run is not None else None
         if ranges is not None and draws < 2:
             raise ParameterError(f"--draws must be a whole number >= 2 (a spread needs two draws), got {draws}")
-        severities = opt.fault_severities(
-            wear_depth_mm, crack_depth_mm, crack_angle, broken_fraction, pit_area_fraction=pit_area_fraction,
-            pit_radius_mm=pit_radius_mm, pit_depth_mm=pit_depth_mm, spall_width_fraction=spall_width_fraction,
-            spall_length_fraction=spall_length_fraction, spall_depth_mm=spall_depth_mm)
         _check_pair_severities(states, severities)
         demo = LibraryConfig.load("demo")
         speed = float(demo.speed.lo) if output_speed is None else float(output_speed)
