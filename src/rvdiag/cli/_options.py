@@ -31,7 +31,7 @@ import math
 import re
 import warnings
 from contextlib import contextmanager
-from typing import Any, Callable, Iterator, Optional
+from typing import Any, Callable, Iterator, NamedTuple, Optional
 
 import typer
 
@@ -206,10 +206,20 @@ def option_names(names: dict[str, str]) -> Iterator[None]:
         raise type(exc)(new) from None
 
 
+class SeverityOption(NamedTuple):
+    """One fault-severity option: its name, its help, the fault kind that uses it (a part of
+    :data:`rvdiag.gears.faults.FAULT_KINDS`' names) and whether it is given in mm (the model takes m)."""
+
+    option: str
+    help: str
+    kind: str
+    in_mm: bool
+
+
 #: The fault-severity options that ``rvdiag simulate``, ``rvdiag tvms`` and ``rvdiag separability`` share, declared
-#: once: the :class:`rvdiag.gears.ToothFaults` keyword (SI) -> (option, help, the fault kind that uses it, whether
-#: the option is in mm).  :func:`fault_severity_options` puts them on a command, :func:`fault_severities` reads them.
-FAULT_SEVERITY_OPTIONS: dict[str, tuple[str, str, str, bool]] = {
+#: once, by their :class:`rvdiag.gears.ToothFaults` keyword (SI).  :func:`fault_severity_options` puts them on a
+#: command, :func:`fault_severities` reads them.
+FAULT_SEVERITY_OPTIONS: dict[str, SeverityOption] = {k: SeverityOption(*v) for k, v in {
     "wear_depth": ("--wear-depth", "Maximum wear depth (mm).", "wear", True),
     "crack_depth": ("--crack-depth", "Crack depth (mm).", "crack", True),
     "crack_angle_deg": ("--crack-angle", "Crack angle from the tooth centreline (deg).", "crack", False),
@@ -223,7 +233,7 @@ FAULT_SEVERITY_OPTIONS: dict[str, tuple[str, str, str, bool]] = {
     "spall_length_fraction": ("--spall-length-fraction", "Spall length as a fraction of the working flank, (0, 1] "
                               "(spalling).", "spalling", False),
     "spall_depth": ("--spall-depth", "Spall depth (mm) (spalling).", "spalling", True),
-}
+}.items()}
 
 
 def mm_to_m(name: str, value: Optional[float]) -> Optional[float]:
@@ -240,9 +250,9 @@ def fault_severities(**given: Optional[float]) -> dict[str, float]:
     value or None), in SI, keyed as :class:`rvdiag.gears.ToothFaults` expects."""
     out = {}
     for key, value in given.items():
-        option, _, _, in_mm = FAULT_SEVERITY_OPTIONS[key]
+        spec = FAULT_SEVERITY_OPTIONS[key]
         if value is not None:
-            out[key] = mm_to_m(option[2:], value) if in_mm else value
+            out[key] = mm_to_m(spec.option[2:], value) if spec.in_mm else value
     return out
 
 
@@ -252,8 +262,8 @@ def fault_severity_options(command: Callable[..., Any]) -> Callable[..., Any]:
     the command is called with ``severities`` = :func:`fault_severities` of them (the given ones, in SI)."""
     signature = inspect.signature(command, eval_str=True)
     options = [inspect.Parameter(key, inspect.Parameter.KEYWORD_ONLY, annotation=Optional[float],
-                                 default=typer.Option(None, option, help=help))
-               for key, (option, help, _, _) in FAULT_SEVERITY_OPTIONS.items()]
+                                 default=typer.Option(None, spec.option, help=spec.help))
+               for key, spec in FAULT_SEVERITY_OPTIONS.items()]
     parameters = []
     for p in signature.parameters.values():
         parameters.extend(options if p.name == "severities" else [p.replace(kind=inspect.Parameter.KEYWORD_ONLY)])

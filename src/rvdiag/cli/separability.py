@@ -5,7 +5,6 @@ white-noise SNR, without and with run-to-run variation (:mod:`rvdiag.evaluation.
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Optional
 
@@ -13,6 +12,7 @@ import typer
 
 from rvdiag.cli import _options as opt
 from rvdiag.errors import ParameterError
+from rvdiag.validation import finite_number
 
 #: Python parameters of the library calls -> the options of this command (error messages name the option).
 SEPARABILITY_OPTION_NAMES = {"duration_s": "--duration", "fs": "--fs", "substeps": "--substeps",
@@ -34,16 +34,16 @@ def _pair(text: str) -> list[str]:
 
 def _check_pair_severities(pair: list[str], severities: dict) -> None:
     """Every severity given must apply to a state of the pair, and be valid for it."""
-    from rvdiag.cli.simulate import _OPTION, _USES, _check_severities
+    from rvdiag.cli.simulate import _check_severities
     from rvdiag.gears.faults import FAULT_KINDS as STATES
 
     kinds = {k for s in pair for k in STATES[s].split("+")}
     for key in severities:
-        if _USES[key] not in kinds:
-            raise ParameterError(f"{_OPTION[key]} does not apply to the pair {','.join(pair)} "
-                                 f"({', '.join(STATES[s] for s in pair)})")
+        if opt.FAULT_SEVERITY_OPTIONS[key].kind not in kinds:
+            raise ParameterError(f"{opt.FAULT_SEVERITY_OPTIONS[key].option} does not apply to the pair "
+                                 f"{','.join(pair)} ({', '.join(STATES[s] for s in pair)})")
     for s in pair:
-        used = {k: v for k, v in severities.items() if _USES[k] in STATES[s].split("+")}
+        used = {k: v for k, v in severities.items() if opt.FAULT_SEVERITY_OPTIONS[k].kind in STATES[s].split("+")}
         _check_severities(s, used)
 
 
@@ -117,11 +117,9 @@ def register(app: typer.Typer) -> None:
         model = dict(demo.model)
         if substeps is not None:
             model["substeps"] = substeps
-        for name, value in (("--output-speed", speed), ("--duration", duration_s), ("--fs", fs_hz)):
-            if not value > 0 or not math.isfinite(value):
-                raise ParameterError(f"{name} must be a number > 0, got {value:g}")
-        if not load_nm >= 0 or not math.isfinite(load_nm):
-            raise ParameterError(f"--load must be a number >= 0, got {load_nm:g}")
+        for option, value in (("--output-speed", speed), ("--duration", duration_s), ("--fs", fs_hz)):
+            finite_number(value, option, 0, strict=True, noun="a number")
+        finite_number(load_nm, "--load", 0, noun="a number")
         if win < 2:
             raise ParameterError(f"--window must be a whole number of points >= 2, got {win}")
         n_record = int(round(duration_s * fs_hz))

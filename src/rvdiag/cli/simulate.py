@@ -25,10 +25,9 @@ def _check_severities(state: str, severities: dict) -> None:
     from rvdiag.gears.faults import FAULT_KINDS as STATES
 
     kinds = STATES.get(state, "").split("+")
-    for key, value in severities.items():
-        option, _, kind, _ = opt.FAULT_SEVERITY_OPTIONS[key]
-        if kind not in kinds:
-            raise ParameterError(f"{option} does not apply to state {state} ({STATES.get(state, '?')})")
+    for key in severities:
+        if opt.FAULT_SEVERITY_OPTIONS[key].kind not in kinds:
+            raise ParameterError(f"{opt.FAULT_SEVERITY_OPTIONS[key].option} does not apply to state {state} ({STATES.get(state, '?')})")
     if "wear_depth" in severities:
         Wear(severities["wear_depth"])
     if "crack_depth" in severities or "crack_angle_deg" in severities:

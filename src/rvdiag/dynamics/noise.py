@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from rvdiag.errors import ParameterError
+from rvdiag.validation import finite_number
 
 
 def add_awgn(signal: np.ndarray, snr_db: float, rng: np.random.Generator | int | None = 0) -> np.ndarray:
@@ -57,9 +58,7 @@ def add_noise_power(signal: np.ndarray, noise_power: float, exponent: float = 0.
     >>> round(float(np.mean(y**2)), 6)
     4.0
     """
-    if not isinstance(noise_power, (int, float, np.floating)) or isinstance(noise_power, bool) \
-            or not math.isfinite(noise_power) or noise_power < 0:
-        raise ParameterError(f"noise power must be a finite number >= 0, got {noise_power!r}")
+    finite_number(noise_power, "noise power", 0)
     return _add_shaped(np.asarray(signal, dtype=float), float(noise_power), exponent, rng)
 
 

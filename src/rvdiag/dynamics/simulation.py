@@ -31,6 +31,7 @@ from rvdiag.dynamics.results import SimulationResult
 from rvdiag.errors import ParameterError
 from rvdiag.kinematics import sun_speed_hz
 from rvdiag.params import ReducerParams
+from rvdiag.validation import finite_number
 
 #: what :func:`simulate` can record
 SIGNALS = ("vibration", "current", "both")
@@ -148,13 +149,10 @@ def with_load_inertia(params: ReducerParams, load_inertia_kg_m2: float | None) -
     Raises ParameterError naming the argument for a value that is not a finite number >= 0."""
     if load_inertia_kg_m2 is None:
         return params
-    J = load_inertia_kg_m2
-    if (isinstance(J, bool) or not isinstance(J, (int, float, np.integer, np.floating))
-            or not math.isfinite(float(J)) or J < 0):
-        raise ParameterError(f"load_inertia_kg_m2 must be a finite number >= 0, got {J!r}")
-    if params.operation.load_inertia is not None and float(params.operation.load_inertia) == float(J):
+    J = finite_number(load_inertia_kg_m2, "load_inertia_kg_m2", 0)
+    if params.operation.load_inertia is not None and float(params.operation.load_inertia) == J:
         return params
-    return params.replace(operation={"load_inertia": float(J)})
+    return params.replace(operation={"load_inertia": J})
 
 
 def initial_deflection(model: Model, t0: float) -> tuple[np.ndarray, str]:
@@ -268,8 +266,7 @@ class SimulationRequest:
         if signal != "vibration" and not st.electrical:
             st = dataclasses.replace(st, electrical=True)
         for name, val in (("duration_s", duration_s), ("fs", fs)):
-            if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val) or val <= 0:
-                raise ParameterError(f"{name} must be a number > 0, got {val!r}")
+            finite_number(val, name, 0, strict=True, noun="a number")
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise ParameterError(f"seed must be a whole number >= 0, got {seed!r}")
         check_workers(workers)

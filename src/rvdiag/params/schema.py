@@ -28,6 +28,7 @@ import tomli_w
 
 from rvdiag.errors import ConfigError
 from rvdiag.tomlfile import read_toml
+from rvdiag.validation import at_least, number, positive, whole_number
 
 DEFAULT_PARAMS_NAME = "rv20e.toml"
 
@@ -483,22 +484,15 @@ def _build_section(section_cls: type, values: Any, where: str) -> Any:
 
 
 def _check_value(value: Any, f: dataclasses.Field, where: str) -> Any:
-    want_int = f.type in (int, "int")
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(f"{where}: expected a number, got {value!r}")
-    if want_int:
-        if float(value) != int(value):
-            raise ConfigError(f"{where}: expected a whole number, got {value!r}")
-        value = int(value)
+    if f.type in (int, "int"):
+        value = whole_number(value, where, error=ConfigError)
     else:
-        value = float(value)
-    if not math.isfinite(value):
-        raise ConfigError(f"{where}: must be finite, got {value!r}")
+        value = number(value, where, error=ConfigError)
     check = f.metadata.get("check", "any")
-    if check == "positive" and value <= 0:
-        raise ConfigError(f"{where}: must be > 0, got {value!r}")
-    if check == "nonnegative" and value < 0:
-        raise ConfigError(f"{where}: must be >= 0, got {value!r}")
+    if check == "positive":
+        positive(value, where, error=ConfigError)
+    if check == "nonnegative":
+        at_least(value, where, 0, error=ConfigError)
     return value
 
 
