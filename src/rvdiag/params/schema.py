@@ -17,6 +17,7 @@ Examples
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import tomllib
 from dataclasses import dataclass, field, fields
@@ -33,22 +34,17 @@ from rvdiag.validation import at_least, number, positive, whole_number
 DEFAULT_PARAMS_NAME = "rv20e.toml"
 
 
-def _positive(**kw: Any) -> Any:
+def _checked(check: str, **kw: Any) -> Any:
+    """A field whose value :func:`_check_value` checks as ``check`` ("positive", "nonnegative" or "any"), with the
+    other metadata (``unit``...) and the ``default`` of ``kw``."""
     if "default" in kw:
-        return field(default=kw.pop("default"), metadata={"check": "positive", **kw})
-    return field(metadata={"check": "positive", **kw})
+        return field(default=kw.pop("default"), metadata={"check": check, **kw})
+    return field(metadata={"check": check, **kw})
 
 
-def _nonnegative(**kw: Any) -> Any:
-    if "default" in kw:
-        return field(default=kw.pop("default"), metadata={"check": "nonnegative", **kw})
-    return field(metadata={"check": "nonnegative", **kw})
-
-
-def _any(**kw: Any) -> Any:
-    if "default" in kw:
-        return field(default=kw.pop("default"), metadata={"check": "any", **kw})
-    return field(metadata={"check": "any", **kw})
+_positive = functools.partial(_checked, "positive")
+_nonnegative = functools.partial(_checked, "nonnegative")
+_any = functools.partial(_checked, "any")
 
 
 @dataclass(frozen=True)
