@@ -28,7 +28,9 @@ from rvdiag.errors import ConfigError, ParameterError
      "[split] reducers: expected a whole number, got 2.5"),
     (lambda: v.whole_number(math.nan, "k", error=ConfigError), ConfigError, "k: must be finite, got nan"),
     # in one phrase
-    (lambda: v.finite_number(None, "jerk", 0, strict=True), ParameterError, "jerk must be a number, got None"),
+    (lambda: v.finite_number(None, "jerk", 0, strict=True, type_first=True), ParameterError,
+     "jerk must be a number, got None"),
+    (lambda: v.finite_number("3", "J", 0), ParameterError, "J must be a finite number >= 0, got '3'"),
     (lambda: v.finite_number(0.0, "jerk", 0, strict=True), ParameterError, "jerk must be a finite number > 0, got 0.0"),
     (lambda: v.finite_number(math.nan, "J", 0), ParameterError, "J must be a finite number >= 0, got nan"),
     (lambda: v.finite_number(-1.0, "--fs", 0, strict=True, noun="a number"), ParameterError,

@@ -103,16 +103,17 @@ def whole_number(value: Any, name: str, *, minimum: Optional[int] = None,
 
 
 def finite_number(value: Any, name: str, lo: Optional[float] = None, *, strict: bool = False,
-                  noun: str = "a finite number", error: Callable[[str], Exception] = ParameterError) -> float:
-    """``value`` as a finite float >= ``lo`` (``> lo`` where ``strict``; any with ``lo`` None), else one phrase:
-    "``name`` must be a number" for what is not a number, "``name`` must be ``noun`` > lo, got value" otherwise
-    (``noun``: "a finite number", or "a number" where the bound says enough)."""
-    if not is_number(value):
+                  noun: str = "a finite number", type_first: bool = False,
+                  error: Callable[[str], Exception] = ParameterError) -> float:
+    """``value`` as a finite float >= ``lo`` (``> lo`` where ``strict``; any with ``lo`` None), else one phrase,
+    "``name`` must be ``noun`` > lo, got value" (``noun``: "a finite number", or "a number" where the bound says
+    enough); with ``type_first``, what is not a number gets "``name`` must be a number, got value" instead."""
+    if type_first and not is_number(value):
         raise error(f"{name} must be a number, got {value!r}")
-    x = float(value)
-    if not math.isfinite(x) or (lo is not None and (x < lo or (strict and x == lo))):
+    if not is_number(value) or not math.isfinite(value) \
+            or (lo is not None and (value < lo or (strict and value == lo))):
         raise error(f"{name} must be {noun}{_bound(lo, strict)}, got {value!r}")
-    return x
+    return float(value)
 
 
 def integer(value: Any, name: str, minimum: int, *, error: Callable[[str], Exception] = ParameterError) -> int:

@@ -101,15 +101,15 @@ class SpeedProfile:
             raise ParameterError(f"speed profile must be one of {', '.join(PROFILE_KINDS)}, got {self.kind!r}")
         if self.is_constant:
             return
-        v = finite_number(self.output_speed_deg_s, "output speed (deg/s)", 0.0, strict=True)
-        a = finite_number(self.accel_deg_s2, "acceleration (deg/s^2)", 0.0, strict=True)
-        finite_number(self.start_s, "profile start (s)")
+        v = finite_number(self.output_speed_deg_s, "output speed (deg/s)", 0.0, strict=True, type_first=True)
+        a = finite_number(self.accel_deg_s2, "acceleration (deg/s^2)", 0.0, strict=True, type_first=True)
+        finite_number(self.start_s, "profile start (s)", type_first=True)
         if self.kind == "scurve":
-            finite_number(self.jerk_deg_s3, "jerk (deg/s^3)", 0.0, strict=True)
+            finite_number(self.jerk_deg_s3, "jerk (deg/s^3)", 0.0, strict=True, type_first=True)
         elif self.jerk_deg_s3 is not None:
             raise ParameterError("a jerk limit applies to the S-curve profile only")
         if self.move_s is not None:
-            finite_number(self.move_s, "move duration (s)", 0.0, strict=True)
+            finite_number(self.move_s, "move duration (s)", 0.0, strict=True, type_first=True)
         move = self.move_time(duration_s)
         ramp = self.ramp_times()[1]
         if move is not None and 2.0 * ramp > move * (1.0 + 1e-12):
@@ -235,9 +235,9 @@ class LoadProfile:
     arm_angle_deg: float = 0.0
 
     def validate(self) -> None:
-        finite_number(self.arm_mass_kg, "arm mass (kg)", 0.0)
-        finite_number(self.arm_length_m, "arm length (m)", 0.0)
-        finite_number(self.arm_angle_deg, "arm angle (deg)")
+        finite_number(self.arm_mass_kg, "arm mass (kg)", 0.0, type_first=True)
+        finite_number(self.arm_length_m, "arm length (m)", 0.0, type_first=True)
+        finite_number(self.arm_angle_deg, "arm angle (deg)", type_first=True)
 
     @property
     def has_arm(self) -> bool:
