@@ -36,6 +36,7 @@ from typing import Any, Callable, Iterator, NamedTuple, Optional
 import typer
 
 from rvdiag.errors import ParameterError, RvdiagError, RvdiagWarning
+from rvdiag.validation import number
 
 #: Concept -> the option strings every command uses for it (long name first).
 VOCABULARY: dict[str, tuple[str, ...]] = {
@@ -238,11 +239,7 @@ FAULT_SEVERITY_OPTIONS: dict[str, SeverityOption] = {k: SeverityOption(*v) for k
 
 def mm_to_m(name: str, value: Optional[float]) -> Optional[float]:
     """Convert a ``--name`` option given in millimetres to metres (``None`` stays ``None``)."""
-    if value is None:
-        return None
-    if not math.isfinite(value):
-        raise ParameterError(f"--{name} must be finite, got {value}")
-    return value * 1e-3
+    return None if value is None else number(value, f"--{name}") * 1e-3
 
 
 def fault_severities(**given: Optional[float]) -> dict[str, float]:

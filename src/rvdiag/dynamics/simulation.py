@@ -31,7 +31,7 @@ from rvdiag.dynamics.results import SimulationResult
 from rvdiag.errors import ParameterError
 from rvdiag.kinematics import sun_speed_hz
 from rvdiag.params import ReducerParams
-from rvdiag.validation import finite_number
+from rvdiag.validation import finite_number, number
 
 #: what :func:`simulate` can record
 SIGNALS = ("vibration", "current", "both")
@@ -137,9 +137,7 @@ def prepare(
         elif output_speed_deg_s != profile.output_speed_deg_s:
             raise ParameterError("a trapezoid cruises at its own output_speed_deg_s: give no other speed")
     fsun = sun_speed_hz(params, input_speed_rpm, output_speed_deg_s)
-    load = params.operation.rated_torque if load_Nm is None else float(load_Nm)
-    if not math.isfinite(load):
-        raise ParameterError(f"load torque must be finite, got {load_Nm}")
+    load = params.operation.rated_torque if load_Nm is None else number(load_Nm, "load torque")
     return build_model(params, mesh_table(params, fault, mesh_source), fsun, load, settings or ModelSettings(),
                        profile, load_profile, duration_s)
 

@@ -45,6 +45,7 @@ from datetime import datetime
 import numpy as np
 
 from rvdiag.errors import FleetError
+from rvdiag.validation import positive
 
 STATES = ("no-baseline", "learning", "normal", "alert", "alarm", "sensor-fault")
 DAYS_PER_YEAR = 365.25
@@ -102,8 +103,7 @@ class Rules:
             raise FleetError(f"persistence k of n needs 1 <= k <= n <= 12, got k={self.k}, n={self.n}")
         if not (isinstance(self.m, int) and 1 <= self.m <= 100):
             raise FleetError(f"the hysteresis m (consecutive normal records to clear) must be 1-100, got {self.m}")
-        if not self.records_per_day > 0:
-            raise FleetError(f"records_per_day must be > 0, got {self.records_per_day}")
+        positive(self.records_per_day, "records_per_day", error=FleetError)
         if self.learning is not None:
             if not (isinstance(self.learning, int) and self.learning >= 1):
                 raise FleetError(f"the learning period must be a whole number of records >= 1, got {self.learning}")
