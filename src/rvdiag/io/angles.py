@@ -38,6 +38,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from rvdiag.errors import DataFileError, ParameterError
+from rvdiag.validation import finite_number
 from rvdiag.spectral import amplitude_spectrum, peak_frequency
 
 #: a tachometer interval longer than this many times the median of its neighbours is a missing pulse
@@ -379,8 +380,8 @@ class AngleSpec:
             if isinstance(self.ppr, bool) or not isinstance(self.ppr, (int, np.integer)) or self.ppr < 1:
                 raise ParameterError(f"--ppr must be a positive integer, got {self.ppr!r}")
         for name, v in (("--input-speed", self.input_speed_rpm), ("--output-speed", self.output_speed_deg_s)):
-            if v is not None and not (math.isfinite(v) and v > 0):
-                raise ParameterError(f"{name} must be > 0, got {v}")
+            if v is not None:
+                finite_number(v, name, 0, strict=True, noun="a number")
         if self.meta_regex is not None:
             pat = _compile(self.meta_regex, "--meta-regex")
             if not set(SPEED_GROUPS) & set(pat.groupindex):
