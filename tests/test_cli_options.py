@@ -168,8 +168,12 @@ def test_the_fault_severity_options_are_declared_once_for_the_three_commands():
     """simulate, tvms and separability take the ten severities of one table (_options.FAULT_SEVERITY_OPTIONS), with its
     help, in the place the command's ``severities`` parameter holds, and receive the given ones in SI."""
     commands = _commands()
+    from rvdiag.gears.faults import DEFAULT_SEVERITIES, FAULT_KINDS
+
     table = {spec.option: spec.help for spec in _options.FAULT_SEVERITY_OPTIONS.values()}
-    assert len(table) == 10
+    assert len(table) == 10 and set(_options.FAULT_SEVERITY_OPTIONS) == set(DEFAULT_SEVERITIES)  # one per severity
+    kinds = {k for name in FAULT_KINDS.values() for k in name.split("+")}
+    assert {spec.kind for spec in _options.FAULT_SEVERITY_OPTIONS.values()} <= kinds
     for path in ("simulate", "tvms", "separability"):
         opts = [o for o in _opts_of(commands[path]) if o.opts[0] in table]
         assert [o.opts[0] for o in opts] == list(table), path
