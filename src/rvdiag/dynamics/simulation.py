@@ -26,8 +26,8 @@ from rvdiag.dynamics.mesh import MeshTable, mesh_table_from_gears, rectangular_m
 from rvdiag.dynamics.model import I_TLOAD, Model, ModelSettings, build_model
 from rvdiag.dynamics.noise import add_awgn
 from rvdiag.dynamics.profile import LoadProfile, SpeedProfile
-from rvdiag.dynamics.transfer import apply_path
 from rvdiag.dynamics.results import SimulationResult
+from rvdiag.dynamics.transfer import apply_path
 from rvdiag.errors import ParameterError
 from rvdiag.kinematics import sun_speed_hz
 from rvdiag.params import ReducerParams

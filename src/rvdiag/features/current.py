@@ -33,9 +33,9 @@ from typing import Sequence
 import numpy as np
 
 from rvdiag.errors import ParameterError
-from rvdiag.validation import finite_number
 from rvdiag.features._base import SignalTransformer
 from rvdiag.spectral import amplitude_spectrum, peak_frequency
+from rvdiag.validation import finite_number
 
 #: the lines fitted and removed by default: the supply line and the dead-time lines 5 f_e and 7 f_e that a
 #: voltage-source inverter adds (docs/model.md section 10); in the simulated current of configs/mcsa.toml

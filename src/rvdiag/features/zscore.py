@@ -31,9 +31,9 @@ import numpy as np
 from sklearn.base import clone
 
 from rvdiag.errors import ParameterError
-from rvdiag.validation import integer
 from rvdiag.features._base import SignalTransformer, as_signal_matrix
 from rvdiag.features.combine import input_metadata, points_before_metadata
+from rvdiag.validation import integer
 
 
 class HealthyBaselineFeatures(SignalTransformer):

@@ -58,10 +58,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from rvdiag.errors import ParameterError
-from rvdiag.validation import finite_number
 from rvdiag.gears.faults import Wear, sliding_ratio
 from rvdiag.gears.geometry import GearPair
 from rvdiag.gears.tvms import tooth_pair_components
+from rvdiag.validation import finite_number
 
 #: span of dimensional wear coefficients (m^2/N) for lubricated steel gears in mild wear (module docstring):
 #: well lubricated (mixed EHL; the default, module docstring), the upper bound that an RV reducer's measured

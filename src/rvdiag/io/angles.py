@@ -38,8 +38,8 @@ from typing import Any, Mapping
 import numpy as np
 
 from rvdiag.errors import DataFileError, ParameterError
-from rvdiag.validation import finite_number
 from rvdiag.spectral import amplitude_spectrum, peak_frequency
+from rvdiag.validation import finite_number, positive
 
 #: a tachometer interval longer than this many times the median of its neighbours is a missing pulse
 LONG_INTERVAL = 1.5
@@ -64,9 +64,7 @@ ANGLE_SOURCES = ("angle-channel", "counter", "tacho", "stored-angle", "meta", "i
 # --------------------------------------------------------------------------- constant speed
 def angle_from_speed(n: int, fs: float, rev_per_s: float) -> np.ndarray:
     """Revolutions of a shaft turning at a constant ``rev_per_s`` at each of ``n`` samples."""
-    if not (math.isfinite(rev_per_s) and rev_per_s > 0):
-        raise ParameterError(f"shaft speed must be > 0 rev/s, got {rev_per_s}")
-    return np.arange(int(n)) * (float(rev_per_s) / float(fs))
+    return np.arange(int(n)) * (positive(rev_per_s, "shaft speed", unit=" rev/s") / float(fs))
 
 
 # --------------------------------------------------------------------------- encoders

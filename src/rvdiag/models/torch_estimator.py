@@ -78,10 +78,10 @@ from sklearn.utils.multiclass import check_classification_targets
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from rvdiag.errors import ParameterError
-from rvdiag.validation import integer
 from rvdiag.features.spectrum import LOGSPEC_EPS, log_spectrum  # noqa: F401 (LOGSPEC_EPS: re-exported)
 from rvdiag.io.windows import COVER_POLICIES, covering_starts
 from rvdiag.models.cnn import ARCHITECTURES, DEFAULT_INPUT_LENGTH, architecture_name, build_network
+from rvdiag.validation import integer, positive
 
 NORMALIZATIONS = ("window", "global", "none")
 LONG_INPUT = COVER_POLICIES
@@ -243,8 +243,7 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
             integer(getattr(self, name), name, 1)
         if not (0.0 <= float(self.validation_fraction) < 1.0):
             raise ParameterError(f"validation_fraction must be in [0, 1), got {self.validation_fraction}")
-        if not float(self.learning_rate) > 0:
-            raise ParameterError(f"learning_rate must be > 0, got {self.learning_rate}")
+        positive(self.learning_rate, "learning_rate")
         W = self.input_length if self.input_length is not None else DEFAULT_INPUT_LENGTH[architecture_name(self.architecture)]
         if W is None:
             W = length

@@ -29,9 +29,9 @@ from sklearn.utils.multiclass import check_classification_targets
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from rvdiag.errors import ParameterError
-from rvdiag.validation import integer
 from rvdiag.models.kelm import KELMClassifier, one_hot_pm1, solve_output_weights, sq_distances
 from rvdiag.progress import report
+from rvdiag.validation import integer
 
 #: optimiser name -> (mealpy module, class); the names of ``rvdiag train --model kelm-<name>``
 OPTIMIZERS = {

@@ -23,8 +23,8 @@ from fractions import Fraction
 import numpy as np
 
 from rvdiag.errors import ParameterError
-from rvdiag.validation import finite_number
 from rvdiag.params.schema import Motor
+from rvdiag.validation import finite_number
 
 
 @dataclass(frozen=True)

@@ -8,8 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from rvdiag.errors import ParameterError
-from rvdiag.validation import finite_number
 from rvdiag.models.cnn_features import CNN_FEATURE_REPRESENTATIONS, default_representation
+from rvdiag.validation import finite_number
 
 FORMAT = "rvdiag-mcsa/1"
 
