@@ -522,7 +522,7 @@ def _parse_history(raw: Mapping[str, Any], w: str) -> HistoryConfig:
                           f"{kinds!r}")
     ap, bp = SEVERITY_PARAMETERS["crack_angle_deg"], SEVERITY_PARAMETERS["broken_fraction"]
     return HistoryConfig(
-        records=_int(raw["records"], f"{w} records", 1),
+        records=_int(raw["records"], f"{w} records", minimum=1),
         interval_days=positive("interval_days", 1.0),
         fates=fates,
         duty_speed_deg_s=positive("duty_speed_deg_s", d.duty_speed_deg_s),
