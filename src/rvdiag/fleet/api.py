@@ -41,6 +41,7 @@ else sees them; nothing from a request is unpickled.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import re
@@ -61,6 +62,7 @@ from rvdiag.errors import RvdiagError
 from rvdiag.fleet import AuthError, FleetError, Reading
 from rvdiag.fleet import web
 from rvdiag.fleet.store import parse_time, split_joint
+from rvdiag.validation import finite_number
 
 #: Default upload limit, bytes (a 10 s record of 8 float64 channels at 48 kHz is 31 MiB as NPY).
 DEFAULT_MAX_UPLOAD = 64 * 1024 * 1024
@@ -130,9 +132,8 @@ def _check_filename(name: str | None) -> str:
 
 
 def _finite(name: str, value: float | None) -> float | None:
-    if value is not None and not math.isfinite(value):
-        raise ApiError(400, f"{name} must be a finite number, not {value}")
-    return value
+    """A form's number as given (None: not given), else a 400 naming it (:func:`rvdiag.validation.finite_number`)."""
+    return None if value is None else finite_number(value, name, error=functools.partial(ApiError, 400))
 
 
 

@@ -45,6 +45,7 @@ from datetime import datetime
 import numpy as np
 
 from rvdiag.errors import FleetError
+from rvdiag.validation import finite_number, positive
 
 STATES = ("no-baseline", "learning", "normal", "alert", "alarm", "sensor-fault")
 DAYS_PER_YEAR = 365.25
@@ -107,11 +108,9 @@ class Rules:
             raise FleetError(f"persistence k of n needs 1 <= k <= n <= 12, got k={self.k}, n={self.n}")
         if not (isinstance(self.m, int) and 1 <= self.m <= 100):
             raise FleetError(f"the hysteresis m (consecutive normal records to clear) must be 1-100, got {self.m}")
-        if not self.records_per_day > 0:
-            raise FleetError(f"records_per_day must be > 0, got {self.records_per_day}")
-        if self.failure_index is not None and (isinstance(self.failure_index, bool) or not isinstance(
-                self.failure_index, (int, float)) or not math.isfinite(self.failure_index) or self.failure_index <= 0):
-            raise FleetError(f"the failure index must be a finite number > 0, got {self.failure_index!r}")
+        positive(self.records_per_day, "records_per_day", error=FleetError)
+        if self.failure_index is not None:
+            finite_number(self.failure_index, "the failure index", 0.0, strict=True, error=FleetError)
         if self.learning is not None:
             if not (isinstance(self.learning, int) and self.learning >= 1):
                 raise FleetError(f"the learning period must be a whole number of records >= 1, got {self.learning}")

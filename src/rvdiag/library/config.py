@@ -37,6 +37,7 @@ Examples
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,6 +48,7 @@ import numpy as np
 from rvdiag.errors import ConfigError, ParameterError
 from rvdiag.library.states import SEVERITY_PARAMETERS, STATES
 from rvdiag.tomlfile import read_toml
+from rvdiag.validation import number, positive, whole_number
 
 #: ``[signal] transient_s`` when a config leaves it out: the model's run-in (``ModelSettings.transient_s``,
 #: docs/model.md section 7), the default of ``rvdiag simulate --transient`` too (tests/test_library_config.py
@@ -204,22 +206,10 @@ class Sweep:
         return {"min": self.values[0], "max": self.values[1]}
 
 
-def _number(raw: Any, where: str) -> float:
-    if isinstance(raw, bool) or not isinstance(raw, (int, float)):
-        raise ConfigError(f"{where}: expected a number, got {raw!r}")
-    value = float(raw)
-    if not math.isfinite(value):
-        raise ConfigError(f"{where}: must be finite, got {raw!r}")
-    return value
-
-
-def _int(raw: Any, where: str, minimum: int) -> int:
-    value = _number(raw, where)
-    if value != int(value):
-        raise ConfigError(f"{where}: expected a whole number, got {raw!r}")
-    if value < minimum:
-        raise ConfigError(f"{where}: must be >= {minimum}, got {int(value)}")
-    return int(value)
+#: a config key's number checks (rvdiag.validation's, in the ConfigError form "file [section] key: ...")
+_number = functools.partial(number, error=ConfigError)
+_int = functools.partial(whole_number, error=ConfigError)
+_positive = functools.partial(positive, error=ConfigError)
 
 
 def _bounded_sweeps(raw: Mapping[str, Any], bounds: Mapping[str, tuple[float, float]], w: str) -> dict[str, Sweep]:
@@ -239,13 +229,6 @@ def _positive_sweep(raw: Any, where: str) -> Sweep:
     if sweep.lo <= 0:
         raise ConfigError(f"{where}: must be > 0, got {sweep.lo:g}")
     return sweep
-
-
-def _positive(raw: Any, where: str) -> float:
-    value = _number(raw, where)
-    if value <= 0:
-        raise ConfigError(f"{where}: must be > 0, got {value:g}")
-    return value
 
 
 #: ``[profile]`` gravity-arm keys, each a sweep, with the range it must lie in
@@ -395,8 +378,8 @@ def _parse_baseline(raw: Mapping[str, Any], spl: Mapping[str, Any], w: str, ws: 
                               "monitored_per_state); give [split] reducers and test_reducers")
     if "reducers" not in spl:
         raise ConfigError(f"{ws} reducers: missing (simulated reducers of the paired library)")
-    reducers = _int(spl["reducers"], f"{ws} reducers", 1)
-    test = _int(spl.get("test_reducers", 0), f"{ws} test_reducers", 0)
+    reducers = _int(spl["reducers"], f"{ws} reducers", minimum=1)
+    test = _int(spl.get("test_reducers", 0), f"{ws} test_reducers", minimum=0)
     if test >= reducers:
         raise ConfigError(f"{ws} test_reducers: {test} leaves no training reducer out of reducers = {reducers}")
     pts = raw.get("operating_points")
@@ -421,9 +404,9 @@ def _parse_baseline(raw: Mapping[str, Any], spl: Mapping[str, Any], w: str, ws: 
             raise ConfigError(f"{w} {key}_pct: must lie in [0, 100) percent, got {variation[key]:g}")
     return BaselineConfig(
         operating_points=tuple(points), reducers=reducers, test_reducers=test,
-        records_per_point=_int(raw.get("records_per_point", 1), f"{w} records_per_point", 1),
-        monitored_healthy=_int(raw.get("monitored_healthy", 1), f"{w} monitored_healthy", 0),
-        monitored_per_state=_int(raw.get("monitored_per_state", 1), f"{w} monitored_per_state", 0),
+        records_per_point=_int(raw.get("records_per_point", 1), f"{w} records_per_point", minimum=1),
+        monitored_healthy=_int(raw.get("monitored_healthy", 1), f"{w} monitored_healthy", minimum=0),
+        monitored_per_state=_int(raw.get("monitored_per_state", 1), f"{w} monitored_per_state", minimum=0),
         variation=variation)
 
 
@@ -539,7 +522,7 @@ def _parse_history(raw: Mapping[str, Any], w: str) -> HistoryConfig:
                           f"{kinds!r}")
     ap, bp = SEVERITY_PARAMETERS["crack_angle_deg"], SEVERITY_PARAMETERS["broken_fraction"]
     return HistoryConfig(
-        records=_int(raw["records"], f"{w} records", 1),
+        records=_int(raw["records"], f"{w} records", minimum=1),
         interval_days=positive("interval_days", 1.0),
         fates=fates,
         duty_speed_deg_s=positive("duty_speed_deg_s", d.duty_speed_deg_s),
@@ -742,7 +725,7 @@ class LibraryConfig:
             raise ConfigError(f"{source}: mode: must be one of {', '.join(MODES)}, got {mode!r}")
         if "seed" not in data:
             raise ConfigError(f"{source}: seed: missing (every random draw derives from it)")
-        seed = _int(data["seed"], f"{source}: seed", 0)
+        seed = _int(data["seed"], f"{source}: seed", minimum=0)
         name = data.get("name", Path(source).stem if source != "<dict>" else "library")
         if not isinstance(name, str):
             raise ConfigError(f"{source}: name: expected a string, got {name!r}")
@@ -771,8 +754,8 @@ class LibraryConfig:
         transient_s = _number(sig.get("transient_s", DEFAULT_TRANSIENT_S), f"{w} transient_s")
         if transient_s < 0:
             raise ConfigError(f"{w} transient_s: must be >= 0, got {transient_s:g}")
-        segment_length = _int(sig["segment_length"], f"{w} segment_length", 16)
-        hop = _int(sig.get("hop", segment_length), f"{w} hop", 1)
+        segment_length = _int(sig["segment_length"], f"{w} segment_length", minimum=16)
+        hop = _int(sig.get("hop", segment_length), f"{w} hop", minimum=1)
         n_keep = int(round(duration_s * fs))
         if segment_length > n_keep:
             raise ConfigError(
@@ -921,8 +904,8 @@ class LibraryConfig:
             for key in ("train_per_state", "test_per_state"):
                 if key not in spl:
                     raise ConfigError(f"{w} {key}: missing (paper mode splits each state's segments)")
-            train = _int(spl["train_per_state"], f"{w} train_per_state", 1)
-            test = _int(spl["test_per_state"], f"{w} test_per_state", 0)
+            train = _int(spl["train_per_state"], f"{w} train_per_state", minimum=1)
+            test = _int(spl["test_per_state"], f"{w} test_per_state", minimum=0)
             if train + test > n_seg:
                 raise ConfigError(
                     f"{w}: train_per_state + test_per_state = {train + test} exceeds the {n_seg} segments of one "
@@ -962,8 +945,8 @@ class LibraryConfig:
                     raise ConfigError(f"{w} {key}: only for a paired library (a [baseline] table)")
             if "simulations_per_state" not in spl:
                 raise ConfigError(f"{w} simulations_per_state: missing")
-            n_sim = _int(spl["simulations_per_state"], f"{w} simulations_per_state", 1)
-            n_test = _int(spl.get("test_simulations_per_state", 0), f"{w} test_simulations_per_state", 0)
+            n_sim = _int(spl["simulations_per_state"], f"{w} simulations_per_state", minimum=1)
+            n_test = _int(spl.get("test_simulations_per_state", 0), f"{w} test_simulations_per_state", minimum=0)
             if n_test >= n_sim:
                 raise ConfigError(
                     f"{w} test_simulations_per_state: {n_test} leaves no training simulation out of "
