@@ -136,6 +136,34 @@ def measure(path: Path, others: dict, rng) -> list[dict]:
     return rows
 
 
+def timing(path: Path, n: int = 50) -> dict:
+    """Seconds per record of the level check on a record of 2 windows against one reducer's baseline windows of
+    ``path``: with the bands (as :func:`rvdiag.monitoring.monitor_record` calls it) and, the baseline in the same
+    run, the RMS alone (no ``fs``: the check before its bands)."""
+    import time
+
+    from rvdiag.datasets import SampleStore
+    from rvdiag.monitoring.diagnosis import level_check_against_baseline
+
+    st = SampleStore.open(path)
+    s = st.load(index=np.arange(min(st.n_samples, 200)))
+    red, role = np.asarray(s.meta["reducer"]), np.asarray(s.meta["role"])
+    bi = np.flatnonzero((red == red[0]) & (role == "baseline"))
+    base = SimpleNamespace(X=np.asarray(s.X[bi], np.float64),
+                           meta={c: np.asarray(s.meta[c])[bi] for c in ("output_speed_deg_s", "load_Nm")})
+    x = np.concatenate([np.asarray(s.X[i], np.float64) for i in bi[:2]])
+    ok = {"recognised": True, "reason": None, "checks": {}}
+    speed = {"output_speed_deg_s": float(s.meta["output_speed_deg_s"][bi[0]])}
+    out = {"baseline_windows": int(bi.size)}
+    for name, args in (("rms_only_s", ()), ("bands_s", (FS, L, speed, float(s.meta["load_Nm"][bi[0]])))):
+        level_check_against_baseline(ok, x, base, *args)
+        t0 = time.perf_counter()
+        for _ in range(n):
+            level_check_against_baseline(ok, x, base, *args)
+        out[name] = (time.perf_counter() - t0) / n
+    return out
+
+
 def table(rows: list[dict]) -> str:
     g = collections.defaultdict(list)
     for r in rows:
@@ -167,6 +195,7 @@ def main(argv=None) -> list[dict]:
     rng = np.random.default_rng(0)
     rows = [row for p in stores for row in measure(p, others, rng)]
     print(table(rows))
+    print("level check per record:", json.dumps(timing(stores[0])))
     if a.json:
         a.json.write_text(json.dumps(rows, indent=1))
     return rows
