@@ -311,8 +311,9 @@ SPREAD_FACTOR = 4.0
 #: robot's RV reducer) 10-22000x louder than the baseline 4.3-50, those of them that keep a band within
 #: :data:`GAIN_FACTOR` of the baseline's 6.5 (2 records) and 14.6-50
 SHAPE_FACTOR = 8.0
-#: a third-octave band counts when it holds at least this many spectral lines (its level then scatters by about
-#: 1.5 dB in one window of a noise-like signal, a chi-square of 16 degrees of freedom)
+#: a third-octave band counts when it holds at least this many spectral lines: a noise-like signal's power in it
+#: then has at most 16 degrees of freedom in one window (fewer, as the Hann window's neighbouring lines overlap),
+#: and the narrow low bands of a few lines, which scatter most, are left out
 BAND_MIN_LINES = 8
 
 
