@@ -155,11 +155,10 @@ def records_of(store):
 
 
 def sensor_faults(x: np.ndarray, rng) -> dict[str, np.ndarray]:
-    """A dead, a clipped and a disconnected version of a healthy record."""
-    peak = float(np.max(np.abs(x)))
-    return {"dead": np.full_like(x, float(np.mean(x))),
-            "clipped": np.clip(x, -0.2 * peak, 0.2 * peak),
-            "disconnected": 0.01 * float(np.std(x)) * rng.standard_normal(x.size)}
+    """A dead, a clipped and a disconnected version of a healthy record (rvdiag.library.life.apply_sensor_fault)."""
+    from rvdiag.library.life import SENSOR_FAULTS, apply_sensor_fault
+
+    return {kind: apply_sensor_fault(x, kind, rng) for kind in SENSOR_FAULTS}
 
 
 def poisson_interval(k: int, exposure: float) -> list[float]:

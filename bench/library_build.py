@@ -7,6 +7,8 @@ Usage::
     .venv/bin/python bench/library_build.py --log                # also append the result to bench/HISTORY.md
     .venv/bin/python bench/library_build.py --specimen-cost --sims 2 --workers 0 --log
                                   # cost per simulated second: specimens + noise floor against one specimen + record
+    .venv/bin/python bench/library_build.py --life-cost --reducers 4 --records 6 --log
+                                  # cost per simulated second: configs/life.toml against configs/monitoring.toml
 
 Each run builds the same library into a fresh store, end to end as a user sees it: starting the local
 cluster, importing (and loading the compiled model) on the workers, simulating, writing.  ``workers = 0``
@@ -18,6 +20,14 @@ is printed).
 ``[operation] noise_mode = "floor"`` (each simulation its own specimen, and a healthy twin per reducer for the
 floor), and without them (one specimen, noise scaled to each record: the library before issue 26), and prints the
 cost per simulated second of each and their ratio (the issue's goal: within 1.2).
+
+``--life-cost`` builds, in-process and in the same run, the life-history config (``configs/life.toml``, issue 35) and
+the paired monitoring config (``configs/monitoring.toml``), both cut to ``--reducers`` reducers with one commissioning
+record per point, the life config to ``--records`` records over its 420 days with the first seed from its own on
+whose reducers every fate falls (so that the cut holds its kinds of records), the monitoring config to 2 healthy and 1
+of each fault state monitored records a reducer, and prints the cost per simulated second (wall / records x duration_s, end to end:
+plan, simulations, store) of each and their ratio (the issue's goal: a life library within the cost per simulated
+second of today's libraries), and what the shipped life config's 200 x 72 records would take on 2 workers at that cost.
 """
 
 from __future__ import annotations
@@ -43,9 +53,16 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=2, help="--specimen-cost: alternated builds of each (default 2)")
     ap.add_argument("--specimen-cost", action="store_true",
                     help="cost per simulated second with specimens + noise floor against without them")
+    ap.add_argument("--life-cost", action="store_true",
+                    help="cost per simulated second of configs/life.toml against configs/monitoring.toml")
+    ap.add_argument("--reducers", type=int, default=4, help="--life-cost: reducers of each library (default 4)")
+    ap.add_argument("--records", type=int, default=6, help="--life-cost: records of each life history (default 6)")
     args = ap.parse_args()
     if args.specimen_cost:
         specimen_cost(args)
+        return
+    if args.life_cost:
+        life_cost(args)
         return
 
     from rvdiag.library import LibraryConfig, build_library
@@ -154,6 +171,81 @@ def specimen_cost(args: argparse.Namespace) -> None:
             "",
             *[f"- {k}: {v:.3f} s per simulated second" for k, v in cost.items()],
             f"- ratio: {ratio:.2f} (goal <= 1.2)",
+            "",
+        ])
+        with open(ROOT / "bench" / "HISTORY.md", "a", encoding="utf-8") as fh:
+            fh.write(block)
+
+
+def life_cost(args: argparse.Namespace) -> None:
+    """Build the life config and the monitoring config, cut alike, in-process, and compare the cost per simulated s."""
+    from rvdiag.library import LibraryConfig, build_library
+    from collections import Counter
+
+    from rvdiag.gears.growth import wear_curve
+    from rvdiag.library.build import _TWIN_POWERS, make_plan
+
+    split = {"reducers": args.reducers, "test_reducers": 1}
+    full = LibraryConfig.load("life")
+    # its records spread over the shipped config's 420 days, and the first seed from the config's on whose reducers
+    # every fate falls, so that the cut holds the shipped config's kinds of records
+    for seed in range(full.seed, full.seed + 1000):
+        life = full.replace(seed=seed, split=split, baseline={"records_per_point": 1}, history={
+            "records": args.records, "interval_days": full.history.horizon_days / args.records})
+        if {u.life["life.fate"] for u in make_plan(life)} == set(full.history.fates):
+            break
+    mon = LibraryConfig.load("monitoring").replace(split=split, baseline={
+        "records_per_point": 1, "monitored_healthy": 2, "monitored_per_state": 1})
+    if args.synthetic:
+        life = life.replace(simulator="rvdiag.library.synthetic:simulate", model={})
+        mon = mon.replace(simulator="rvdiag.library.synthetic:simulate", model={})
+    cases = {"monitoring (paired)": mon, "life histories": life}
+    tmp = Path(tempfile.mkdtemp(prefix="rvdiag-bench-"))
+    cost: dict[str, float] = {}
+    try:
+        build_library(mon.replace(split={"reducers": 2, "test_reducers": 1}, states={"T1": {}, "T2": {}}),
+                      tmp / "warm.zarr", workers=0, progress=False)  # compile / load the model once
+        for rnd in range(args.rounds):  # alternated, the fastest of each kept: a shared machine's load varies
+            for name, c in cases.items():
+                _TWIN_POWERS.clear()  # each build simulates its own twins ...
+                wear_curve.cache_clear()  # ... and integrates its own wear curve (its plan's)
+                t0 = time.perf_counter()
+                build_library(c, tmp / f"{rnd}-{name[:4]}.zarr", workers=0, progress=False)
+                took = (time.perf_counter() - t0) / (c.n_simulations * c.duration_s)
+                cost[name] = min(took, cost.get(name, took))
+                print(f"{name}: {took:.3f} s per simulated second ({c.n_simulations} simulations)", flush=True)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    ratio = cost["life histories"] / cost["monitoring (paired)"]
+    wear_curve.cache_clear()
+    t0 = time.perf_counter()
+    make_plan(full)
+    plan_s = time.perf_counter() - t0
+    hours = cost["life histories"] * full.n_simulations * full.duration_s / 2 / 3600
+    load = os.getloadavg()[0]
+    print(f"life states: {dict(sorted(Counter(u.state for u in make_plan(life)).items()))}")
+    print(f"ratio life / monitoring: {ratio:.2f}; configs/life.toml ({full.n_simulations} simulations) at this cost on "
+          f"2 ideal workers: {hours:.1f} h (its plan: {plan_s:.1f} s); load average at the end: {load:.1f}")
+    if args.log:
+        block = "\n".join([
+            "",
+            f"## {dt.date.today().isoformat()} library cost per simulated second: life histories (issue 35)",
+            "",
+            f"configs/life.toml against configs/monitoring.toml, both cut to {args.reducers} reducers with one "
+            f"commissioning record per point (life: {args.records} records a history over its "
+            f"{full.history.horizon_days:g} days, seed {life.seed}, {life.n_simulations} simulations, states "
+            f"{dict(sorted(Counter(u.state for u in make_plan(life)).items()))}; monitoring: 2 healthy and 1 of each of T2-T6 monitored records a reducer, "
+            f"{mon.n_simulations} simulations), records of {life.transient_s:g} + {life.duration_s:g} s at "
+            f"{life.fs:g} Hz, in-process (no Dask), the same run, {args.rounds} alternated builds of each, the fastest "
+            f"kept; cost = wall (plan, simulations, store) / (simulations x {life.duration_s:g} s recorded).  Load "
+            f"average (1 min) at the end: {load:.1f} on {os.cpu_count()} cores.",
+            f"Command: `.venv/bin/python bench/library_build.py --life-cost --reducers {args.reducers} --records "
+            f"{args.records} --rounds {args.rounds}{' --synthetic' if args.synthetic else ''} --log`",
+            "",
+            *[f"- {k}: {v:.3f} s per simulated second" for k, v in cost.items()],
+            f"- ratio life / monitoring: {ratio:.2f} (goal: within today's cost, about 1)",
+            f"- configs/life.toml ({full.n_simulations} simulations of {full.duration_s:g} s recorded) at this cost on "
+            f"2 ideal workers: {hours:.1f} h; its plan (every reducer's life, the wear curve once): {plan_s:.1f} s",
             "",
         ])
         with open(ROOT / "bench" / "HISTORY.md", "a", encoding="utf-8") as fh:

@@ -86,7 +86,7 @@ def record_features(store_path: Path, records_per_point: int | None):
 
 def score(m, D, y, red, healthy: str = "T1", alarm=None) -> dict:
     """Alarm and state figures of a fitted monitor on records ``D`` (labels ``y``, reducers ``red``)."""
-    from rvdiag.monitoring.training import binomial_interval
+    from rvdiag.evaluation.metrics import binomial_interval
     from rvdiag.evaluation.metrics import classification_metrics, merged_classification_metrics
 
     a = m.alarm(D) if alarm is None else alarm

@@ -29,41 +29,31 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
-import math
 import time
 from pathlib import Path
 
 import numpy as np
-from scipy import stats
 
+from rvdiag.evaluation.metrics import binomial_interval
+from rvdiag.library.life import FATE_STATES
 from rvdiag.params import ReducerParams
-from rvdiag.prognostics import ConformalMartingale, Cusum, PageHinkley, joint_prognosis
+from rvdiag.prognostics import ConformalMartingale, joint_prognosis
+from rvdiag.prognostics.metrics import LifeHistory, score_histories, summarise
 from rvdiag.prognostics.synthetic import HistorySpec, draw_history
 
 ROOT = Path(__file__).resolve().parents[1]
+#: the fault state of each synthetic kind at its onset (as a life store's fates), in the order their seeds are drawn
+STATE = {kind: FATE_STATES[kind][0] for kind in ("broken", "crack", "wear")}
 
 
-def clopper_pearson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
-    a = (1.0 - level) / 2.0
-    lo = 0.0 if k == 0 else float(stats.beta.ppf(a, k, n - k + 1))
-    hi = 1.0 if k == n else float(stats.beta.ppf(1.0 - a, k + 1, n - k))
-    return lo, hi
-
-
-def detectors(h, delta, seed):
-    return {"martingale": ConformalMartingale(h.baseline, delta=delta, seed=seed).run(h.health_index),
-            "cusum": Cusum(h.baseline).run(h.health_index),
-            "page_hinkley": PageHinkley(h.baseline).run(h.health_index)}
-
-
-def alpha_lambda_progpy(t_pred: float, toe_samples: np.ndarray, eol: float, alpha=0.2, beta=0.5) -> bool:
-    from progpy.metrics import alpha_lambda
-    from progpy.predictors import ToEPredictionProfile
-    from progpy.uncertain_data import UnweightedSamples
-
-    profile = ToEPredictionProfile()
-    profile.add_prediction(t_pred, UnweightedSamples([{"f": float(v)} for v in toe_samples]))
-    return bool(alpha_lambda(profile, {"f": float(eol)}, t_pred, alpha, beta)["f"])
+def life_history(h, seed: int, spec: HistorySpec, fleet_pool: bool = False) -> LifeHistory:
+    """A synthetic history (:func:`draw_history`) as :func:`rvdiag.prognostics.metrics.life_metrics` scores it
+    (``fleet_pool``: without its commissioning scores, as the fleet ranks a joint's records)."""
+    return LifeHistory(days=h.days, score=h.health_index, fate=h.kind, onset_days=h.onset_day,
+                       failure_days=h.failure_day, state=STATE.get(h.kind),
+                       baseline_scores=() if fleet_pool else h.baseline,
+                       threshold=h.threshold_index, reference_level=spec.reference_level, seed=seed,
+                       name=f"{h.kind}-{h.seed}")
 
 
 def horizon_progpy(times, toe_samples, eol: float, alpha=0.2, beta=0.5) -> float | None:
@@ -84,6 +74,38 @@ def horizon_progpy(times, toe_samples, eol: float, alpha=0.2, beta=0.5) -> float
     return prognostic_horizon(profile, criterion, {"f": float(eol)})["f"]
 
 
+def horizons(h, seed: int, delta: float, model: str, spec: HistorySpec) -> dict:
+    """The prognostic horizon of ``model`` and of linear extrapolation as a share of alarm-to-failure (0 if never
+    met), from a prediction at every record from the martingale's alarm to the last before failure; {} when the
+    history does not alarm before failure."""
+    m = ConformalMartingale(h.baseline, delta=delta, seed=seed).run(h.health_index)
+    if m.alarm_index is None or h.days[m.alarm_index] >= h.failure_day:
+        return {}
+    profiles = {mm: ([], []) for mm in (model, "linear")}
+    for kk in range(m.alarm_index, int(np.searchsorted(h.days, h.failure_day, side="left"))):
+        pk = joint_prognosis(h.days[:kk + 1], health_index=h.health_index[:kk + 1], baseline_scores=h.baseline,
+                             threshold=h.threshold_index, delta=delta, seed=seed, model=model,
+                             reference_level=spec.reference_level)
+        for mm, r in ((model, pk.rul), ("linear", pk.rul_baseline)):
+            if r.estimated:
+                profiles[mm][0].append(h.days[kk])
+                profiles[mm][1].append(h.days[kk] + r.samples_days[::10])
+    t_p = h.days[m.alarm_index]
+    out = {}
+    for mm, (tt, toe) in profiles.items():
+        ph = horizon_progpy(tt, toe, h.failure_day) if tt else None
+        out[mm] = 0.0 if ph is None else ph / (h.failure_day - t_p)
+    return out
+
+
+def _q(v) -> str:
+    return "inf" if v is None else f"{v:.0f}"
+
+
+def _f(v, fmt: str) -> str:
+    return "nan" if v is None else format(v, fmt)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--healthy", type=int, default=1000)
@@ -98,117 +120,82 @@ def main() -> None:
                     help="remaining-life models (rvdiag.prognostics.rul.MODELS), each against linear extrapolation")
     ap.add_argument("--horizon", action="store_true",
                     help="also ProgPy's prognostic horizon (a prediction at every record from alarm to failure)")
+    ap.add_argument("--fleet-pool", action="store_true",
+                    help="rank each record among the joint's earlier monitored records only, as rvdiag fleet and "
+                         "evaluate --life do (its commissioning records have no index); no CUSUM / Page-Hinkley")
     ap.add_argument("--log", action="store_true")
     args = ap.parse_args()
     params = ReducerParams.default()
     spec = HistorySpec(n_baseline=args.baseline, n_records=args.records, scale_spread=args.scale_spread)
     t0 = time.perf_counter()
     lines = [f"histories: {args.healthy} healthy x {args.records} records, {args.faults} per fault; "
-             f"{args.baseline} commissioning records; delta = {args.delta}; record every {spec.interval_days} days; "
+             f"{args.baseline} commissioning records" + (" (not ranked: the fleet's pool)" if args.fleet_pool else "")
+             + f"; delta = {args.delta}; record every {spec.interval_days} days; "
              f"reducer scale spread {spec.scale_spread}; "
              f"index threshold at failure {spec.threshold_index:.2f}"]
 
-    # healthy lifetime false alarms
-    ever = {"martingale": 0, "cusum": 0, "page_hinkley": 0, "per_record_index_gt_1": 0}
+    # every history scored by the product's detector and remaining-life models (rvdiag.prognostics.metrics)
+    models = args.models.split(",")
+    hists, synthetic, index_gt_1 = [], [], 0
     for s in range(args.healthy):
         h = draw_history("healthy", 10_000 + s, params, spec)
-        for name, d in detectors(h, args.delta, s).items():
-            ever[name] += d.alarmed
-        ever["per_record_index_gt_1"] += bool(np.any(h.health_index > 1.0))
-    lines.append("healthy histories ever alarming (share, CI95):")
-    for name, k in ever.items():
-        lo, hi = clopper_pearson(k, args.healthy)
-        bound = f"  (stated bound {args.delta})" if name == "martingale" else ""
-        lines.append(f"  {name:24s} {k / args.healthy:.4f} [{lo:.4f}, {hi:.4f}]{bound}")
-
-    # detection delay and remaining life
-    for kind in ("broken", "crack", "wear"):
-        delays = {n: [] for n in ("martingale", "cusum", "page_hinkley")}
-        before_fail = {n: 0 for n in delays}
-        models = args.models.split(",") + ["linear"]
-        cover = {m: [] for m in models}
-        al = {m: [] for m in models}
-        rel_err = {m: [] for m in models}                  # |median - true| / true, estimated histories
-        rel_width = {m: [] for m in models}                # (p90 - p10) / true
-        estimated = {m: 0 for m in models}
-        n_rul = 0
-        horizon = {m: [] for m in (models[0], "linear")}   # prognostic horizon / (EoL - alarm), 0 if never met
+        hists.append(life_history(h, s, spec, args.fleet_pool))
+        index_gt_1 += bool(np.any(h.health_index > 1.0))
+    for kind in STATE:
         for s in range(args.faults):
-            h = draw_history(kind, 20_000 + 1000 * ("broken", "crack", "wear").index(kind) + s, params, spec)
-            i_on = h.onset_index
-            dets = detectors(h, args.delta, s)
-            for name, d in dets.items():
-                ok = d.alarm_index is not None and d.alarm_index >= i_on
-                delays[name].append(d.alarm_index - i_on if ok else math.inf)
-                before_fail[name] += ok and (kind == "broken" or h.days[d.alarm_index] < h.failure_day)
-            m = dets["martingale"]
-            if kind == "broken" or m.alarm_index is None or h.days[m.alarm_index] >= h.failure_day:
-                continue
-            t_p = h.days[m.alarm_index]
-            t_lam = t_p + 0.5 * (h.failure_day - t_p)
-            k = int(np.searchsorted(h.days, t_lam, side="left"))
-            if k >= len(h.days) or h.days[k] >= h.failure_day:
-                k = int(np.searchsorted(h.days, h.failure_day, side="left")) - 1
-            n_rul += 1
-            true_rul = h.failure_day - h.days[k]
-            # prognostic horizon over every record from the alarm to the last before failure (first model, linear)
-            ks = range(m.alarm_index, int(np.searchsorted(h.days, h.failure_day, side="left")))
-            profiles = {mm: ([], []) for mm in horizon}
-            for kk in ks:
-                pk = joint_prognosis(h.days[:kk + 1], health_index=h.health_index[:kk + 1],
-                                     baseline_scores=h.baseline, threshold=h.threshold_index, delta=args.delta,
-                                     seed=s, model=models[0], reference_level=spec.reference_level,
-                                     ) if args.horizon else None
-                for mm, r in (((models[0], pk.rul), ("linear", pk.rul_baseline)) if pk else ()):
-                    if r.estimated:
-                        profiles[mm][0].append(h.days[kk])
-                        profiles[mm][1].append(h.days[kk] + r.samples_days[::10])
-            if args.horizon:
-                for mm, (tt, toe) in profiles.items():
-                    ph = horizon_progpy(tt, toe, h.failure_day) if tt else None
-                    horizon[mm].append(0.0 if ph is None else ph / (h.failure_day - t_p))
-            results = {}
-            for model in models[:-1]:
-                p = joint_prognosis(h.days[:k + 1], health_index=h.health_index[:k + 1], baseline_scores=h.baseline,
-                                    threshold=h.threshold_index, delta=args.delta, seed=s, model=model,
-                                    reference_level=spec.reference_level)
-                results[model] = p.rul
-            results["linear"] = p.rul_baseline
-            for model, r in results.items():
-                if not r.estimated:
-                    cover[model].append(False)
-                    al[model].append(False)
-                    continue
-                estimated[model] += 1
-                cover[model].append(r.p10_days <= true_rul <= r.p90_days)
-                rel_err[model].append(abs(r.median_days - true_rul) / true_rul)
-                rel_width[model].append((r.p90_days - r.p10_days) / true_rul)
-                al[model].append(alpha_lambda_progpy(h.days[k], h.days[k] + r.samples_days, h.failure_day))
+            h = draw_history(kind, 20_000 + 1000 * list(STATE).index(kind) + s, params, spec)
+            hists.append(life_history(h, s, spec, args.fleet_pool))
+            synthetic.append((h, s))
+    classical = not args.fleet_pool
+    outcomes = score_histories(hists, delta=args.delta, models=models, classical=classical)
+    res = summarise(outcomes, delta=args.delta, models=models, classical=classical)
+    dets = {"martingale": res}
+    if classical:
+        dets.update(cusum=res["baseline"]["cusum"], page_hinkley=res["baseline"]["page_hinkley"])
+
+    lines.append("healthy histories ever alarming (share, CI95):")
+    for name, d in dets.items():
+        fa = d["lifetime_false_alarm"]
+        bound = f"  (stated bound {args.delta})" if name == "martingale" else ""
+        lines.append(f"  {name:24s} {fa['rate']:.4f} [{fa['ci95'][0]:.4f}, {fa['ci95'][1]:.4f}]{bound}")
+    lo, hi = binomial_interval(index_gt_1, args.healthy)
+    lines.append(f"  {'per_record_index_gt_1':24s} {index_gt_1 / args.healthy:.4f} [{lo:.4f}, {hi:.4f}]")
+
+    for kind, state in STATE.items():
         lines.append(f"{kind}: detection delay in records after onset (median, p90, within 3, before failure):")
-        for name, dl in delays.items():
-            dl = np.array(dl)
-            q50, q90 = (np.quantile(dl, q, method="inverted_cdf") for q in (0.5, 0.9))   # inf = never
-            lines.append(f"  {name:24s} {q50:.0f}, {q90:.0f}, "
-                         f"{np.mean(dl <= 2):.3f}, {before_fail[name] / len(dl):.3f}")
+        for name, d in dets.items():
+            dl, w3 = d["detection_delay_records"][state], d["detected_within_3"][state]
+            lines.append(f"  {name:24s} {_q(dl['median'])}, {_q(dl['p90'])}, "
+                         f"{w3['share']:.3f}, {dl['detected_before_failure']:.3f}")
+        if kind == "broken":
+            continue
+        kind_res = summarise([o for o in outcomes if o["fate"] == kind], delta=args.delta, models=models,
+                             classical=False)["rul_models"]
+        n_rul = kind_res["linear"]["rul_coverage_80"]["n"]
         if n_rul:
             lines.append(f"{kind}: remaining life at lambda = 0.5, {n_rul} histories alarmed before failure:")
-            for model in cover:
-                lo, hi = clopper_pearson(int(np.sum(cover[model])), n_rul)
-                lines.append(f"  {model:12s} estimated {estimated[model] / n_rul:.3f}, 80 % interval coverage "
-                             f"{np.mean(cover[model]):.3f} [{lo:.3f}, {hi:.3f}], alpha-lambda (0.2, beta 0.5) "
-                             f"{np.mean(al[model]):.3f}; median |error| of the median {np.median(rel_err[model]):.2f}, "
-                             f"median within 20 % {np.mean(np.array(rel_err[model]) <= 0.2):.2f}, "
-                             f"80 % interval width {np.median(rel_width[model]):.2f} of the true life")
-            for model, ph in horizon.items():
-                if ph:
-                    lines.append(f"  prognostic horizon ({model}, alpha 0.2, beta 0.5) as a share of alarm-to-failure:"
-                                 f" median {np.median(ph):.2f}, met in {np.mean(np.array(ph) > 0):.2f}")
+            for model, r in kind_res.items():
+                cov, al = r["rul_coverage_80"], r["alpha_lambda"]
+                lines.append(f"  {model:12s} estimated {r['estimated']:.3f}, 80 % interval coverage "
+                             f"{cov['rate']:.3f} [{cov['ci95'][0]:.3f}, {cov['ci95'][1]:.3f}], alpha-lambda (0.2, "
+                             f"beta 0.5) {al['rate']:.3f}; median |error| of the median "
+                             f"{_f(r['median_relative_error'], '.2f')}, median within 20 % "
+                             f"{_f(r['median_within_20'], '.2f')}, "
+                             f"80 % interval width {_f(r['interval_width'], '.2f')} of the true life")
+            if args.horizon:
+                ph = [horizons(h, s, args.delta, models[0], spec) for h, s in synthetic if h.kind == kind]
+                for mm in (models[0], "linear"):
+                    v = np.array([p[mm] for p in ph if p])
+                    if len(v):
+                        lines.append(f"  prognostic horizon ({mm}, alpha 0.2, beta 0.5) as a share of "
+                                     f"alarm-to-failure: median {np.median(v):.2f}, met in {np.mean(v > 0):.2f}")
     lines.append(f"wall time {time.perf_counter() - t0:.0f} s")
     text = "\n".join(lines)
     print(text)
     if args.log:
         cmd = ".venv/bin/python bench/prognostics.py " + " ".join(
-            f"--{k.replace('_', '-')} {v}" for k, v in vars(args).items() if k != "log")
+            f"--{k.replace('_', '-')}" + ("" if isinstance(v, bool) else f" {v}")
+            for k, v in vars(args).items() if k != "log" and v is not False)
         with open(ROOT / "bench" / "HISTORY.md", "a") as f:
             f.write(f"\n## {dt.date.today()} prognostics on synthetic life histories (bench/prognostics.py)\n"
                     f"Command: `{cmd}`\n\n```\n{text}\n```\n")

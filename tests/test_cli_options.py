@@ -162,3 +162,31 @@ def test_readme_command_block_uses_existing_options():
             if opt.startswith("-") and not re.fullmatch(r"-[\d.,-]+", opt) and opt not in visible:
                 bad.append(f"{path}: {opt}")
     assert not bad, bad
+
+
+def test_the_fault_severity_options_are_declared_once_for_the_three_commands():
+    """simulate, tvms and separability take the ten severities of one table (_options.FAULT_SEVERITY_OPTIONS), with its
+    help, in the place the command's ``severities`` parameter holds, and receive the given ones in SI."""
+    commands = _commands()
+    from rvdiag.gears.faults import DEFAULT_SEVERITIES, FAULT_KINDS
+
+    table = {spec.option: spec.help for spec in _options.FAULT_SEVERITY_OPTIONS.values()}
+    assert len(table) == 10 and set(_options.FAULT_SEVERITY_OPTIONS) == set(DEFAULT_SEVERITIES)  # one per severity
+    kinds = {k for name in FAULT_KINDS.values() for k in name.split("+")}
+    assert {spec.kind for spec in _options.FAULT_SEVERITY_OPTIONS.values()} <= kinds
+    for path in ("simulate", "tvms", "separability"):
+        opts = [o for o in _opts_of(commands[path]) if o.opts[0] in table]
+        assert [o.opts[0] for o in opts] == list(table), path
+        assert all(o.help == table[o.opts[0]] and o.default is None for o in opts), path
+    assert _options.fault_severities(crack_depth=1.5, crack_angle_deg=30.0, pit_radius=None, broken_fraction=0.5) == \
+        {"crack_depth": 1.5e-3, "crack_angle_deg": 30.0, "broken_fraction": 0.5}
+    with pytest.raises(TypeError, match="no parameter 'severities'"):
+        _options.fault_severity_options(lambda quiet=False: None)
+
+
+def test_the_severity_options_reach_the_command_as_one_dict(tmp_path, capsys):
+    code, out, err = _run(["tvms", "--fault", "crack", "--crack-depth", "nan"], capsys)
+    assert code == 2 and err.splitlines()[-1] == "error: --crack-depth must be finite, got nan"
+    code, _, err = _run(["simulate", "--state", "T1", "--crack-depth", "1", "--input-speed", "1000",
+                         "-o", str(tmp_path / "s.npz"), "-q"], capsys)
+    assert code == 2 and err.splitlines()[-1] == "error: --crack-depth does not apply to state T1 (healthy)"

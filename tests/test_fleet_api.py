@@ -72,7 +72,7 @@ def test_health_and_openapi_list_every_route(env):
     paths = set(c.get("/openapi.json").json()["paths"])
     for p in ("/api/joints", "/api/joints/{joint}/history", "/api/joints/{joint}/events", "/api/joints/{joint}/status",
               "/api/joints/{joint}/records", "/api/joints/{joint}/ack", "/api/joints/{joint}/maintenance",
-              "/api/events", "/api/alarms", "/api/health"):
+              "/api/joints/{joint}/failure-index", "/api/events", "/api/alarms", "/api/health"):
         assert p in paths, p
 
 
@@ -134,6 +134,21 @@ def test_maintenance_sets_no_baseline(env):
     r = c.post(f"/api/joints/{joint}/maintenance", json={"note": "reducer replaced"}, headers=auth(env["rw"]))
     assert r.status_code == 200 and r.json()["joint_state"] == "no-baseline"
     assert c.get(f"/api/joints/{joint}/status").json()["state"] == "no-baseline"
+
+
+def test_the_failure_index_is_set_by_a_writer_only(env):
+    c = env["client"]
+    r = c.post(f"/api/joints/{J1}/failure-index", json={"failure_index": 4.0, "note": "wear limit"},
+               headers=auth(env["rw"]))
+    assert r.status_code == 200 and r.json()["failure_index"] == 4.0 and "wear limit" in r.json()["note"]
+    assert c.get(f"/api/joints/{J1}/status", headers=auth(env["rw"])).json()["failure_index"] == 4.0
+    bad = c.post(f"/api/joints/{J1}/failure-index", json={"failure_index": -1}, headers=auth(env["rw"]))
+    assert bad.status_code == 422
+    assert c.post(f"/api/joints/{J1}/failure-index", json={"failure_index": 1.0}).status_code == 401
+    assert c.post(f"/api/joints/{J1}/failure-index", json={"failure_index": 1.0},
+                  headers=auth(env["ro"])).status_code == 403
+    assert c.post(f"/api/joints/{J1}/failure-index", json={"failure_index": None},
+                  headers=auth(env["rw"])).json()["failure_index"] is None
 
 
 def make_fleet_joint(env, joint):

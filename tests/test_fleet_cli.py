@@ -191,3 +191,22 @@ def test_serve_takes_the_upload_limit_and_the_read_token_rule(env, capsys, monke
     ok(["fleet", "serve", "--open-reads"], capsys)
     with TestClient(served["app"]) as client:
         assert client.get("/api/joints").status_code == 200
+
+
+def test_fleet_set_changes_the_failure_index_with_who_and_why(env, capsys):
+    """``fleet add --failure-index`` and ``fleet set --failure-index`` (a number or 'none'), shown in the status and
+    the event log; a bad value is one error line."""
+    d = env["dir"]
+    ok(["fleet", "init"], capsys)
+    ok(["fleet", "add", J, "--monitor", d / "monitor", "--learning", 19, "--failure-index", 5], capsys)
+    out, _ = ok(["fleet", "status", "--json"], capsys)
+    assert json.loads(out)[0]["failure_index"] == 5.0
+    out, _ = ok(["fleet", "set", J, "--failure-index", "2.5", "--note", "wear limit 20 um", "--by", "ann"], capsys)
+    assert "failure index 5 -> 2.5: wear limit 20 um (by ann)" in out
+    ok(["fleet", "set", J, "--failure-index", "none"], capsys)
+    out, _ = ok(["fleet", "events", J, "--json"], capsys)
+    assert [e["kind"] for e in json.loads(out)] == ["failure-index", "failure-index"]
+    fail(["fleet", "set", J, "--failure-index", "high"], capsys, "expected a number > 0 or 'none'")
+    fail(["fleet", "set", J, "--failure-index", "0"], capsys, "failure index must be a finite number > 0")
+    fail(["fleet", "add", "plant/r1/j4", "--monitor", d / "monitor", "--failure-index", -1], capsys,
+         "failure index must be a finite number > 0")

@@ -339,7 +339,7 @@ def test_status_gives_the_onset_of_a_rising_index_and_says_why_no_remaining_life
     assert row["onset_time"] is not None and datetime.fromisoformat(row["onset_time"]) >= start - timedelta(hours=12)
     assert datetime.fromisoformat(row["change_alarm_time"]) >= datetime.fromisoformat(row["onset_time"])
     assert row["change_evidence"] >= 100  # 1 / delta
-    assert row["rul"]["estimated"] is False and "threshold" in row["rul"]["reason"]
+    assert row["rul"]["estimated"] is False and "failure index" in row["rul"]["reason"]
 
 
 def test_the_operating_point_is_read_from_the_name_as_read_record_reads_it(tmp_path):
@@ -357,3 +357,32 @@ def test_the_operating_point_is_read_from_the_name_as_read_record_reads_it(tmp_p
                                (r"(?P<load>\d+)_(?P<load_Nm>\d+)", "1_2.npy", "both give 'load_Nm'")):
         with pytest.raises(RvdiagError, match=match):
             Reading(meta_regex=regex).operating_point(name)
+
+
+def test_a_failure_index_gives_the_remaining_life_and_its_change_is_an_event(fleet, tmp_path):
+    """With a failure index in the joint's rules (set later, with who and why), the status row counts the remaining
+    life of a rising index to it: median between its 10 % and 90 % points, near the linear extrapolation of the
+    rise (0.16 a day from 0.7 to 2.0: about 8 days); without one, the reason says how to set it.  A bad value is
+    refused and changes nothing."""
+    commission(fleet, tmp_path)
+    feed(fleet, tmp_path, [0.1] * 30 + [0.1 + 0.04 * k for k in range(1, 16)])
+    row = fleet.status()[0]
+    assert row["failure_index"] is None and "rvdiag fleet set" in row["rul"]["reason"]
+    with pytest.raises(FleetError, match="failure index must be a finite number > 0"):
+        fleet.set_failure_index(J, -1.0, by="cy")
+    assert fleet.status()[0]["failure_index"] is None
+    res = fleet.set_failure_index(J, 2.0, by="cy", note="the wear limit")
+    assert res["failure_index"] == 2.0 and "none -> 2" in res["note"] and "the wear limit" in res["note"]
+    assert [e["kind"] for e in fleet.events(J)][-1] == "failure-index"
+    row = fleet.status()[0]
+    assert row["failure_index"] == 2.0 and row["state"] != "no-baseline"
+    rul = row["rul"]
+    assert rul["estimated"] is True, rul
+    assert rul["p10_days"] <= rul["median_days"] <= rul["p90_days"]
+    assert 2.0 < rul["median_days"] < 30.0
+    from rvdiag.fleet import web
+
+    page = web.joint_page(fleet, J)
+    assert f"median {web.fmt_number(rul['median_days'], 3)} days" in page and "to failure index\n      2, if the duty stays" in page
+    assert fleet.set_failure_index(J, None, by="cy")["failure_index"] is None
+    assert fleet.status()[0]["rul"]["estimated"] is False

@@ -15,6 +15,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "rvdiag"
 #: (as long as they form no circle); a module may import any lower layer.
 LAYERS = {
     "__init__": 0, "_version": 0, "atomic": 0, "spectral": 0, "errors": 0, "tomlfile": 0, "registry": 0, "progress": 0,
+    "validation": 0, "deprecation": 0,
     "params": 1,
     "gears": 2, "kinematics": 2,
     "dynamics": 3, "motor": 3,

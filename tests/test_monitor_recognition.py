@@ -1,6 +1,6 @@
 """"Not recognised" for a baseline monitor, judged against the machine's own baseline (rvdiag.monitoring.diagnosis):
-the mesh-line check counts only where the baseline shows the lines, and a record far outside the baseline's level
-is refused."""
+the mesh-line check counts only where the baseline shows the lines; the level check refuses a disconnected sensor,
+the baseline's spectrum at another gain or unit and another machine's spectrum, never a machine only louder."""
 
 from __future__ import annotations
 
@@ -8,10 +8,12 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from scipy.signal import lfilter
 
 from rvdiag.features.mesh_lines import mesh_lines
 from rvdiag.kinematics import characteristic_frequencies
-from rvdiag.monitoring.diagnosis import LEVEL_FACTOR, MASK_DB, level_check_against_baseline, mesh_check_against_baseline
+from rvdiag.monitoring.diagnosis import (GAIN_FACTOR, LEVEL_FACTOR, MASK_DB, SHAPE_FACTOR, SPREAD_FACTOR, band_ratios,
+                                        level_check_against_baseline, mesh_check_against_baseline)
 from rvdiag.params import ReducerParams
 
 FS, L, SPEED = 48000.0, 12000, 30.0
@@ -48,7 +50,7 @@ def test_no_mesh_line_counts_only_where_the_baseline_shows_one():
     assert mesh_check_against_baseline(ok, with_line, _base([noise]), FS, speed, L) is ok
 
 
-def test_a_record_far_outside_the_baselines_level_is_not_recognised():
+def test_without_a_sampling_rate_a_record_far_outside_the_baselines_level_is_not_recognised():
     rng = np.random.default_rng(1)
     base = _base([rng.standard_normal(L) * g for g in (0.9, 1.0, 1.1)])
     rec = {"recognised": True, "reason": None, "checks": {}}
@@ -118,3 +120,95 @@ def test_a_current_monitor_does_not_read_vibration_mesh_lines_on_its_records(mon
     assert not vib.recognised and "no mesh line" in vib.reason and "the machine's baseline shows" in vib.reason
     with pytest.raises(Scored):  # recognised: it goes on to its change against the baseline
         diagnosis.monitor_record(model("current"), record, base)
+
+
+def _path(x, f0=2500.0, zeta=0.02):
+    """The path from the mesh to the sensor: one lightly damped resonance (a two-pole resonator)."""
+    w = 2 * np.pi * f0 / FS
+    r = np.exp(-zeta * w)
+    return lfilter([1.0], [1.0, -2 * r * np.cos(w), r * r], x)
+
+
+def _impacts(n):
+    """A broken tooth's impacts (0.33 ms each, 12 a second) rung through the same path."""
+    imp = np.zeros(n)
+    imp[:: int(FS / 12)] = 1.0
+    return _path(np.convolve(imp, np.hanning(16), "same"))
+
+
+FLOOR = 0.12  # the sensor's own floor (RMS), about 20 dB under the healthy machine's
+
+
+def _machine(rng, n):
+    """The healthy machine as its sensor records it: two mesh harmonics, the mesh's broadband excitation through
+    the path, the sensor's floor."""
+    tn = np.arange(n) / FS
+    return (np.sin(2 * np.pi * 640 * tn) + 0.5 * np.sin(2 * np.pi * 1280 * tn) + _path(0.05 * rng.standard_normal(n))
+            + FLOOR * rng.standard_normal(n))
+
+
+def test_a_gain_or_another_machine_is_not_recognised_a_louder_machine_is():
+    rng = np.random.default_rng(4)
+    base = _base([_machine(rng, L) for _ in range(4)])
+    hi = np.sqrt(np.mean(base.X ** 2, axis=1)).max()
+
+    def check(x):
+        return level_check_against_baseline({"recognised": True, "reason": None, "checks": {}}, x, base, FS, L,
+                                            {"output_speed_deg_s": SPEED})
+
+    def rms(x):
+        return float(np.sqrt(np.mean(x ** 2)))
+
+    healthy = _machine(rng, 2 * L)
+    out = check(healthy)
+    assert out["recognised"] and out["checks"]["level"]["louder"] is False
+    assert 1 / GAIN_FACTOR < out["checks"]["level"]["bands"]["min"] <= 1 <= out["checks"]["level"]["bands"]["max"]
+    # a broken tooth 20x and 50x the baseline's RMS: its impacts ring the path, the sensor's floor stays
+    imp = _impacts(2 * L)
+    for target in (20.0, 50.0):
+        loud = healthy + np.sqrt((target * hi) ** 2 - rms(healthy) ** 2) / rms(imp) * imp
+        assert rms(loud) / hi > LEVEL_FACTOR
+        out = check(loud)
+        assert out["recognised"], out["reason"]
+        lv = out["checks"]["level"]
+        assert lv["louder"] is True and lv["bands"]["min"] <= GAIN_FACTOR and lv["bands"]["shape"] <= SHAPE_FACTOR
+    # the healthy record in another unit (m/s^2 read as mm/s^2, or as g, g as m/s^2): the same spectrum at a gain
+    for gain in (1000.0, 9.81, 1 / 9.81):
+        out = check(gain * healthy)
+        assert not out["recognised"] and "another sensor, gain or unit" in out["reason"], gain
+    out = check(9.81 * healthy)
+    assert "alike" in out["reason"] and rms(9.81 * healthy) / hi < LEVEL_FACTOR  # the RMS range alone passed it
+    # ... and a loud machine in another unit keeps no band at the machine's level
+    out = check(1000.0 * loud)
+    assert not out["recognised"] and "no band left at the machine's level" in out["reason"]
+    # louder in every band but unevenly, within LEVEL_FACTOR: a changed machine, not a gain
+    uneven = 3 * healthy + _path(0.6 * rng.standard_normal(2 * L))
+    b = band_ratios(uneven.reshape(2, L), base.X, FS)
+    assert b["min"] > GAIN_FACTOR and b["max"] / b["min"] > SPREAD_FACTOR and rms(uneven) / hi < LEVEL_FACTOR
+    assert check(uneven)["recognised"]
+    # another machine 20x as loud: a bearing's impacts ringing at 9 kHz, where this machine has only its floor
+    w = 2 * np.pi * 9000.0 / FS
+    ring = lfilter([1.0], [1.0, -2 * 0.99 * np.cos(w), 0.99 ** 2], (rng.random(2 * L) < 0.002).astype(float))
+    out = check(20 * hi * ring / np.std(ring))
+    assert not out["recognised"] and "another machine or sensor" in out["reason"]
+    assert out["checks"]["level"]["bands"]["shape"] > SHAPE_FACTOR
+    # a disconnected sensor that picks up the mains' hum: quieter in every band
+    t2 = np.arange(2 * L) / FS
+    out = check(0.01 * rng.standard_normal(2 * L) + 0.3 * hi * np.sin(2 * np.pi * 50 * t2))
+    assert not out["recognised"] and "disconnected sensor" in out["reason"]
+
+
+def test_band_ratios_are_third_octaves_of_enough_lines_and_a_gain_moves_them_alike():
+    rng = np.random.default_rng(6)
+    B = rng.standard_normal((3, L))
+    b = band_ratios(7.0 * B[:2], B[:2], FS)
+    # base-ten third octaves (IEC 61260-1): 10 a decade, the first wide enough for 8 lines of FS / L = 4 Hz (its
+    # width is 0.23 of its midband), the last holding FS / 2
+    assert np.allclose(np.diff(np.log10(b["hz"])), 0.1) and b["hz"][0] == pytest.approx(158.5, rel=1e-3)
+    assert b["hz"][-1] * 10 ** -0.05 < FS / 2 <= b["hz"][-1] * 10 ** 0.05
+    assert np.allclose(b["ratio"], 7.0, rtol=1e-12) and b["shape"] == pytest.approx(1.0, rel=1e-12)
+    # noise against other noise: every band near 7 (a band of 8 Hann-windowed lines or more, 2 windows against 3,
+    # scatters by less than a factor 2)
+    b = band_ratios(7.0 * rng.standard_normal((2, L)), B, FS)
+    assert 7.0 / 2 < b["min"] <= b["median"] <= b["max"] < 7.0 * 2
+    assert b["overall"] == pytest.approx(7.0, rel=0.05) and b["shape"] < 2.0

@@ -109,7 +109,7 @@ def test_per_record_calibration_keeps_the_stated_rate_per_record():
     means (``rvdiag train``), the alarm keeps its stated rate on new records, within the binomial interval;
     calibrated on windows, the same records raise it about 70 times less often than stated."""
     from rvdiag.monitoring.pairing import record_means
-    from rvdiag.monitoring.training import binomial_interval
+    from rvdiag.evaluation.metrics import binomial_interval
 
     rng = np.random.default_rng(3)
     k, windows, alpha = 3, 4, 0.10

@@ -31,15 +31,16 @@ def fingerprint(rng) -> dict:
             "pulses": [(rng.uniform(0, 1), rng.uniform(0.4, 1.0)) for _ in range(2)], "fault": rng.uniform(0, 1)}
 
 
-def record(rng, fp: dict, speed: float, load: float, state: str = "T1") -> np.ndarray:
-    """One record of a reducer with fingerprint ``fp`` at its speed (deg/s) and load (N m)."""
+def record(rng, fp: dict, speed: float, load: float, state: str = "T1", fault: float = 0.5) -> np.ndarray:
+    """One record of a reducer with fingerprint ``fp`` at its speed (deg/s) and load (N m); ``fault``: the height
+    of a broken tooth's pulse (T2)."""
     th = shaft_frequency("sun", output_speed_deg_s=speed) * np.arange(L) / FS + rng.uniform(0, 1)  # sun revs
     x = sum(a * np.cos(2 * np.pi * h * 11 * th + p) for h, (a, p) in enumerate(fp["mesh"], 1))
     if state == "T3":
         a, p = fp["mesh"][1]
         x = x + 2 * a * np.cos(2 * np.pi * 22 * th + p) + 0.3 * np.cos(2 * np.pi * 7 * th + p)
     ph = (2 * th) % 1.0  # two planets: a tooth meets one twice per revolution
-    for pos, a in fp["pulses"] + ([(fp["fault"], 0.5)] if state == "T2" else []):
+    for pos, a in fp["pulses"] + ([(fp["fault"], fault)] if state == "T2" else []):
         x = x + a * np.exp(-0.5 * ((ph - pos) / 0.06) ** 2)
     gain = (1 + load / 300.0) * (1 + 0.03 * rng.uniform(-1, 1))
     return gain * x + 0.05 * rng.standard_normal(L)

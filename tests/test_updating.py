@@ -296,9 +296,9 @@ def test_told_apart_shows_the_digits_that_differ():
 
 @pytest.mark.parametrize("change, message", [
     ({"--channel": "nope"}, "no channel matches"),
-    ({"--fs": "0"}, "--fs must be positive"),
-    ({"--fs": "-5"}, "--fs must be positive"),
-    ({"--output-speed": "0"}, "--output-speed must be positive"),
+    ({"--fs": "0"}, "--fs must be a number > 0"),
+    ({"--fs": "-5"}, "--fs must be a number > 0"),
+    ({"--output-speed": "0"}, "--output-speed must be a number > 0"),
     ({"--objective": "rms"}, "--objective must be one of"),
     ({"--tune": "mesh_stiffness"}, "unknown tuned parameter"),
     ({"--duration": "2"}, "needs at least 2 s"),

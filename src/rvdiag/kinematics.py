@@ -21,6 +21,7 @@ from dataclasses import asdict, dataclass
 
 from rvdiag.errors import ParameterError
 from rvdiag.params.schema import ReducerParams
+from rvdiag.validation import positive
 
 FREQUENCY_KEYS = (
     "fe", "f1", "f2", "f3", "fsp", "fcs",
@@ -57,12 +58,8 @@ def sun_speed_hz(
     if (input_speed_rpm is None) == (output_speed_deg_s is None):
         raise ParameterError("give exactly one of input speed (rpm) or output speed (deg/s)")
     if input_speed_rpm is not None:
-        if not input_speed_rpm > 0:
-            raise ParameterError(f"input speed must be > 0 rpm, got {input_speed_rpm}")
-        return float(input_speed_rpm) / 60.0
-    if not output_speed_deg_s > 0:
-        raise ParameterError(f"output speed must be > 0 deg/s, got {output_speed_deg_s}")
-    return float(output_speed_deg_s) / 360.0 * params.ratio
+        return positive(input_speed_rpm, "input speed", unit=" rpm") / 60.0
+    return positive(output_speed_deg_s, "output speed", unit=" deg/s") / 360.0 * params.ratio
 
 
 def output_speed_from_input_hz(params: ReducerParams, input_hz: float) -> float:

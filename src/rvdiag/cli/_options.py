@@ -25,15 +25,18 @@ names (``duration_s``) into the options the user typed (``--duration``).
 
 from __future__ import annotations
 
+import functools
+import inspect
 import math
 import re
 import warnings
 from contextlib import contextmanager
-from typing import Any, Iterator, Optional
+from typing import Any, Callable, Iterator, NamedTuple, Optional
 
 import typer
 
 from rvdiag.errors import ParameterError, RvdiagError, RvdiagWarning
+from rvdiag.validation import number
 
 #: Concept -> the option strings every command uses for it (long name first).
 VOCABULARY: dict[str, tuple[str, ...]] = {
@@ -204,77 +207,73 @@ def option_names(names: dict[str, str]) -> Iterator[None]:
         raise type(exc)(new) from None
 
 
-#: ``typer.Option`` arguments of the pitting and spalling severities (``rvdiag tvms``, ``rvdiag simulate``), by the
-#: keyword of :func:`fault_severities`.
-#: the tooth faults' severity options: parameter name -> (option, help)
-TOOTH_FAULT_OPTIONS: dict[str, tuple[str, str]] = {
-    "wear_depth_mm": ("--wear-depth", "Maximum wear depth (mm)."),
-    "crack_depth_mm": ("--crack-depth", "Crack depth (mm)."),
-    "crack_angle": ("--crack-angle", "Crack angle from the tooth centreline (deg)."),
-    "broken_fraction": ("--broken-fraction", "Lost fraction of the tooth height, (0, 1]."),
-}
+class SeverityOption(NamedTuple):
+    """One fault-severity option: its name, its help, the fault kind that uses it (a part of
+    :data:`rvdiag.gears.faults.FAULT_KINDS`' names) and whether it is given in mm (the model takes m)."""
+
+    option: str
+    help: str
+    kind: str
+    in_mm: bool
 
 
-def tooth_fault(key: str) -> Any:
-    """The option of one wear, crack or breakage severity (:data:`TOOTH_FAULT_OPTIONS`)."""
-    name, help = TOOTH_FAULT_OPTIONS[key]
-    return typer.Option(None, name, help=help)
-
-
-SURFACE_FAULT_OPTIONS: dict[str, tuple[str, str]] = {
-    "pit_area_fraction": ("--pit-area-fraction", "Pitted fraction of the pitting band, [0, 0.785) (pitting)."),
-    "pit_radius_mm": ("--pit-radius", "Pit radius (mm) (pitting)."),
-    "pit_depth_mm": ("--pit-depth", "Pit depth (mm) (pitting)."),
+#: The fault-severity options that ``rvdiag simulate``, ``rvdiag tvms`` and ``rvdiag separability`` share, declared
+#: once, by their :class:`rvdiag.gears.ToothFaults` keyword (SI).  :func:`fault_severity_options` puts them on a
+#: command, :func:`fault_severities` reads them.
+FAULT_SEVERITY_OPTIONS: dict[str, SeverityOption] = {k: SeverityOption(*v) for k, v in {
+    "wear_depth": ("--wear-depth", "Maximum wear depth (mm).", "wear", True),
+    "crack_depth": ("--crack-depth", "Crack depth (mm).", "crack", True),
+    "crack_angle_deg": ("--crack-angle", "Crack angle from the tooth centreline (deg).", "crack", False),
+    "broken_fraction": ("--broken-fraction", "Lost fraction of the tooth height, (0, 1].", "broken", False),
+    "pit_area_fraction": ("--pit-area-fraction", "Pitted fraction of the pitting band, [0, 0.785) (pitting).",
+                          "pitting", False),
+    "pit_radius": ("--pit-radius", "Pit radius (mm) (pitting).", "pitting", True),
+    "pit_depth": ("--pit-depth", "Pit depth (mm) (pitting).", "pitting", True),
     "spall_width_fraction": ("--spall-width-fraction", "Spall width as a fraction of the face width, [0, 1) "
-                             "(spalling)."),
+                             "(spalling).", "spalling", False),
     "spall_length_fraction": ("--spall-length-fraction", "Spall length as a fraction of the working flank, (0, 1] "
-                              "(spalling)."),
-    "spall_depth_mm": ("--spall-depth", "Spall depth (mm) (spalling)."),
-}
-
-
-def surface_fault(key: str) -> Any:
-    """The option of one pitting or spalling severity (:data:`SURFACE_FAULT_OPTIONS`)."""
-    name, help = SURFACE_FAULT_OPTIONS[key]
-    return typer.Option(None, name, help=help)
+                              "(spalling).", "spalling", False),
+    "spall_depth": ("--spall-depth", "Spall depth (mm) (spalling).", "spalling", True),
+}.items()}
 
 
 def mm_to_m(name: str, value: Optional[float]) -> Optional[float]:
     """Convert a ``--name`` option given in millimetres to metres (``None`` stays ``None``)."""
-    if value is None:
-        return None
-    if not math.isfinite(value):
-        raise ParameterError(f"--{name} must be finite, got {value}")
-    return value * 1e-3
+    return None if value is None else number(value, f"--{name}") * 1e-3
 
 
-def fault_severities(
-    wear_depth_mm: Optional[float],
-    crack_depth_mm: Optional[float],
-    crack_angle_deg: Optional[float],
-    broken_fraction: Optional[float],
-    *,
-    pit_area_fraction: Optional[float] = None,
-    pit_radius_mm: Optional[float] = None,
-    pit_depth_mm: Optional[float] = None,
-    spall_width_fraction: Optional[float] = None,
-    spall_length_fraction: Optional[float] = None,
-    spall_depth_mm: Optional[float] = None,
-) -> dict[str, float]:
-    """The fault-severity options that were given, in SI, keyed as :class:`rvdiag.gears.ToothFaults` expects."""
-    values = (
-        ("wear_depth", mm_to_m("wear-depth", wear_depth_mm)),
-        ("crack_depth", mm_to_m("crack-depth", crack_depth_mm)),
-        ("crack_angle_deg", crack_angle_deg),
-        ("broken_fraction", broken_fraction),
-        ("pit_area_fraction", pit_area_fraction),
-        ("pit_radius", mm_to_m("pit-radius", pit_radius_mm)),
-        ("pit_depth", mm_to_m("pit-depth", pit_depth_mm)),
-        ("spall_width_fraction", spall_width_fraction),
-        ("spall_length_fraction", spall_length_fraction),
-        ("spall_depth", mm_to_m("spall-depth", spall_depth_mm)),
-    )
-    return {key: value for key, value in values if value is not None}
+def fault_severities(**given: Optional[float]) -> dict[str, float]:
+    """The fault-severity options that were given (``given``: :data:`FAULT_SEVERITY_OPTIONS` key -> the option's
+    value or None), in SI, keyed as :class:`rvdiag.gears.ToothFaults` expects."""
+    out = {}
+    for key, value in given.items():
+        spec = FAULT_SEVERITY_OPTIONS[key]
+        if value is not None:
+            out[key] = mm_to_m(spec.option[2:], value) if spec.in_mm else value
+    return out
+
+
+def fault_severity_options(command: Callable[..., Any]) -> Callable[..., Any]:
+    """Decorator of a command function: its parameter ``severities`` becomes the ten options of
+    :data:`FAULT_SEVERITY_OPTIONS`, in its place among the command's options (so ``--help`` lists them there), and
+    the command is called with ``severities`` = :func:`fault_severities` of them (the given ones, in SI)."""
+    signature = inspect.signature(command, eval_str=True)
+    options = [inspect.Parameter(key, inspect.Parameter.KEYWORD_ONLY, annotation=Optional[float],
+                                 default=typer.Option(None, spec.option, help=spec.help))
+               for key, spec in FAULT_SEVERITY_OPTIONS.items()]
+    parameters = []
+    for p in signature.parameters.values():
+        parameters.extend(options if p.name == "severities" else [p.replace(kind=inspect.Parameter.KEYWORD_ONLY)])
+    if len(parameters) != len(signature.parameters) + len(options) - 1:
+        raise TypeError(f"{command.__name__} has no parameter 'severities' for the fault-severity options")
+
+    @functools.wraps(command)
+    def with_severities(**kwargs: Any) -> Any:
+        given = {key: kwargs.pop(key) for key in FAULT_SEVERITY_OPTIONS}
+        return command(**kwargs, severities=fault_severities(**given))
+
+    with_severities.__signature__ = signature.replace(parameters=parameters)  # type: ignore[attr-defined]
+    return with_severities
 
 
 def save_plot(fig: Any, path: Any, dpi: int = 120) -> None:

@@ -1,5 +1,5 @@
 """``rvdiag evaluate MODEL_DIR DATA.zarr [--split test|train|all] [--where COND]... [--merge A=B,...] [--records] [--json]
-[--report FILE.html] [--snr-db=LEVELS [--plot FILE.png] [--bound BOUND.json]] [--baseline BASE.zarr]``.
+[--report FILE.html] [--snr-db=LEVELS [--plot FILE.png] [--bound BOUND.json]] [--baseline BASE.zarr] [--life]``.
 
 A classifier is scored by :func:`rvdiag.workflows.evaluate`, a baseline-referenced model (card ``needs_baseline``)
 by :func:`rvdiag.monitoring.evaluate_monitor`; this module parses the options and prints (``--json``: the result's
@@ -33,7 +33,8 @@ def register(app: typer.Typer) -> None:
         snr_db: str = opt.snr_db("Also score the split with white noise added at each of these SNRs, e.g. "
                                  "--snr-db=-5,0,5,10,15,20 (the '=' lets the list start with a minus); "
                                  "accuracy against SNR, JSON key 'snr'."),
-        seed: int = opt.seed("Seed of the noise added by --snr-db."),
+        seed: int = opt.seed("Seed of the noise added by --snr-db, and with --life of the change detector's "
+                             "smoothing draws and the remaining life's Monte Carlo."),
         plot: Path = typer.Option(None, "--plot", metavar="FILE.png", help="With --snr-db: write the figure of accuracy and per-class "
                                   "recall against SNR here (PNG)."),
         bound: list[Path] = typer.Option(None, "--bound", metavar="BOUND.json", help="With --snr-db: a separability bound written by "
@@ -52,6 +53,12 @@ def register(app: typer.Typer) -> None:
                                           "together by mean probability as 'rvdiag diagnose' decides a file; "
                                           "JSON key 'records'."),
         quiet: bool = opt.quiet(),
+        life: bool = typer.Option(False, "--life",
+                                  help="A baseline-referenced model on a life store ('rvdiag library build life'): "
+                                       "also score change detection and remaining life over each held-out "
+                                       "reducer's history and pooled (lifetime_false_alarm, "
+                                       "detection_delay_records, detected_within_3, rul_coverage_80, alpha_lambda, "
+                                       "baseline: linear extrapolation); JSON key 'life' (docs/prognostics.md)."),
         baseline: Path = typer.Option(None, "--baseline", metavar="BASE.zarr",
                                       help="A baseline-referenced model: a healthy store of the same machine, each "
                                            "sample matched with its windows at the nearest operating point (not "
@@ -80,8 +87,11 @@ def register(app: typer.Typer) -> None:
             parse_condition(w)  # a malformed condition fails before the model is loaded
         loaded = load_model(model_dir)
         if _monitor(loaded, data, split, where, baseline, json_out, merge,
-                    {"--report": report, "--by": by, "--snr-db": snr_db, "--records": records}):
+                    {"--report": report, "--by": by, "--snr-db": snr_db, "--records": records}, life, seed):
             return
+        if life:
+            raise ParameterError(f"--life scores a baseline-referenced model (a monitor: 'rvdiag train' on a paired "
+                                 f"or life store); {loaded.path} is not one")
         merge_map = parse_merge(merge, loaded.card["classes"]) if merge is not None else None
         store = SampleStore.open(data)
         with progress_bars(quiet):
@@ -125,9 +135,11 @@ def sets_line(sets: dict | None, note: str | None) -> str:
             f"mean size {sets['mean_size']:.2f}, {100 * sets['singletons']:.1f} % of one state; per state: {per}")
 
 
-def _monitor(loaded, data, split, where, baseline, json_out, merge, others: dict) -> bool:
+def _monitor(loaded, data, split, where, baseline, json_out, merge, others: dict, life: bool = False,
+             seed: int = 0) -> bool:
     """Score a baseline-referenced model (:func:`rvdiag.monitoring.evaluate_monitor`; always per record, ``--merge``
-    as for any model) and say True; False for any other model."""
+    as for any model; ``life``: also the figures over a life store's lives, key ``life``) and say True; False for
+    any other model."""
     from rvdiag.monitoring import evaluate_monitor, needs_baseline
 
     if not needs_baseline(loaded):
@@ -141,14 +153,37 @@ def _monitor(loaded, data, split, where, baseline, json_out, merge, others: dict
     from rvdiag.workflows.evaluation import parse_merge
 
     merge_map = parse_merge(merge, loaded.card["classes"]) if merge is not None else None
-    res = evaluate_monitor(loaded, SampleStore.open(data), data, split, where or (), baseline, merge_map)
+    res = evaluate_monitor(loaded, SampleStore.open(data), data, split, where or (), baseline, merge_map, life=life,
+                           seed=seed)
     if json_out:
         typer.echo(json.dumps(res, indent=2))
     else:
         from rvdiag.cli._baseline import print_evaluation
 
         print_evaluation(res, loaded, data)
+        if life:
+            _print_life(res["life"])
     return True
+
+
+def _print_life(life: dict) -> None:
+    """The pooled life figures in a few lines (``--life`` without ``--json``)."""
+    pct = (lambda v: "-" if v is None else f"{100 * v:.1f} %")
+    p = life["pooled"]
+    fa = p["lifetime_false_alarm"]
+    ci = f" [{pct(fa['ci95'][0])}, {pct(fa['ci95'][1])}]" if fa["ci95"] else ""
+    typer.echo(f"life ({p['n_histories']} held-out histories: "
+               + ", ".join(f"{n} {f}" for f, n in p["fates"].items()) + "): "
+               f"healthy histories ever alarming {pct(fa['rate'])}{ci} of {fa['n']} (bound {pct(fa['bound'])})")
+    for state, d in p["detection_delay_records"].items():
+        w = p["detected_within_3"][state]
+        rec = (lambda v: "never" if v is None else f"{v:g}")
+        typer.echo(f"  {state}: delay median {rec(d['median'])}, p90 {rec(d['p90'])} records; within 3 records "
+                   f"{pct(w['share'])} of {w['n']}")
+    for name, r in (("remaining life", p), ("linear extrapolation", p["baseline"])):
+        c, a = r["rul_coverage_80"], r["alpha_lambda"]
+        typer.echo(f"  {name}: 80 % interval holds the truth in {pct(c['rate'])} of {c['n']}, alpha-lambda "
+                   f"(0.2, 0.5) {pct(a['rate'])}")
 
 
 def _print_records(r: dict) -> None:

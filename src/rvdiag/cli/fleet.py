@@ -47,6 +47,12 @@ def _fs():
     return opt.fs("Sampling rate in Hz (overrides the file's).")
 
 
+def _failure_index():
+    return typer.Option(None, "--failure-index", metavar="INDEX",
+                        help="The health index at which the joint counts as failed: its remaining life is counted to "
+                             "it (default: none, the remaining life is not estimated).")
+
+
 def _print_json(obj) -> None:
     typer.echo(json.dumps(obj, indent=2, default=str))
 
@@ -86,6 +92,7 @@ def register(app: typer.Typer) -> None:
                                                   help="The per-record alarm rate (default: the monitor's)."),
             records_per_day: float = typer.Option(4.0, "--records-per-day",
                                                   help="Expected records a day (for the stated rate)."),
+            failure_index: Optional[float] = _failure_index(),
             db: str = _db()) -> None:
         """Add a joint, watched by a baseline monitor."""
         from rvdiag.fleet import Fleet
@@ -96,7 +103,7 @@ def register(app: typer.Typer) -> None:
         except ValueError:
             raise FleetError(f"--persistence {persistence!r}: expected K/N, e.g. 3/3") from None
         rules = {"k": k, "n": n, "m": clear_after, "learning": learning, "alpha": alpha,
-                 "records_per_day": records_per_day}
+                 "records_per_day": records_per_day, "failure_index": failure_index}
         f = Fleet.open(db)
         res = f.add_joint(joint, monitor, params=params, rules=rules)
         stated = f.stated_false_alarms_per_year(joint)
@@ -244,6 +251,25 @@ def register(app: typer.Typer) -> None:
 
         res = Fleet.open(db).acknowledge(joint, by, note)
         typer.echo(f"acknowledged the alarm of {joint} by {res['by']}; joint {res['joint_state']}")
+
+    @fleet_app.command("set")
+    def set_(joint: str = typer.Argument(...),
+             failure_index: Optional[str] = typer.Option(
+                 ..., "--failure-index", metavar="INDEX|none",
+                 help="The health index the joint's remaining life is counted to ('none' removes it)."),
+             note: str = typer.Option("", "--note", help="Why (kept with the change)."),
+             by: Optional[str] = typer.Option(None, "--by", help="Who (default: $USER)."), db: str = _db()) -> None:
+        """Change a joint's setting (today its failure index), recorded as an event with who and why."""
+        from rvdiag.fleet import Fleet
+
+        value = None
+        if failure_index.strip().lower() != "none":
+            try:
+                value = float(failure_index)
+            except ValueError:
+                raise FleetError(f"--failure-index {failure_index!r}: expected a number > 0 or 'none'") from None
+        res = Fleet.open(db).set_failure_index(joint, value, by, note)
+        typer.echo(f"{joint}: {res['note']} (by {res['by']})")
 
     @fleet_app.command("maintenance")
     def maintenance(joint: str = typer.Argument(...), note: str = typer.Option(..., "--note", help="What was done."),

@@ -148,6 +148,11 @@ def register(app: typer.Typer) -> None:
             from rvdiag.library.specimens import count_specimens
 
             summary["specimens"] = count_specimens(store.meta)
+            from rvdiag.library.life import summarize
+
+            life = summarize(store.meta)
+            if life is not None:
+                summary["life"] = life
         if as_json:
             typer.echo(json.dumps(summary, indent=2, sort_keys=True, default=str))
             return
@@ -173,6 +178,16 @@ def _print_summary(summary: dict) -> None:
         console.print(f"mode {lib.get('mode')}, seed {lib.get('seed')}, {lib.get('n_simulations')} simulations, "
                       f"simulator {lib.get('simulator')}"
                       + (f", {specimens} specimen{'s' if specimens != 1 else ''}{drawn}" if specimens else ""))
+    life = summary.get("life")
+    if life:
+        h = cfg.get("history") or {}
+        console.print(f"life histories: {life['reducers']} reducers, {life['records_per_reducer']} records each "
+                      f"(commissioning first, then one every {h.get('interval_days', '?')} days to day "
+                      f"{life['last_day']:g}); fates: " + ", ".join(f"{f} {n}" for f, n in life["fates"].items())
+                      + "; failed by the last record: "
+                      + (", ".join(f"{f} {n}" for f, n in life["failed_by_last_record"].items()) or "none")
+                      + "; sensor faults: "
+                      + (", ".join(f"{k} {n}" for k, n in life["sensor_faults"].items()) or "none"))
     splits = summary["splits"]
     table = Table("state", "description", *splits, "total")
     descriptions = lib.get("states", {})

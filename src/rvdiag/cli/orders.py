@@ -28,6 +28,7 @@ import typer
 
 from rvdiag.cli import _options as opt
 from rvdiag.errors import ParameterError
+from rvdiag.validation import finite_number
 
 
 def _angle(sig, shaft, p, *, output_speed, input_speed, rpm, tacho_channel, ppr, angle_channel, meta_regex,
@@ -51,8 +52,7 @@ def _angle(sig, shaft, p, *, output_speed, input_speed, rpm, tacho_channel, ppr,
     if rpm is not None:
         if any(v is not None for v in (output_speed, input_speed, tacho_channel, angle_channel, meta_regex)):
             raise ParameterError("give one angle source: --rpm or another")
-        if not rpm > 0:
-            raise ParameterError(f"--rpm must be > 0, got {rpm}")
+        finite_number(rpm, "--rpm", 0, strict=True, noun="a number")
         input_speed = rpm / ratio
     spec = AngleSpec(angle_channel=angle_channel, tacho_channel=tacho_channel, ppr=ppr, input_speed_rpm=input_speed,
                      output_speed_deg_s=output_speed, meta_regex=meta_regex,

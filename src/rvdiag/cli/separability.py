@@ -5,7 +5,6 @@ white-noise SNR, without and with run-to-run variation (:mod:`rvdiag.evaluation.
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Optional
 
@@ -13,6 +12,7 @@ import typer
 
 from rvdiag.cli import _options as opt
 from rvdiag.errors import ParameterError
+from rvdiag.validation import finite_number
 
 #: Python parameters of the library calls -> the options of this command (error messages name the option).
 SEPARABILITY_OPTION_NAMES = {"duration_s": "--duration", "fs": "--fs", "substeps": "--substeps",
@@ -34,16 +34,16 @@ def _pair(text: str) -> list[str]:
 
 def _check_pair_severities(pair: list[str], severities: dict) -> None:
     """Every severity given must apply to a state of the pair, and be valid for it."""
-    from rvdiag.cli.simulate import _OPTION, _USES, _check_severities
+    from rvdiag.cli.simulate import _check_severities
     from rvdiag.gears.faults import FAULT_KINDS as STATES
 
     kinds = {k for s in pair for k in STATES[s].split("+")}
     for key in severities:
-        if _USES[key] not in kinds:
-            raise ParameterError(f"{_OPTION[key]} does not apply to the pair {','.join(pair)} "
-                                 f"({', '.join(STATES[s] for s in pair)})")
+        if opt.FAULT_SEVERITY_OPTIONS[key].kind not in kinds:
+            raise ParameterError(f"{opt.FAULT_SEVERITY_OPTIONS[key].option} does not apply to the pair "
+                                 f"{','.join(pair)} ({', '.join(STATES[s] for s in pair)})")
     for s in pair:
-        used = {k: v for k, v in severities.items() if _USES[k] in STATES[s].split("+")}
+        used = {k: v for k, v in severities.items() if opt.FAULT_SEVERITY_OPTIONS[k].kind in STATES[s].split("+")}
         _check_severities(s, used)
 
 
@@ -51,6 +51,7 @@ def register(app: typer.Typer) -> None:
     """Add the ``separability`` command to ``app``."""
 
     @app.command("separability")
+    @opt.fault_severity_options
     def separability_cmd(
         pair: str = typer.Option("T1,T4", "--pair", help="The two states, e.g. T1,T4 (the crack; default) or "
                                  "T5,T6."),
@@ -65,16 +66,7 @@ def register(app: typer.Typer) -> None:
         snr_db: str = opt.snr_db("SNRs in dB, comma-separated (per-sample convention of the library's noise); "
                                  "--snr-db=-5,0,5 (the '=' lets the list start with a minus).",
                                  "-5,0,5,10,15,20,30"),
-        wear_depth_mm: Optional[float] = opt.tooth_fault("wear_depth_mm"),
-        crack_depth_mm: Optional[float] = opt.tooth_fault("crack_depth_mm"),
-        crack_angle: Optional[float] = opt.tooth_fault("crack_angle"),
-        broken_fraction: Optional[float] = opt.tooth_fault("broken_fraction"),
-        pit_area_fraction: Optional[float] = opt.surface_fault("pit_area_fraction"),
-        pit_radius_mm: Optional[float] = opt.surface_fault("pit_radius_mm"),
-        pit_depth_mm: Optional[float] = opt.surface_fault("pit_depth_mm"),
-        spall_width_fraction: Optional[float] = opt.surface_fault("spall_width_fraction"),
-        spall_length_fraction: Optional[float] = opt.surface_fault("spall_length_fraction"),
-        spall_depth_mm: Optional[float] = opt.surface_fault("spall_depth_mm"),
+        severities: Optional[dict] = None,  # the ten fault-severity options (opt.fault_severity_options)
         params: Optional[Path] = opt.params(),
         params_b: Optional[Path] = typer.Option(None, "--params-b", help="Reducer parameter TOML of the pair's "
                                                 "second state (default: --params): another specimen, e.g. "
@@ -115,10 +107,6 @@ def register(app: typer.Typer) -> None:
         ranges = parse_run_to_run(run_to_run) if run_to_run is not None else None
         if ranges is not None and draws < 2:
             raise ParameterError(f"--draws must be a whole number >= 2 (a spread needs two draws), got {draws}")
-        severities = opt.fault_severities(
-            wear_depth_mm, crack_depth_mm, crack_angle, broken_fraction, pit_area_fraction=pit_area_fraction,
-            pit_radius_mm=pit_radius_mm, pit_depth_mm=pit_depth_mm, spall_width_fraction=spall_width_fraction,
-            spall_length_fraction=spall_length_fraction, spall_depth_mm=spall_depth_mm)
         _check_pair_severities(states, severities)
         demo = LibraryConfig.load("demo")
         speed = float(demo.speed.lo) if output_speed is None else float(output_speed)
@@ -129,11 +117,9 @@ def register(app: typer.Typer) -> None:
         model = dict(demo.model)
         if substeps is not None:
             model["substeps"] = substeps
-        for name, value in (("--output-speed", speed), ("--duration", duration_s), ("--fs", fs_hz)):
-            if not value > 0 or not math.isfinite(value):
-                raise ParameterError(f"{name} must be a number > 0, got {value:g}")
-        if not load_nm >= 0 or not math.isfinite(load_nm):
-            raise ParameterError(f"--load must be a number >= 0, got {load_nm:g}")
+        for option, value in (("--output-speed", speed), ("--duration", duration_s), ("--fs", fs_hz)):
+            finite_number(value, option, 0, strict=True, noun="a number")
+        finite_number(load_nm, "--load", 0, noun="a number")
         if win < 2:
             raise ParameterError(f"--window must be a whole number of points >= 2, got {win}")
         n_record = int(round(duration_s * fs_hz))

@@ -8,17 +8,8 @@ from typing import Optional
 import typer
 
 from rvdiag.cli import _options as opt
-from rvdiag.cli._options import fault_severities
 from rvdiag.errors import ParameterError
 
-
-_USES = {"wear_depth": "wear", "crack_depth": "crack", "crack_angle_deg": "crack", "broken_fraction": "broken",
-         "pit_area_fraction": "pitting", "pit_radius": "pitting", "pit_depth": "pitting",
-         "spall_width_fraction": "spalling", "spall_length_fraction": "spalling", "spall_depth": "spalling"}
-_OPTION = {"wear_depth": "--wear-depth", "crack_depth": "--crack-depth", "crack_angle_deg": "--crack-angle",
-           "broken_fraction": "--broken-fraction", "pit_area_fraction": "--pit-area-fraction",
-           "pit_radius": "--pit-radius", "pit_depth": "--pit-depth", "spall_width_fraction": "--spall-width-fraction",
-           "spall_length_fraction": "--spall-length-fraction", "spall_depth": "--spall-depth"}
 #: Python parameters of :func:`rvdiag.dynamics.simulate` and :class:`~rvdiag.dynamics.ModelSettings` -> options.
 SIMULATE_OPTION_NAMES = {"duration_s": "--duration", "fs": "--fs", "substeps": "--substeps",
                          "transient_s": "--transient", "segment_s": "--segment", "workers": "--workers",
@@ -34,9 +25,9 @@ def _check_severities(state: str, severities: dict) -> None:
     from rvdiag.gears.faults import FAULT_KINDS as STATES
 
     kinds = STATES.get(state, "").split("+")
-    for key, value in severities.items():
-        if _USES[key] not in kinds:
-            raise ParameterError(f"{_OPTION[key]} does not apply to state {state} ({STATES.get(state, '?')})")
+    for key in severities:
+        if opt.FAULT_SEVERITY_OPTIONS[key].kind not in kinds:
+            raise ParameterError(f"{opt.FAULT_SEVERITY_OPTIONS[key].option} does not apply to state {state} ({STATES.get(state, '?')})")
     if "wear_depth" in severities:
         Wear(severities["wear_depth"])
     if "crack_depth" in severities or "crack_angle_deg" in severities:
@@ -89,18 +80,10 @@ def register(app: typer.Typer) -> None:
     states_help = ", ".join(f"{k} {v}" for k, v in STATES.items())
 
     @app.command("simulate")
+    @opt.fault_severity_options
     def simulate_cmd(
         state: str = typer.Option("T1", "--state", help=f"Fault state: {states_help}."),
-        wear_depth_mm: Optional[float] = opt.tooth_fault("wear_depth_mm"),
-        crack_depth_mm: Optional[float] = opt.tooth_fault("crack_depth_mm"),
-        crack_angle: Optional[float] = opt.tooth_fault("crack_angle"),
-        broken_fraction: Optional[float] = opt.tooth_fault("broken_fraction"),
-        pit_area_fraction: Optional[float] = opt.surface_fault("pit_area_fraction"),
-        pit_radius_mm: Optional[float] = opt.surface_fault("pit_radius_mm"),
-        pit_depth_mm: Optional[float] = opt.surface_fault("pit_depth_mm"),
-        spall_width_fraction: Optional[float] = opt.surface_fault("spall_width_fraction"),
-        spall_length_fraction: Optional[float] = opt.surface_fault("spall_length_fraction"),
-        spall_depth_mm: Optional[float] = opt.surface_fault("spall_depth_mm"),
+        severities: Optional[dict] = None,  # the ten fault-severity options (opt.fault_severity_options)
         params: Optional[Path] = opt.params(),
         input_speed: Optional[float] = typer.Option(None, "--input-speed", help="Motor (sun) speed, rpm."),
         output_speed: Optional[float] = typer.Option(None, "--output-speed", help="Output (carrier) speed, deg/s."),
@@ -165,10 +148,6 @@ def register(app: typer.Typer) -> None:
         if not out.parent.exists():
             raise ParameterError(f"--out directory does not exist: {out.parent}")
         opt.refuse_existing(out, overwrite)
-        severities = fault_severities(
-            wear_depth_mm, crack_depth_mm, crack_angle, broken_fraction, pit_area_fraction=pit_area_fraction,
-            pit_radius_mm=pit_radius_mm, pit_depth_mm=pit_depth_mm, spall_width_fraction=spall_width_fraction,
-            spall_length_fraction=spall_length_fraction, spall_depth_mm=spall_depth_mm)
         fault = ToothFaults.for_state(state, **severities)
         _check_severities(fault.label or state.upper(), severities)
         if workers < 1:

@@ -9,7 +9,7 @@ from typing import Optional
 import typer
 
 from rvdiag.cli import _options as opt
-from rvdiag.cli._options import fault_severities, mm_to_m
+from rvdiag.cli._options import mm_to_m
 from rvdiag.errors import ParameterError
 
 FAULTS = ("healthy", "wear", "crack", "broken", "broken+wear", "broken+wear+crack", "pitting", "spalling")
@@ -19,6 +19,7 @@ def register(app: typer.Typer) -> None:
     """Add the ``tvms`` command to ``app``."""
 
     @app.command("tvms")
+    @opt.fault_severity_options
     def tvms(
         params: Optional[Path] = opt.params(),
         pair: str = typer.Option("sun-planet", "--pair", help="Gear pair of the parameter set: sun-planet."),
@@ -32,16 +33,7 @@ def register(app: typer.Typer) -> None:
         x1: float = typer.Option(0.0, "--x1", help="Profile shift coefficient of the driver (custom pair)."),
         x2: float = typer.Option(0.0, "--x2", help="Profile shift coefficient of the driven gear (custom pair)."),
         fault: str = typer.Option("healthy", "--fault", help=f"{'|'.join(FAULTS)} (or T1..T8)."),
-        wear_depth_mm: Optional[float] = opt.tooth_fault("wear_depth_mm"),
-        crack_depth_mm: Optional[float] = opt.tooth_fault("crack_depth_mm"),
-        crack_angle: Optional[float] = opt.tooth_fault("crack_angle"),
-        broken_fraction: Optional[float] = opt.tooth_fault("broken_fraction"),
-        pit_area_fraction: Optional[float] = opt.surface_fault("pit_area_fraction"),
-        pit_radius_mm: Optional[float] = opt.surface_fault("pit_radius_mm"),
-        pit_depth_mm: Optional[float] = opt.surface_fault("pit_depth_mm"),
-        spall_width_fraction: Optional[float] = opt.surface_fault("spall_width_fraction"),
-        spall_length_fraction: Optional[float] = opt.surface_fault("spall_length_fraction"),
-        spall_depth_mm: Optional[float] = opt.surface_fault("spall_depth_mm"),
+        severities: Optional[dict] = None,  # the ten fault-severity options (opt.fault_severity_options)
         cycles: int = typer.Option(0, "--cycles", help="Mesh cycles (default: Z1, one driver revolution)."),
         points: int = typer.Option(360, "--points", help="Points per mesh cycle."),
         as_json: bool = opt.json_flag("Print one JSON object instead of a summary."),
@@ -65,10 +57,6 @@ def register(app: typer.Typer) -> None:
             if pair != "sun-planet":
                 raise ParameterError(f"unknown --pair {pair!r}; the only involute pair is sun-planet")
             gp = GearPair.sun_planet(ReducerParams.load(params))
-        severities = fault_severities(
-            wear_depth_mm, crack_depth_mm, crack_angle, broken_fraction, pit_area_fraction=pit_area_fraction,
-            pit_radius_mm=pit_radius_mm, pit_depth_mm=pit_depth_mm, spall_width_fraction=spall_width_fraction,
-            spall_length_fraction=spall_length_fraction, spall_depth_mm=spall_depth_mm)
         faults = ToothFaults.from_name(fault, **severities)
         if cycles == 0:
             cycles = gp.driver.teeth

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Optional
 
@@ -11,16 +10,12 @@ import typer
 
 from rvdiag.cli import _options as opt
 from rvdiag.errors import ConfigError, ParameterError
+from rvdiag.validation import finite_number
 
 
 #: Python parameters of :func:`rvdiag.updating.update_parameters` -> the options that set them.
 UPDATE_OPTION_NAMES = {"output_speed_deg_s": "--output-speed", "load_Nm": "--load", "duration_s": "--duration",
                        "max_evals": "--max-evals", "objective": "--objective"}
-
-
-def _check_positive(option: str, value: float) -> None:
-    if not (math.isfinite(value) and value > 0):
-        raise ParameterError(f"{option} must be positive, got {value:g}")
 
 
 def register(app: typer.Typer) -> None:
@@ -67,12 +62,10 @@ def register(app: typer.Typer) -> None:
             raise ParameterError(f"--objective must be one of {', '.join(OBJECTIVES)}, got {objective!r}")
         if direction not in ("x", "y"):
             raise ParameterError(f"--direction must be x or y, got {direction!r}")
-        if fs is not None:
-            _check_positive("--fs", fs)
-        _check_positive("--output-speed", output_speed)
-        _check_positive("--duration", duration)
-        if not (math.isfinite(load) and load >= 0):
-            raise ParameterError(f"--load must be >= 0, got {load:g}")
+        for option, value in (("--fs", fs), ("--output-speed", output_speed), ("--duration", duration)):
+            if value is not None:
+                finite_number(value, option, 0, strict=True, noun="a number")
+        finite_number(load, "--load", 0, noun="a number")
         if max_evals < 3:
             raise ParameterError(f"--max-evals must be >= 3, got {max_evals}")
         if out.suffix.lower() != ".toml":

@@ -46,6 +46,7 @@ import zarr
 
 from rvdiag import __version__
 from rvdiag.atomic import atomic_file, staged_directory
+from rvdiag.deprecation import renamed_names
 from rvdiag.errors import ParameterError, StoreError
 
 STORE_FORMAT = "rvdiag-store/1"
@@ -556,3 +557,7 @@ class _ColumnKind:
 #: metadata columns of a paired store (module docstring) and the values of ``role``
 PAIRED_COLUMNS = ("reducer", "role")
 ROLES = ("baseline", "monitored")
+
+
+#: old names, served with a DeprecationWarning naming the new one
+__getattr__ = renamed_names(__name__, {"parse_condition": "parse_where"})

@@ -9,12 +9,12 @@ stated absolute mean square instead (a sensor's fixed noise floor, the same what
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 
 from rvdiag.errors import ParameterError
+from rvdiag.validation import finite_number
 
 
 def add_awgn(signal: np.ndarray, snr_db: float, rng: np.random.Generator | int | None = 0) -> np.ndarray:
@@ -25,8 +25,7 @@ def add_awgn(signal: np.ndarray, snr_db: float, rng: np.random.Generator | int |
     >>> round(10 * np.log10(np.mean(x**2) / np.mean((y - x)**2)), 1)
     10.0
     """
-    if not isinstance(snr_db, (int, float)) or isinstance(snr_db, bool) or not math.isfinite(snr_db):
-        raise ParameterError(f"SNR must be a finite number of dB, got {snr_db!r}")
+    finite_number(snr_db, "SNR", noun="a finite number of dB")
     x = np.asarray(signal, dtype=float)
     if x.size == 0:
         raise ParameterError("cannot add noise to an empty signal")
@@ -57,9 +56,7 @@ def add_noise_power(signal: np.ndarray, noise_power: float, exponent: float = 0.
     >>> round(float(np.mean(y**2)), 6)
     4.0
     """
-    if not isinstance(noise_power, (int, float, np.floating)) or isinstance(noise_power, bool) \
-            or not math.isfinite(noise_power) or noise_power < 0:
-        raise ParameterError(f"noise power must be a finite number >= 0, got {noise_power!r}")
+    finite_number(noise_power, "noise power", 0)
     return _add_shaped(np.asarray(signal, dtype=float), float(noise_power), exponent, rng)
 
 
@@ -103,8 +100,7 @@ def add_coloured_noise(signal: np.ndarray, snr_db: float, exponent: float,
         raise ParameterError(f"noise colour exponent must lie in [0, 3], got {exponent!r}")
     if exponent == 0.0:
         return add_awgn(signal, snr_db, rng)
-    if not isinstance(snr_db, (int, float)) or isinstance(snr_db, bool) or not math.isfinite(snr_db):
-        raise ParameterError(f"SNR must be a finite number of dB, got {snr_db!r}")
+    finite_number(snr_db, "SNR", noun="a finite number of dB")
     x = np.asarray(signal, dtype=float)
     if x.shape[-1] < 2:
         raise ParameterError("coloured noise needs at least 2 samples")

@@ -22,6 +22,7 @@ from rvdiag.dynamics.profile import G, LoadProfile, SpeedProfile
 from rvdiag.dynamics.settings import ModelSettings
 from rvdiag.errors import ParameterError
 from rvdiag.params import ReducerParams, body_properties
+from rvdiag.validation import number, positive
 
 TWO_PI = kn.TWO_PI
 
@@ -167,10 +168,8 @@ def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: floa
     """The keyword arguments of :class:`rvdiag.dynamics.model.Model` (all but ``settings``) at one operating
     point; the arguments are those of :func:`rvdiag.dynamics.model.build_model`, validated here."""
     s1, s2, br, dmp = params.stage1, params.stage2, params.bearings, params.damping
-    if not (math.isfinite(sun_speed_hz) and sun_speed_hz > 0):
-        raise ParameterError(f"input speed must be > 0, got {sun_speed_hz} Hz")
-    if not math.isfinite(load_Nm):
-        raise ParameterError(f"load torque must be finite, got {load_Nm}")
+    positive(sun_speed_hz, "input speed", unit=" Hz")
+    number(load_Nm, "load torque")
     bp = body_properties(params)
     N, D = s1.n_planets, s2.n_discs
     Zp, Zc, Z1, Z2 = s2.pins, s2.cycloid_lobes, s1.sun_teeth, s1.planet_teeth

@@ -18,19 +18,10 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from rvdiag.errors import ParameterError
+from rvdiag.validation import finite_number
 
 #: standard gravity, m/s^2
 G = 9.80665
-
-
-def _number(name: str, val: object, lo: float | None = None, strict: bool = False) -> float:
-    if isinstance(val, bool) or not isinstance(val, (int, float, np.integer, np.floating)):
-        raise ParameterError(f"{name} must be a number, got {val!r}")
-    x = float(val)
-    if not math.isfinite(x) or (lo is not None and (x <= lo if strict else x < lo)):
-        bound = "" if lo is None else (f" > {lo:g}" if strict else f" >= {lo:g}")
-        raise ParameterError(f"{name} must be a finite number{bound}, got {val!r}")
-    return x
 
 
 #: the speed profiles: constant speed, the trapezoid (piecewise-constant acceleration) and the jerk-limited
@@ -110,15 +101,15 @@ class SpeedProfile:
             raise ParameterError(f"speed profile must be one of {', '.join(PROFILE_KINDS)}, got {self.kind!r}")
         if self.is_constant:
             return
-        v = _number("output speed (deg/s)", self.output_speed_deg_s, 0.0, strict=True)
-        a = _number("acceleration (deg/s^2)", self.accel_deg_s2, 0.0, strict=True)
-        _number("profile start (s)", self.start_s)
+        v = finite_number(self.output_speed_deg_s, "output speed (deg/s)", 0.0, strict=True, type_first=True)
+        a = finite_number(self.accel_deg_s2, "acceleration (deg/s^2)", 0.0, strict=True, type_first=True)
+        finite_number(self.start_s, "profile start (s)", type_first=True)
         if self.kind == "scurve":
-            _number("jerk (deg/s^3)", self.jerk_deg_s3, 0.0, strict=True)
+            finite_number(self.jerk_deg_s3, "jerk (deg/s^3)", 0.0, strict=True, type_first=True)
         elif self.jerk_deg_s3 is not None:
             raise ParameterError("a jerk limit applies to the S-curve profile only")
         if self.move_s is not None:
-            _number("move duration (s)", self.move_s, 0.0, strict=True)
+            finite_number(self.move_s, "move duration (s)", 0.0, strict=True, type_first=True)
         move = self.move_time(duration_s)
         ramp = self.ramp_times()[1]
         if move is not None and 2.0 * ramp > move * (1.0 + 1e-12):
@@ -244,9 +235,9 @@ class LoadProfile:
     arm_angle_deg: float = 0.0
 
     def validate(self) -> None:
-        _number("arm mass (kg)", self.arm_mass_kg, 0.0)
-        _number("arm length (m)", self.arm_length_m, 0.0)
-        _number("arm angle (deg)", self.arm_angle_deg)
+        finite_number(self.arm_mass_kg, "arm mass (kg)", 0.0, type_first=True)
+        finite_number(self.arm_length_m, "arm length (m)", 0.0, type_first=True)
+        finite_number(self.arm_angle_deg, "arm angle (deg)", type_first=True)
 
     @property
     def has_arm(self) -> bool:

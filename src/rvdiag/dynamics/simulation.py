@@ -26,11 +26,12 @@ from rvdiag.dynamics.mesh import MeshTable, mesh_table_from_gears, rectangular_m
 from rvdiag.dynamics.model import I_TLOAD, Model, ModelSettings, build_model
 from rvdiag.dynamics.noise import add_awgn
 from rvdiag.dynamics.profile import LoadProfile, SpeedProfile
-from rvdiag.dynamics.transfer import apply_path
 from rvdiag.dynamics.results import SimulationResult
+from rvdiag.dynamics.transfer import apply_path
 from rvdiag.errors import ParameterError
 from rvdiag.kinematics import sun_speed_hz
 from rvdiag.params import ReducerParams
+from rvdiag.validation import finite_number, number
 
 #: what :func:`simulate` can record
 SIGNALS = ("vibration", "current", "both")
@@ -136,9 +137,7 @@ def prepare(
         elif output_speed_deg_s != profile.output_speed_deg_s:
             raise ParameterError("a trapezoid cruises at its own output_speed_deg_s: give no other speed")
     fsun = sun_speed_hz(params, input_speed_rpm, output_speed_deg_s)
-    load = params.operation.rated_torque if load_Nm is None else float(load_Nm)
-    if not math.isfinite(load):
-        raise ParameterError(f"load torque must be finite, got {load_Nm}")
+    load = params.operation.rated_torque if load_Nm is None else number(load_Nm, "load torque")
     return build_model(params, mesh_table(params, fault, mesh_source), fsun, load, settings or ModelSettings(),
                        profile, load_profile, duration_s)
 
@@ -148,13 +147,10 @@ def with_load_inertia(params: ReducerParams, load_inertia_kg_m2: float | None) -
     Raises ParameterError naming the argument for a value that is not a finite number >= 0."""
     if load_inertia_kg_m2 is None:
         return params
-    J = load_inertia_kg_m2
-    if (isinstance(J, bool) or not isinstance(J, (int, float, np.integer, np.floating))
-            or not math.isfinite(float(J)) or J < 0):
-        raise ParameterError(f"load_inertia_kg_m2 must be a finite number >= 0, got {J!r}")
-    if params.operation.load_inertia is not None and float(params.operation.load_inertia) == float(J):
+    J = finite_number(load_inertia_kg_m2, "load_inertia_kg_m2", 0)
+    if params.operation.load_inertia is not None and float(params.operation.load_inertia) == J:
         return params
-    return params.replace(operation={"load_inertia": float(J)})
+    return params.replace(operation={"load_inertia": J})
 
 
 def initial_deflection(model: Model, t0: float) -> tuple[np.ndarray, str]:
@@ -268,8 +264,7 @@ class SimulationRequest:
         if signal != "vibration" and not st.electrical:
             st = dataclasses.replace(st, electrical=True)
         for name, val in (("duration_s", duration_s), ("fs", fs)):
-            if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val) or val <= 0:
-                raise ParameterError(f"{name} must be a number > 0, got {val!r}")
+            finite_number(val, name, 0, strict=True, noun="a number")
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise ParameterError(f"seed must be a whole number >= 0, got {seed!r}")
         check_workers(workers)

@@ -61,6 +61,19 @@ METRIC_KEYS = ("accuracy", "precision_macro", "recall_macro", "f1_macro", "kappa
 HEALTHY_NAMES = ("healthy", "normal")
 
 
+
+def binomial_interval(k: int, n: int, level: float = 0.95) -> list[float]:
+    """The Clopper-Pearson interval of a rate of ``k`` events in ``n`` trials (Clopper & Pearson, Biometrika 26
+    (1934) 404-413; :meth:`scipy.stats.binomtest`'s ``proportion_ci(method="exact")``).
+
+    >>> [round(v, 4) for v in binomial_interval(0, 10)]
+    [0.0, 0.3085]
+    """
+    from scipy.stats import binomtest
+
+    ci = binomtest(int(k), int(n)).proportion_ci(confidence_level=level, method="exact")
+    return [float(ci.low), float(ci.high)]
+
 def healthy_class(labels: Sequence[str]) -> str | None:
     """The healthy state among ``labels``: the library's healthy state (``T1``,
     :data:`rvdiag.gears.faults.FAULT_KINDS`), else the first label named as in :data:`HEALTHY_NAMES`, else None.

@@ -69,6 +69,14 @@ from rvdiag.errors import ParameterError
 from rvdiag.progress import report
 
 
+def _snr_levels(snr_db: Sequence[float]) -> list[float]:
+    """The SNRs (dB) as floats: at least one, all finite, else one ParameterError."""
+    levels = [float(s) for s in snr_db]
+    if not levels or not all(math.isfinite(s) for s in levels):
+        raise ParameterError(f"SNR levels must be finite numbers of dB, got {list(snr_db)!r}")
+    return levels
+
+
 def aligned_windows(a: np.ndarray, b: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
     """Cut two records of the same length into aligned, non-overlapping windows: two arrays (n_windows, window).
 
@@ -100,9 +108,7 @@ def bound_from_windows(A: np.ndarray, B: np.ndarray, snr_db: Sequence[float]) ->
     B = np.asarray(B, dtype=float)
     if A.ndim != 2 or A.shape != B.shape or A.shape[0] < 1:
         raise ParameterError(f"need two arrays (n_windows, window) of one shape, got {A.shape} and {B.shape}")
-    levels = [float(s) for s in snr_db]
-    if not levels or not all(math.isfinite(s) for s in levels):
-        raise ParameterError(f"SNR levels must be finite numbers of dB, got {list(snr_db)!r}")
+    levels = _snr_levels(snr_db)
     d = np.linalg.norm(A - B, axis=1)
     power = 0.5 * (np.mean(A**2, axis=1) + np.mean(B**2, axis=1))
     norm_a = np.linalg.norm(A, axis=1)
@@ -350,9 +356,7 @@ def varied_bound_from_windows(A0: np.ndarray, B0: np.ndarray, HA: np.ndarray, HB
                              f"got {HA.shape} and {HB.shape}")
     if not (np.all(np.isfinite(HA)) and np.all(np.isfinite(HB))):
         raise ParameterError("the draws hold non-finite values (cut the windows to where every draw is defined)")
-    levels = [float(s) for s in snr_db]
-    if not levels or not all(math.isfinite(s) for s in levels):
-        raise ParameterError(f"SNR levels must be finite numbers of dB, got {list(snr_db)!r}")
+    levels = _snr_levels(snr_db)
     K, nw, w = HA.shape
     power = 0.5 * (np.mean(A0**2, axis=1) + np.mean(B0**2, axis=1))
     d_known = np.linalg.norm(HB - HA, axis=2)                                  # (K, nw)

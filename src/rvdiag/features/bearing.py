@@ -42,6 +42,7 @@ import numpy as np
 from rvdiag.errors import ParameterError
 from rvdiag.features._base import SignalTransformer
 from rvdiag.features.spectrum import bearing_defect_frequencies, squared_envelope
+from rvdiag.validation import positive
 
 #: CWRU drive-end bearing 6205-2RS JEM SKF (inches; only the ratio d/D matters)
 BEARING_6205 = {"n_balls": 9, "ball_diameter": 0.3126, "pitch_diameter": 1.537, "contact_angle_rad": 0.0}
@@ -137,9 +138,7 @@ class BearingEnvelopeFeatures(SignalTransformer):
     def _shaft_cps(self, shaft_frequency: float | None = None) -> float:
         f = float(self.shaft_frequency if shaft_frequency is None else shaft_frequency)
         if self.fs is not None:
-            if not float(self.fs) > 0:
-                raise ParameterError(f"fs must be > 0 Hz, got {self.fs}")
-            f = f / float(self.fs)
+            f = f / positive(self.fs, "fs", unit=" Hz")
         if not 0 < f < 0.5:
             shown = self.shaft_frequency if shaft_frequency is None else shaft_frequency
             raise ParameterError(

@@ -35,6 +35,7 @@ import numpy as np
 from rvdiag.errors import ParameterError
 from rvdiag.features._base import SignalTransformer
 from rvdiag.spectral import amplitude_spectrum, peak_frequency
+from rvdiag.validation import finite_number
 
 #: the lines fitted and removed by default: the supply line and the dead-time lines 5 f_e and 7 f_e that a
 #: voltage-source inverter adds (docs/model.md section 10); in the simulated current of configs/mcsa.toml
@@ -181,8 +182,7 @@ class CurrentLineFeatures(SignalTransformer):
         return _params(self.params)
 
     def _check_params(self, n_points: int) -> None:
-        if not (isinstance(self.fs, (int, float)) and not isinstance(self.fs, bool) and self.fs > 0):
-            raise ParameterError(f"fs must be a number > 0, got {self.fs!r}")
+        finite_number(self.fs, "fs", 0, strict=True, noun="a number")
         from rvdiag.kinematics import characteristic_frequencies
         from rvdiag.motor.lines import line_frequencies
 

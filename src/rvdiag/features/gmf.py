@@ -38,6 +38,7 @@ import numpy as np
 from sklearn.base import BaseEstimator
 
 from rvdiag.errors import ParameterError
+from rvdiag.validation import positive
 
 
 def on_angle_axis(x, ratio: float, n_out: int) -> np.ndarray:
@@ -64,8 +65,7 @@ def gmf_weights(delta, Z, noise_var: float) -> np.ndarray:
     ``(delta - Z^T (noise_var I_r + Z Z^T)^-1 Z delta) / noise_var``."""
     delta = np.asarray(delta, dtype=float)
     Z = np.asarray(Z, dtype=float).reshape(-1, delta.size)
-    if not noise_var > 0:
-        raise ParameterError(f"the noise variance must be > 0, got {noise_var!r}")
+    positive(noise_var, "the noise variance")
     zd = Z @ delta
     inner = np.linalg.solve(noise_var * np.eye(Z.shape[0]) + Z @ Z.T, zd) if Z.shape[0] else zd
     return (delta - Z.T @ inner) / float(noise_var)

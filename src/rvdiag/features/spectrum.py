@@ -29,6 +29,7 @@ import numpy as np
 
 from rvdiag.errors import ParameterError
 from rvdiag.features._base import SignalTransformer
+from rvdiag.validation import positive
 
 _TINY = 1e-300
 
@@ -232,13 +233,9 @@ class _CentredBands(SignalTransformer):
     def _unit_scale(self) -> float:
         s = 1.0
         if self.fs is not None:
-            if not self.fs > 0:
-                raise ParameterError(f"fs must be > 0 Hz, got {self.fs}")
-            s = 1.0 / float(self.fs)
+            s = 1.0 / positive(self.fs, "fs", unit=" Hz")
         if self.shaft_frequency is not None:
-            if not self.shaft_frequency > 0:
-                raise ParameterError(f"shaft_frequency must be > 0, got {self.shaft_frequency}")
-            s *= float(self.shaft_frequency)
+            s *= positive(self.shaft_frequency, "shaft_frequency")
         return s
 
     def _centres_cps(self) -> np.ndarray:

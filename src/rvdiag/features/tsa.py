@@ -13,8 +13,9 @@ from __future__ import annotations
 import numpy as np
 
 from rvdiag.errors import ParameterError
-from rvdiag.features._base import SignalTransformer
 from rvdiag.features import orders as _o
+from rvdiag.features._base import SignalTransformer
+from rvdiag.validation import positive
 
 _CI = tuple(_o.INDICATORS)
 #: the median-tooth indicators of :func:`tooth_indicators` (``TSAIndicatorFeatures(median_tooth=True)``)
@@ -67,8 +68,7 @@ class _AngleFeatures(SignalTransformer):
 
     def _check_params(self, n_points: int, speed: float | None = None) -> None:
         _o._check_shaft(self.shaft)
-        if not (self.fs is not None and float(self.fs) > 0):
-            raise ParameterError(f"fs must be > 0 Hz, got {self.fs}")
+        positive(self.fs, "fs", unit=" Hz")
         if self.speed_column is not None:
             check_speed_column(self.speed_column)
             n_points -= 1

@@ -33,6 +33,7 @@ from sklearn.base import clone
 from rvdiag.errors import ParameterError
 from rvdiag.features._base import SignalTransformer, as_signal_matrix
 from rvdiag.features.combine import input_metadata, points_before_metadata
+from rvdiag.validation import integer
 
 
 class HealthyBaselineFeatures(SignalTransformer):
@@ -97,11 +98,8 @@ class HealthyBaselineFeatures(SignalTransformer):
         return np.ascontiguousarray(part), values
 
     def _check(self):
-        if not (isinstance(self.n_bins, (int, np.integer)) and not isinstance(self.n_bins, bool) and self.n_bins >= 1):
-            raise ParameterError(f"n_bins must be an integer >= 1, got {self.n_bins!r}")
-        if not (isinstance(self.min_count, (int, np.integer)) and not isinstance(self.min_count, bool)
-                and self.min_count >= 2):
-            raise ParameterError(f"min_count must be an integer >= 2, got {self.min_count!r}")
+        integer(self.n_bins, "n_bins", 1)
+        integer(self.min_count, "min_count", 2)
 
     # ------------------------------------------------------------------------------------------------- fit
     def fit(self, X, y=None):

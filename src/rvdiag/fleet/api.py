@@ -18,6 +18,7 @@ request that misses a field or a record the joint's monitor refused (stored as r
                                                 again, 422 rejected with its reason
 ``POST /api/joints/{joint}/ack``                acknowledge its alarm: JSON ``{"note": "..."}``
 ``POST /api/joints/{joint}/maintenance``        record maintenance: JSON ``{"note": "..."}``
+``POST /api/joints/{joint}/failure-index``      set its failure index: JSON ``{"failure_index": 8.0, "note": "..."}``
 ``GET  /``, ``/joints/{joint}``, ``/alarms``    the dashboard's pages (:mod:`rvdiag.fleet.web`)
 ==============================================  =====================================================================
 
@@ -40,6 +41,7 @@ else sees them; nothing from a request is unpickled.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import re
@@ -60,6 +62,7 @@ from rvdiag.errors import RvdiagError
 from rvdiag.fleet import AuthError, FleetError, Reading
 from rvdiag.fleet import web
 from rvdiag.fleet.store import parse_time, split_joint
+from rvdiag.validation import finite_number
 
 #: Default upload limit, bytes (a 10 s record of 8 float64 channels at 48 kHz is 31 MiB as NPY).
 DEFAULT_MAX_UPLOAD = 64 * 1024 * 1024
@@ -99,6 +102,14 @@ class Note(BaseModel):
     note: str = Field(min_length=1, max_length=2000, description="what was seen or done (kept in the event log)")
 
 
+class FailureIndex(BaseModel):
+    """The body of a change of the joint's failure index."""
+
+    failure_index: float | None = Field(description="the health index the joint's remaining life is counted to; "
+                                                    "null removes it", gt=0, allow_inf_nan=False)
+    note: str = Field("", max_length=2000, description="why (kept in the event log)")
+
+
 def check_joint_name(joint: str) -> str:
     """``joint`` if it is a joint's name exactly as the store spells it (site/robot/joint, each part letters,
     digits, ``_ . -`` not starting with a dot: :func:`rvdiag.fleet.store.split_joint`), else :class:`ApiError`
@@ -121,9 +132,8 @@ def _check_filename(name: str | None) -> str:
 
 
 def _finite(name: str, value: float | None) -> float | None:
-    if value is not None and not math.isfinite(value):
-        raise ApiError(400, f"{name} must be a finite number, not {value}")
-    return value
+    """A form's number as given (None: not given), else a 400 naming it (:func:`rvdiag.validation.finite_number`)."""
+    return None if value is None else finite_number(value, name, error=functools.partial(ApiError, 400))
 
 
 
@@ -386,6 +396,13 @@ def create_app(fleet, *, max_upload: int | None = None, read_needs_token: bool |
         who = writer(authorization)
         check_joint_name(joint)
         return _json(fleet.maintenance(joint, by=who, note=body.note))
+
+    @app.post("/api/joints/{joint:path}/failure-index", tags=["write"])
+    def failure_index(joint: str, body: FailureIndex, authorization: Annotated[str | None, Header()] = None):
+        """Set or remove the joint's failure index (the health index its remaining life is counted to)."""
+        who = writer(authorization)
+        check_joint_name(joint)
+        return _json(fleet.set_failure_index(joint, body.failure_index, by=who, note=body.note))
 
     # ---- dashboard -----------------------------------------------------------------------------------------------
     links = web.Links(base="/", suffix="", api="/api", read_needs_token=read_needs_token)

@@ -37,7 +37,7 @@ from rvdiag.errors import FleetError
 DEFAULT_URL = "sqlite:///fleet.db"
 ENV_DB = "RVDIAG_FLEET_DB"
 #: the event kinds
-EVENT_KINDS = ("raised", "acknowledged", "cleared", "maintenance", "commissioned")
+EVENT_KINDS = ("raised", "acknowledged", "cleared", "maintenance", "commissioned", "failure-index")
 
 
 class UTCDateTime(TypeDecorator):

@@ -45,6 +45,7 @@ from datetime import datetime
 import numpy as np
 
 from rvdiag.errors import FleetError
+from rvdiag.validation import finite_number, positive
 
 STATES = ("no-baseline", "learning", "normal", "alert", "alarm", "sensor-fault")
 DAYS_PER_YEAR = 365.25
@@ -69,6 +70,10 @@ class Rules:
         ``CALIBRATION_RANK`` calibration scores above the alarm's threshold.
     records_per_day : float
         How many records a day the joint is expected to send (for the stated rate per year).
+    failure_index : float or None
+        The health index at which the joint counts as failed: the maintenance limit its remaining life is counted
+        to (:func:`rvdiag.prognostics.joint_prognosis`'s ``threshold``); None: the remaining life is not
+        estimated.  It changes no alarm.
     """
 
     alpha: float | None = None
@@ -77,6 +82,7 @@ class Rules:
     m: int = 3
     learning: int | None = None
     records_per_day: float = 4.0
+    failure_index: float | None = None
 
     #: the default learning period puts the threshold at the CALIBRATION_RANK-th largest calibration score
     CALIBRATION_RANK = 1
@@ -102,8 +108,9 @@ class Rules:
             raise FleetError(f"persistence k of n needs 1 <= k <= n <= 12, got k={self.k}, n={self.n}")
         if not (isinstance(self.m, int) and 1 <= self.m <= 100):
             raise FleetError(f"the hysteresis m (consecutive normal records to clear) must be 1-100, got {self.m}")
-        if not self.records_per_day > 0:
-            raise FleetError(f"records_per_day must be > 0, got {self.records_per_day}")
+        positive(self.records_per_day, "records_per_day", error=FleetError)
+        if self.failure_index is not None:
+            finite_number(self.failure_index, "the failure index", 0.0, strict=True, error=FleetError)
         if self.learning is not None:
             if not (isinstance(self.learning, int) and self.learning >= 1):
                 raise FleetError(f"the learning period must be a whole number of records >= 1, got {self.learning}")

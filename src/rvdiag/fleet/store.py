@@ -393,8 +393,8 @@ class Fleet:
         """One row per joint (``joint``: that joint's only): ``joint, state, last_index, last_record_time,
         state_since, threshold, n_records, last_fault_state, last_probability, open_alarm`` (and ``epoch``,
         ``signal``, ``learning_left``, ``trend``: the health indices of the current epoch's last
-        :data:`TREND_RECORDS` recognised records, oldest first; and the prognosis of :func:`prognosis_of`:
-        ``onset_time``, ``change_evidence``, ``rul``)."""
+        :data:`TREND_RECORDS` recognised records, oldest first; ``failure_index``; and the prognosis of
+        :func:`prognosis_of`: ``onset_time``, ``change_evidence``, ``rul``)."""
         rows = []
         with self._sessions() as s:
             q = select(db.Joint).order_by(db.Joint.path)
@@ -420,7 +420,8 @@ class Fleet:
                     else False,
                     "epoch": None if d["epoch"] is None else d["epoch"].number, "signal": j.signal_kind,
                     "learning_left": learn, "trend": [r.health_index for r in judged[-TREND_RECORDS:]],
-                    **prognosis_of(judged, lastj)})
+                    "failure_index": R.Rules.from_dict(j.rules).failure_index,
+                    **prognosis_of(judged, lastj, R.Rules.from_dict(j.rules).failure_index)})
         return rows
 
     def history(self, joint: str, limit: int | None = None) -> list[dict]:
@@ -513,6 +514,25 @@ class Fleet:
         return {"joint": joint, "kind": "maintenance", "time": _iso(t), "by": _who(by), "note": str(note or ""),
                 "joint_state": "no-baseline"}
 
+    def set_failure_index(self, joint: str, value: float | None, by: str | None = None, note: str = "",
+                          time: datetime | None = None) -> dict:
+        """Set the joint's failure index (:class:`rvdiag.fleet.rules.Rules` ``failure_index``: the health index its
+        remaining life is counted to; None removes it), recorded as a ``failure-index`` event with who and why.
+        It changes no alarm and no state."""
+        t = now() if time is None else _aware(time)
+        with self._writes() as s, s.begin():
+            j = self._joint(s, joint, lock=True)
+            rl = R.Rules.from_dict({**R.Rules.from_dict(j.rules).to_dict(),
+                                    "failure_index": None if value is None else float(value)})
+            old = R.Rules.from_dict(j.rules).failure_index
+            j.rules = rl.to_dict()
+            ep = self._epochs(s, j.id)
+            text = f"failure index {_fmt_index(old)} -> {_fmt_index(rl.failure_index)}" + (f": {note}" if note else "")
+            s.add(db.Event(joint_id=j.id, kind="failure-index", time=t, by=_who(by), note=text,
+                           epoch_id=ep[-1].id if ep else None))
+        return {"joint": joint, "kind": "failure-index", "time": _iso(t), "by": _who(by), "note": text,
+                "failure_index": rl.failure_index}
+
     # ------------------------------------------------------------------------------------------- tokens
     def create_token(self, name: str, read_only: bool) -> str:
         """A new API token (returned once; the store keeps its hash)."""
@@ -596,15 +616,18 @@ def _read_bytes(path: Path) -> bytes:
         raise FleetError(f"cannot read {path}: {exc.strerror or exc}") from None
 
 
-def prognosis_of(judged: list, last) -> dict:
+def _fmt_index(v: float | None) -> str:
+    return "none" if v is None else f"{v:g}"
+
+
+def prognosis_of(judged: list, last, failure_index: float | None = None) -> dict:
     """The onset and remaining life of a joint from its current epoch's recognised records in time order
     (:func:`rvdiag.prognostics.joint_prognosis`): ``onset_time`` and ``change_alarm_time`` (None before the change
-    detector alarms), ``change_evidence`` (the conformal test martingale's value; it alarms at 1/delta, so a healthy joint ever alarms
-    with probability at most delta, 1 % per joint-life), and ``rul``: ``{"estimated": false, "reason"}`` or the
-    remaining life's ``median_days``, ``p10_days``, ``p90_days``, ``p_before``.  The joint's first records fill the
-    detector's ranking pool (its commissioning records have no index against themselves).  A joint has no failure
-    threshold on its health index yet, so ``rul`` says so unless a broken tooth already decides it; the Python API
-    takes a threshold (docs/prognostics.md)."""
+    detector alarms), ``change_evidence`` (the conformal test martingale's value; it alarms at 1/delta, so a
+    healthy joint ever alarms with probability at most delta, 1 % per joint-life), and ``rul``: ``{"estimated":
+    false, "reason"}`` or the remaining life's ``median_days``, ``p10_days``, ``p90_days``, ``p_before``, counted to the joint's
+    ``failure_index`` (its rules; without one ``rul`` says how to set it).  The joint's first records fill the
+    detector's ranking pool (its commissioning records have no index against themselves)."""
     from rvdiag.errors import ParameterError
     from rvdiag.prognostics import joint_prognosis
 
@@ -614,10 +637,14 @@ def prognosis_of(judged: list, last) -> dict:
                 "rul": {"estimated": False, "reason": "no recognised record with a health index yet"}}
     try:
         p = joint_prognosis([r.time for r in recs], health_index=[float(r.health_index) for r in recs],
-                            baseline_scores=[], threshold=None,
+                            baseline_scores=[], threshold=failure_index,
                             fault_state=None if last is None else last.fault_state).to_dict()
     except ParameterError as exc:
         return {"onset_time": None, "change_alarm_time": None, "change_evidence": None,
                 "rul": {"estimated": False, "reason": str(exc)}}
+    rul = p["rul"]
+    if failure_index is None and not rul.get("estimated") and "threshold" in str(rul.get("reason")):
+        rul = {**rul, "reason": "the joint has no failure index (the health index its remaining life is counted "
+                                "to): set one with 'rvdiag fleet set JOINT --failure-index X'"}
     return {"onset_time": p["onset_time"], "change_alarm_time": p["alarm_time"], "change_evidence": p["evidence"],
-            "rul": p["rul"]}
+            "rul": rul}

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rvdiag.errors import GeometryError, ParameterError
+from rvdiag.validation import finite_number, number
 
 #: default torque on one disc about its centre: half the RV-20E rated output torque 167 N m
 #: (Nabtesco RV-E catalog, as quoted) for the two discs
@@ -101,10 +102,8 @@ def pin_contact(stage2, material, crank_angle_rad: float, torque_N_m: float = DE
     """
     if direction not in (1, -1):
         raise ParameterError(f"direction must be 1 or -1, got {direction!r}")
-    if not (isinstance(torque_N_m, (int, float)) and math.isfinite(torque_N_m) and torque_N_m >= 0):
-        raise ParameterError(f"torque_N_m must be a finite number >= 0, got {torque_N_m!r}")
-    if not math.isfinite(crank_angle_rad):
-        raise ParameterError(f"crank_angle_rad must be finite, got {crank_angle_rad!r}")
+    finite_number(torque_N_m, "torque_N_m", 0)
+    number(crank_angle_rad, "crank_angle_rad")
     zp, zc = stage2.pins, stage2.cycloid_lobes
     rp, rrp, e = stage2.pin_circle_radius, stage2.pin_radius, stage2.eccentricity
     k1 = e * zp / rp

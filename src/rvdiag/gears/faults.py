@@ -54,15 +54,7 @@ import numpy as np
 
 from rvdiag.errors import GeometryError, ParameterError
 from rvdiag.gears.geometry import Gear, GearPair
-
-
-def _finite(name: str, value: float) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ParameterError(f"{name} must be a number, got {value!r}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise ParameterError(f"{name} must be finite, got {value!r}")
-    return value
+from rvdiag.validation import number, positive
 
 
 #: The default severities of the T1..T8 states (SI; angles in degrees), keyed by :meth:`ToothFaults.for_state`'s
@@ -103,10 +95,10 @@ class Wear:
     shape: tuple[tuple[float, ...], tuple[float, ...]] | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
-        d = _finite("wear depth", self.depth)
+        d = number(self.depth, "wear depth")
         if d < 0:
             raise ParameterError(f"wear depth must be >= 0, got {d!r} m")
-        r = _finite("wear run-in deflection", self.run_in_deflection)
+        r = number(self.run_in_deflection, "wear run-in deflection")
         if r < 0:
             raise ParameterError(f"wear run-in deflection must be >= 0, got {r!r} m")
         object.__setattr__(self, "depth", d)
@@ -137,8 +129,8 @@ class RootCrack:
     angle_deg: float = DEFAULT_SEVERITIES["crack_angle_deg"]
 
     def __post_init__(self) -> None:
-        d = _finite("crack depth", self.depth)
-        a = _finite("crack angle", self.angle_deg)
+        d = number(self.depth, "crack depth")
+        a = number(self.angle_deg, "crack angle")
         if d < 0:
             raise ParameterError(f"crack depth must be >= 0, got {d!r} m")
         if not 0.0 < a < 90.0:
@@ -179,7 +171,7 @@ class BrokenTooth:
     fraction: float = DEFAULT_SEVERITIES["broken_fraction"]
 
     def __post_init__(self) -> None:
-        f = _finite("broken fraction", self.fraction)
+        f = number(self.fraction, "broken fraction")
         if not 0.0 < f <= 1.0:
             raise ParameterError(f"broken fraction must lie in (0, 1], got {f!r}")
         object.__setattr__(self, "fraction", f)
@@ -192,17 +184,10 @@ class BrokenTooth:
 def _fraction(name: str, value: float, lo: float, hi: float, *, open_hi: bool = False,
               open_lo: bool = False) -> float:
     """``value`` as a float in [lo, hi] (ends excluded where ``open_lo``/``open_hi``), else one ParameterError."""
-    v = _finite(name, value)
+    v = number(value, name)
     if (v < lo or (open_lo and v == lo)) or (v > hi or (open_hi and v == hi)):
         raise ParameterError(f"{name} must lie in {'(' if open_lo else '['}{lo:g}, {hi:g}{')' if open_hi else ']'}, "
                              f"got {v!r}")
-    return v
-
-
-def _positive(name: str, value: float) -> float:
-    v = _finite(name, value)
-    if v <= 0:
-        raise ParameterError(f"{name} must be > 0, got {v!r} m")
     return v
 
 
@@ -370,8 +355,8 @@ class Pitting:
     def __post_init__(self) -> None:
         object.__setattr__(self, "area_fraction",
                            _fraction("pitting area fraction", self.area_fraction, 0.0, math.pi / 4, open_hi=True))
-        object.__setattr__(self, "radius", _positive("pit radius", self.radius))
-        object.__setattr__(self, "depth", _positive("pit depth", self.depth))
+        object.__setattr__(self, "radius", positive(self.radius, "pit radius", unit=" m"))
+        object.__setattr__(self, "depth", positive(self.depth, "pit depth", unit=" m"))
         object.__setattr__(self, "band_fraction",
                            _fraction("pitting band fraction", self.band_fraction, 0.0, 1.0, open_lo=True))
         if self.centre_fraction is not None:
@@ -448,7 +433,7 @@ class Spalling:
                            _fraction("spall width fraction", self.width_fraction, 0.0, 1.0))
         object.__setattr__(self, "length_fraction",
                            _fraction("spall length fraction", self.length_fraction, 0.0, 1.0, open_lo=True))
-        object.__setattr__(self, "depth", _positive("spall depth", self.depth))
+        object.__setattr__(self, "depth", positive(self.depth, "spall depth", unit=" m"))
         if self.centre_fraction is not None:
             object.__setattr__(self, "centre_fraction",
                                _fraction("spall centre fraction", self.centre_fraction, 0.0, 1.0))

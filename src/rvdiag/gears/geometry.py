@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rvdiag.errors import GeometryError, ParameterError
+from rvdiag.validation import number, positive, whole_number
 
 #: number of samples of the fillet and of the involute in a tooth profile table
 FILLET_POINTS = 400
@@ -60,17 +61,6 @@ def inverse_involute(value: float) -> float:
             break
         a = a_new
     return a
-
-
-def _check_number(name: str, value: float, *, positive: bool = True, integer: bool = False) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ParameterError(f"{name} must be a number, got {value!r}")
-    if not math.isfinite(value):
-        raise ParameterError(f"{name} must be finite, got {value!r}")
-    if integer and int(value) != value:
-        raise ParameterError(f"{name} must be a whole number, got {value!r}")
-    if positive and value <= 0:
-        raise ParameterError(f"{name} must be > 0, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -126,17 +116,16 @@ class Gear:
     name: str = field(default="gear", compare=False)
 
     def __post_init__(self) -> None:
-        _check_number(f"{self.name}: teeth", self.teeth, integer=True)
+        whole_number(self.teeth, f"{self.name}: teeth")
+        positive(self.teeth, f"{self.name}: teeth")
         if self.teeth < 3:
             raise GeometryError(f"{self.name}: teeth must be at least 3, got {self.teeth}")
         object.__setattr__(self, "teeth", int(self.teeth))
         for key in ("module", "face_width", "youngs_modulus", "addendum_coefficient",
                     "dedendum_coefficient"):
-            _check_number(f"{self.name}: {key}", getattr(self, key))
-        _check_number(f"{self.name}: profile_shift", self.profile_shift, positive=False)
-        _check_number(f"{self.name}: root_fillet_coefficient", self.root_fillet_coefficient,
-                      positive=False)
-        _check_number(f"{self.name}: poisson_ratio", self.poisson_ratio, positive=False)
+            positive(getattr(self, key), f"{self.name}: {key}")
+        for key in ("profile_shift", "root_fillet_coefficient", "poisson_ratio"):
+            number(getattr(self, key), f"{self.name}: {key}")
         if not 0.0 <= self.poisson_ratio < 0.5:
             raise ParameterError(f"{self.name}: poisson_ratio must lie in [0, 0.5), got {self.poisson_ratio}")
         if not 0.0 < self.pressure_angle_deg < 45.0:
@@ -146,7 +135,7 @@ class Gear:
             raise ParameterError(f"{self.name}: root_fillet_coefficient must be >= 0")
         if self.bore_radius is None:
             object.__setattr__(self, "bore_radius", 0.5 * self.root_radius)
-        _check_number(f"{self.name}: bore_radius", self.bore_radius)
+        positive(self.bore_radius, f"{self.name}: bore_radius")
         if self.bore_radius >= self.root_radius:
             raise GeometryError(
                 f"{self.name}: bore_radius {self.bore_radius:.4g} m must be smaller than the root "

@@ -55,6 +55,7 @@ from rvdiag.errors import ModelRangeWarning, ParameterError
 from rvdiag.gears.faults import (DamagedProfile, FlankLoss, ToothFaults, damaged_profile, flank_deviation,
                                  has_flank_deviation)
 from rvdiag.gears.geometry import Gear, GearPair
+from rvdiag.validation import positive
 
 # Sainsot, Velex & Duverger (2004), Table 1: rows L*, M*, P*, Q*;
 # columns A, B, C, D, E, F of X* = A/theta_f^2 + B h_fi^2 + C h_fi/theta_f + D/theta_f + E h_fi + F
@@ -331,9 +332,7 @@ class MeshStiffnessResult:
         sorted by e_i, delta lies in the first interval [e_(j), e_(j+1)) where the force at its upper end reaches
         F.  Infinite where no pair in contact has stiffness.
         """
-        force = float(force_N)
-        if not force > 0:
-            raise ParameterError(f"force must be > 0, got {force_N!r} N")
+        force = positive(force_N, "force", unit=" N")
         k = self.pair_stiffness_N_per_m
         e = np.zeros_like(k) if self.pair_profile_error_m is None else self.pair_profile_error_m
         on = k > 0

@@ -61,6 +61,7 @@ from rvdiag.errors import ParameterError
 from rvdiag.gears.faults import Wear, sliding_ratio
 from rvdiag.gears.geometry import GearPair
 from rvdiag.gears.tvms import tooth_pair_components
+from rvdiag.validation import finite_number
 
 #: span of dimensional wear coefficients (m^2/N) for lubricated steel gears in mild wear (module docstring):
 #: well lubricated (mixed EHL; the default, module docstring), the upper bound that an RV reducer's measured
@@ -90,9 +91,7 @@ class DutyCycle:
     def __post_init__(self) -> None:
         for name, value in (("output speed", self.output_speed_deg_s), ("load", self.load_Nm),
                             ("moving fraction", self.moving_fraction)):
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-                    or not math.isfinite(value) or value < 0:
-                raise ParameterError(f"duty cycle {name} must be a finite number >= 0, got {value!r}")
+            finite_number(value, f"duty cycle {name}", 0)
         if self.moving_fraction > 1:
             raise ParameterError(f"duty cycle moving fraction must be <= 1, got {self.moving_fraction!r}")
 

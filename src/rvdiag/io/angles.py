@@ -39,6 +39,7 @@ import numpy as np
 
 from rvdiag.errors import DataFileError, ParameterError
 from rvdiag.spectral import amplitude_spectrum, peak_frequency
+from rvdiag.validation import finite_number, positive
 
 #: a tachometer interval longer than this many times the median of its neighbours is a missing pulse
 LONG_INTERVAL = 1.5
@@ -63,9 +64,7 @@ ANGLE_SOURCES = ("angle-channel", "counter", "tacho", "stored-angle", "meta", "i
 # --------------------------------------------------------------------------- constant speed
 def angle_from_speed(n: int, fs: float, rev_per_s: float) -> np.ndarray:
     """Revolutions of a shaft turning at a constant ``rev_per_s`` at each of ``n`` samples."""
-    if not (math.isfinite(rev_per_s) and rev_per_s > 0):
-        raise ParameterError(f"shaft speed must be > 0 rev/s, got {rev_per_s}")
-    return np.arange(int(n)) * (float(rev_per_s) / float(fs))
+    return np.arange(int(n)) * (positive(rev_per_s, "shaft speed", unit=" rev/s") / float(fs))
 
 
 # --------------------------------------------------------------------------- encoders
@@ -379,8 +378,8 @@ class AngleSpec:
             if isinstance(self.ppr, bool) or not isinstance(self.ppr, (int, np.integer)) or self.ppr < 1:
                 raise ParameterError(f"--ppr must be a positive integer, got {self.ppr!r}")
         for name, v in (("--input-speed", self.input_speed_rpm), ("--output-speed", self.output_speed_deg_s)):
-            if v is not None and not (math.isfinite(v) and v > 0):
-                raise ParameterError(f"{name} must be > 0, got {v}")
+            if v is not None:
+                finite_number(v, name, 0, strict=True, noun="a number")
         if self.meta_regex is not None:
             pat = _compile(self.meta_regex, "--meta-regex")
             if not set(SPEED_GROUPS) & set(pat.groupindex):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from rvdiag.errors import DataFileError, ParameterError
+from rvdiag.validation import integer
 
 
 def window(signal, length: int, hop: int | None = None) -> np.ndarray:
@@ -44,8 +45,8 @@ def window(signal, length: int, hop: int | None = None) -> np.ndarray:
     x = np.asarray(data, dtype=np.float64)
     if x.ndim != 1:
         raise ParameterError(f"window needs a 1-D signal, got shape {x.shape}")
-    length = _positive_int(length, "window length", minimum=2)
-    hop = length if hop is None else _positive_int(hop, "hop", minimum=1)
+    length = integer(length, "window length", 2)
+    hop = length if hop is None else integer(hop, "hop", 1)
     if length > x.size:
         raise DataFileError(f"{where} has {x.size} points, shorter than the window of {length}")
     n = (x.size - length) // hop + 1
@@ -88,11 +89,3 @@ def covering_starts(n_points: int, length: int, policy: str = "window") -> np.nd
     if k == 1:
         return np.array([0], dtype=np.int64)
     return np.round(np.linspace(0, n_points - length, k)).astype(np.int64)
-
-
-def _positive_int(value, what: str, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise ParameterError(f"{what} must be an integer, got {value!r}")
-    if value < minimum:
-        raise ParameterError(f"{what} must be at least {minimum}, got {value}")
-    return int(value)

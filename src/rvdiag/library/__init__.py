@@ -4,6 +4,9 @@
 - :mod:`rvdiag.library.config`: library configs (TOML) with validation;
 - :mod:`rvdiag.library.build`: the plan of simulations and the Dask build into a
   :class:`rvdiag.datasets.SampleStore`;
+- :mod:`rvdiag.library.paired`: paired libraries (``[baseline]``), each reducer recorded at commissioning and later;
+- :mod:`rvdiag.library.life`: life histories (``[history]``), each reducer recorded at commissioning and then over
+  its life along one drawn fate;
 - :mod:`rvdiag.library.synthetic`: a fast analytic stand-in simulator for testing the machinery.
 
 See ``docs/library.md``.

@@ -109,49 +109,119 @@ def _paired_plan(cfg: LibraryConfig) -> list[Unit]:
     """The units of a paired library (:mod:`rvdiag.library.paired`), reducer by reducer, each reducer's records in
     :meth:`BaselineConfig.schedule` order (its commissioning records first).
 
-    What makes the reducer is drawn once, from :func:`rvdiag.library.paired.reducer_seed`, in the order of
-    :func:`make_plan`'s draws: the noise level, the parameter scales, the path, the noise colour, the sensor, the
-    noise density, then its specimen (from the reducer seed's specimen stream).  Each record draws from its own
-    unit's stream: its severities, its operating point (monitored records: one of ``operating_points``, equally
-    likely), then its run-to-run factors; its speed and load are the point's times the speed and load factors.
-    A ``[profile]`` (the gravity arm alone) is drawn once per reducer, after its specimen: the joint's arm, the same
-    in every record of it (the load factor scales the constant torque, not the arm).
-    The last ``test_reducers`` reducers are the test set, every record of them."""
-    from rvdiag.library.paired import draw_variation, reducer_seed
+    What makes the reducer is drawn once, from :func:`rvdiag.library.paired.reducer_seed`
+    (:func:`_reducer_draws`).  Each record draws from its own unit's stream: its severities, its operating point
+    (monitored records: one of ``operating_points``, equally likely), then its run-to-run factors; its speed and load
+    are the point's times the speed and load factors (:func:`_record_unit`).
+    The last ``test_reducers`` reducers are the test set, every record of them.
 
+    With ``[history]`` (a life-history library, :mod:`rvdiag.library.life`) each reducer's records are its
+    commissioning records, then ``records`` monitored ones every ``interval_days``, along the reducer's drawn life
+    (:func:`_life_plan`)."""
+    if cfg.history is not None:
+        return _life_plan(cfg)
     b = cfg.baseline
     assert b is not None
     schedule = b.schedule(cfg.classes)
     seeds = unit_seeds(cfg.seed, cfg.n_simulations)
-    keys = scaled_keys(cfg)
-    n_points = len(b.operating_points)
-    units = []
+    units: list[Unit] = []
     for r in range(b.reducers):
-        r_seed = reducer_seed(cfg.seed, r)
-        rng = np.random.default_rng(_streams(r_seed)[0])
-        snr = None if cfg.noise_snr_db is None else cfg.noise_snr_db.draw(rng)
-        scales = {f"{s}.{key}": float(1.0 + pct / 100.0 * rng.uniform(-1.0, 1.0)) for s, key, pct in keys}
-        mounting = {key: float(sw.draw(rng)) for key, sw in cfg.path.items()}
-        colour = None if cfg.noise_colour_exponent is None else float(cfg.noise_colour_exponent.draw(rng))
-        sensor = {key: float(sw.draw(rng)) for key, sw in cfg.sensor.items()}
-        density = None if cfg.noise_density_ug_per_rthz is None else float(cfg.noise_density_ug_per_rthz.draw(rng))
-        specimen = draw_specimen(specimen_seed(r_seed), cfg.iso1328_grade) if cfg.specimen else {}
-        # the joint's gravity arm (a [profile] of arm keys only): one per reducer, drawn last, so every record of
-        # the reducer, commissioning ones included, repeats one motion from one arm angle
-        arm = _draw_profile(cfg.profile, rng) if cfg.profile is not None else {}
-        split = "test" if r >= b.reducers - b.test_reducers else "train"
+        reducer, _ = _reducer_draws(cfg, r)
         for k, (role, state, point) in enumerate(schedule):
-            u = len(units)
-            rng = np.random.default_rng(_streams(seeds[u])[0])
-            severity = {p: sw.draw(rng) for p, sw in cfg.states[state].items()}
-            draw = rng.random()  # always drawn, so that every record's stream stays aligned
-            if point is None:
-                point = min(int(draw * n_points), n_points - 1)
-            variation = draw_variation(rng, b.variation)
-            speed, load = b.operating_points[point]
-            units.append(Unit(u, state, k, seeds[u], severity, speed * variation["speed"], load * variation["load"],
-                              snr, scales, split, cfg.rows_per_simulation(state), mounting, colour, arm, sensor,
-                              specimen, density, reducer=r, role=role, operating_point=point, variation=variation))
+            units.append(_record_unit(cfg, reducer, len(units), seeds[len(units)], k, role, state, point))
+    return units
+
+
+def _reducer_draws(cfg: LibraryConfig, r: int) -> tuple[dict[str, Any], np.random.Generator]:
+    """What makes reducer ``r`` of a paired library (the :class:`Unit` fields every record of it shares), and its
+    stream, from which a life history goes on drawing (:func:`rvdiag.library.life.draw_life`).
+
+    Drawn once, from :func:`rvdiag.library.paired.reducer_seed`, in the order of :func:`make_plan`'s draws: the noise
+    level, the parameter scales, the path, the noise colour, the sensor, the noise density, then its specimen (from
+    the reducer seed's specimen stream).  A ``[profile]`` (the gravity arm alone) is drawn once per reducer, after its
+    specimen: the joint's arm, the same in every record of it (the load factor scales the constant torque, not the
+    arm)."""
+    from rvdiag.library.paired import reducer_seed
+
+    b = cfg.baseline
+    assert b is not None
+    r_seed = reducer_seed(cfg.seed, r)
+    rng = np.random.default_rng(_streams(r_seed)[0])
+    snr = None if cfg.noise_snr_db is None else cfg.noise_snr_db.draw(rng)
+    scales = {f"{s}.{key}": float(1.0 + pct / 100.0 * rng.uniform(-1.0, 1.0)) for s, key, pct in scaled_keys(cfg)}
+    mounting = {key: float(sw.draw(rng)) for key, sw in cfg.path.items()}
+    colour = None if cfg.noise_colour_exponent is None else float(cfg.noise_colour_exponent.draw(rng))
+    sensor = {key: float(sw.draw(rng)) for key, sw in cfg.sensor.items()}
+    density = None if cfg.noise_density_ug_per_rthz is None else float(cfg.noise_density_ug_per_rthz.draw(rng))
+    specimen = draw_specimen(specimen_seed(r_seed), cfg.iso1328_grade) if cfg.specimen else {}
+    # the joint's gravity arm (a [profile] of arm keys only): one per reducer, drawn last, so every record of
+    # the reducer, commissioning ones included, repeats one motion from one arm angle
+    arm = _draw_profile(cfg.profile, rng) if cfg.profile is not None else {}
+    split = "test" if r >= b.reducers - b.test_reducers else "train"
+    return dict(noise_snr_db=snr, scales=scales, mounting=mounting, noise_exponent=colour, profile=arm,
+                sensor=sensor, specimen=specimen, noise_density=density, reducer=r, split=split), rng
+
+
+def _record_unit(cfg: LibraryConfig, reducer: Mapping[str, Any], u: int, seed: int, k: int, role: str, state: str,
+                 point: int | None, severity: Mapping[str, float] | None = None,
+                 life: Mapping[str, Any] | None = None) -> Unit:
+    """Record ``k`` of a reducer (``reducer``: :func:`_reducer_draws`) as unit ``u`` of seed ``seed``, from its own
+    stream: its severities (drawn from ``[states]`` unless given: a life history's), its operating point (``None``:
+    one of ``operating_points``, equally likely; always drawn, so that every record's stream stays aligned), then its
+    run-to-run factors (:func:`rvdiag.library.paired.draw_variation`)."""
+    from rvdiag.library.paired import draw_variation
+
+    b = cfg.baseline
+    assert b is not None
+    n_points = len(b.operating_points)
+    rng = np.random.default_rng(_streams(seed)[0])
+    if severity is None:
+        severity = {p: sw.draw(rng) for p, sw in cfg.states[state].items()}
+    draw = rng.random()
+    if point is None:
+        point = min(int(draw * n_points), n_points - 1)
+    variation = draw_variation(rng, b.variation)
+    speed, load = b.operating_points[point]
+    return Unit(u, state, k, seed, dict(severity), speed * variation["speed"], load * variation["load"],
+                rows=cfg.rows_per_simulation(state), role=role, operating_point=point, variation=variation,
+                life=dict(life or {}), **reducer)
+
+
+def _life_plan(cfg: LibraryConfig) -> list[Unit]:
+    """The units of a life-history library (:mod:`rvdiag.library.life`): reducer by reducer, what makes the reducer
+    (:func:`_reducer_draws`), then its life from the same stream (:func:`rvdiag.library.life.draw_life`); its
+    commissioning records (role ``"baseline"``, T1, time 0, point by point as a paired library's), then ``records``
+    monitored records at ``interval_days * (1 .. records)``, each its own unit and stream (:func:`_record_unit`: no
+    severity draw, its operating point, its run-to-run factors), its state and severities those of the life's size
+    at its time (:meth:`rvdiag.library.life.Life.record`)."""
+    from rvdiag.gears.growth import sun_root_chord
+    from rvdiag.library.life import draw_life
+    from rvdiag.library.states import SEVERITY_PARAMETERS
+
+    b, h = cfg.baseline, cfg.history
+    assert b is not None and h is not None
+    params = cfg.reducer_params()
+    if "crack" in h.fates and h.fates["crack"] > 0:
+        a_fail, hi = h.crack_failure_fraction * sun_root_chord(params), SEVERITY_PARAMETERS["crack_depth"].hi
+        if a_fail > hi:
+            raise ConfigError(f"{cfg.source}: [history] crack_failure_fraction: {h.crack_failure_fraction:g} of the "
+                              f"sun tooth's root chord is {a_fail * 1e3:.3g} mm, deeper than the {hi * 1e3:g} mm a "
+                              "root crack may be (crack_depth)")
+    seeds = unit_seeds(cfg.seed, cfg.n_simulations)
+    commissioning = [i for i in range(len(b.operating_points)) for _ in range(b.records_per_point)]
+    units: list[Unit] = []
+    for r in range(b.reducers):
+        reducer, rng = _reducer_draws(cfg, r)
+        life = draw_life(h, rng, params)
+        times = [0.0] * len(commissioning) + [h.interval_days * (j + 1) for j in range(h.records)]
+        for k, days in enumerate(times):
+            base = k < len(commissioning)
+            state, severity, truth = life.record(k, days)
+            if base:  # commissioning: healthy at its point, whatever the fate
+                state, severity = "T1", {}
+            units.append(_record_unit(cfg, reducer, len(units), seeds[len(units)], k,
+                                      "baseline" if base else "monitored", state,
+                                      commissioning[k] if base else None, severity, truth))
     return units
 
 

@@ -37,6 +37,7 @@ Examples
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,6 +48,7 @@ import numpy as np
 from rvdiag.errors import ConfigError, ParameterError
 from rvdiag.library.states import SEVERITY_PARAMETERS, STATES
 from rvdiag.tomlfile import read_toml
+from rvdiag.validation import number, positive, whole_number
 
 #: ``[signal] transient_s`` when a config leaves it out: the model's run-in (``ModelSettings.transient_s``,
 #: docs/model.md section 7), the default of ``rvdiag simulate --transient`` too (tests/test_library_config.py
@@ -127,7 +129,7 @@ DAMPING_KEYS: tuple[tuple[str, str], ...] = (
 )
 
 _TOP_KEYS = {"name", "mode", "seed", "simulator", "params", "channel", "model",
-             "signal", "operation", "randomise", "profile", "split", "states", "baseline"}
+             "signal", "operation", "randomise", "profile", "split", "states", "baseline", "history"}
 _SECTION_KEYS = {
     "signal": {"fs", "duration_s", "transient_s", "segment_length", "hop"},
     "operation": {"input_speed_rpm", "output_speed_deg_s", "load_Nm", "noise_snr_db", "noise_mode",
@@ -141,6 +143,10 @@ _SECTION_KEYS = {
               "simulations_per_state", "test_simulations_per_state", "reducers", "test_reducers"},
     "baseline": {"operating_points", "records_per_point", "monitored_healthy", "monitored_per_state",
                  "load_pct", "speed_pct", "temperature_pct", "mesh_damping_pct", "gain_pct"},
+    "history": {"records", "interval_days", "duty_speed_deg_s", "duty_load_Nm", "moving_fraction", "fates",
+                "onset_days", "wear_coefficient", "wear_failure_m", "crack_initial_m", "crack_angle_deg",
+                "crack_days", "crack_failure_fraction", "broken_fraction", "sensor_fault_share",
+                "sensor_fault_kinds"},
 }
 
 
@@ -200,22 +206,10 @@ class Sweep:
         return {"min": self.values[0], "max": self.values[1]}
 
 
-def _number(raw: Any, where: str) -> float:
-    if isinstance(raw, bool) or not isinstance(raw, (int, float)):
-        raise ConfigError(f"{where}: expected a number, got {raw!r}")
-    value = float(raw)
-    if not math.isfinite(value):
-        raise ConfigError(f"{where}: must be finite, got {raw!r}")
-    return value
-
-
-def _int(raw: Any, where: str, minimum: int) -> int:
-    value = _number(raw, where)
-    if value != int(value):
-        raise ConfigError(f"{where}: expected a whole number, got {raw!r}")
-    if value < minimum:
-        raise ConfigError(f"{where}: must be >= {minimum}, got {int(value)}")
-    return int(value)
+#: a config key's number checks (rvdiag.validation's, in the ConfigError form "file [section] key: ...")
+_number = functools.partial(number, error=ConfigError)
+_int = functools.partial(whole_number, error=ConfigError)
+_positive = functools.partial(positive, error=ConfigError)
 
 
 def _bounded_sweeps(raw: Mapping[str, Any], bounds: Mapping[str, tuple[float, float]], w: str) -> dict[str, Sweep]:
@@ -235,13 +229,6 @@ def _positive_sweep(raw: Any, where: str) -> Sweep:
     if sweep.lo <= 0:
         raise ConfigError(f"{where}: must be > 0, got {sweep.lo:g}")
     return sweep
-
-
-def _positive(raw: Any, where: str) -> float:
-    value = _number(raw, where)
-    if value <= 0:
-        raise ConfigError(f"{where}: must be > 0, got {value:g}")
-    return value
 
 
 #: ``[profile]`` gravity-arm keys, each a sweep, with the range it must lie in
@@ -391,8 +378,8 @@ def _parse_baseline(raw: Mapping[str, Any], spl: Mapping[str, Any], w: str, ws: 
                               "monitored_per_state); give [split] reducers and test_reducers")
     if "reducers" not in spl:
         raise ConfigError(f"{ws} reducers: missing (simulated reducers of the paired library)")
-    reducers = _int(spl["reducers"], f"{ws} reducers", 1)
-    test = _int(spl.get("test_reducers", 0), f"{ws} test_reducers", 0)
+    reducers = _int(spl["reducers"], f"{ws} reducers", minimum=1)
+    test = _int(spl.get("test_reducers", 0), f"{ws} test_reducers", minimum=0)
     if test >= reducers:
         raise ConfigError(f"{ws} test_reducers: {test} leaves no training reducer out of reducers = {reducers}")
     pts = raw.get("operating_points")
@@ -417,10 +404,160 @@ def _parse_baseline(raw: Mapping[str, Any], spl: Mapping[str, Any], w: str, ws: 
             raise ConfigError(f"{w} {key}_pct: must lie in [0, 100) percent, got {variation[key]:g}")
     return BaselineConfig(
         operating_points=tuple(points), reducers=reducers, test_reducers=test,
-        records_per_point=_int(raw.get("records_per_point", 1), f"{w} records_per_point", 1),
-        monitored_healthy=_int(raw.get("monitored_healthy", 1), f"{w} monitored_healthy", 0),
-        monitored_per_state=_int(raw.get("monitored_per_state", 1), f"{w} monitored_per_state", 0),
+        records_per_point=_int(raw.get("records_per_point", 1), f"{w} records_per_point", minimum=1),
+        monitored_healthy=_int(raw.get("monitored_healthy", 1), f"{w} monitored_healthy", minimum=0),
+        monitored_per_state=_int(raw.get("monitored_per_state", 1), f"{w} monitored_per_state", minimum=0),
         variation=variation)
+
+
+@dataclass(frozen=True)
+class HistoryConfig:
+    """The ``[history]`` table of a life-history library (:mod:`rvdiag.library.life`, docs/library.md "Life
+    histories"): after its commissioning records each reducer has ``records`` monitored records, one every
+    ``interval_days``, along one fate drawn by the shares ``fates``, under a steady duty cycle (output speed, load,
+    moving share of the hours).  Defaults: those of the synthetic histories (:class:`rvdiag.prognostics.synthetic.
+    HistorySpec`): onset 30-200 days, wear coefficient 1e-17..3e-17 m^2/N (log-uniform) failing at 20 um, a 0.1 mm
+    root crack at 30-60 deg breaking after 40-200 days at half the sun tooth's root chord, broken fraction 0.3-1."""
+
+    records: int
+    interval_days: float
+    fates: Mapping[str, float]
+    duty_speed_deg_s: float = 30.0
+    duty_load_Nm: float = 120.0
+    moving_fraction: float = 0.5
+    onset_days: Sweep = Sweep("uniform", (30.0, 200.0))
+    wear_coefficient: Sweep = Sweep("uniform", (1.0e-17, 3.0e-17))
+    wear_failure_m: float = 20.0e-6
+    crack_initial_m: float = 1.0e-4
+    crack_angle_deg: Sweep = Sweep("uniform", (30.0, 60.0))
+    crack_days: Sweep = Sweep("uniform", (40.0, 200.0))
+    crack_failure_fraction: float = 0.5
+    broken_fraction: Sweep = Sweep("uniform", (0.3, 1.0))
+    sensor_fault_share: float = 0.0
+    sensor_fault_kinds: tuple[str, ...] = ("dead", "clipped", "disconnected")
+
+    @property
+    def horizon_days(self) -> float:
+        """The last record's time (days since commissioning)."""
+        return self.records * self.interval_days
+
+    def states(self) -> list[str]:
+        """The states the configured fates pass through, in T-number order (T1 always)."""
+        from rvdiag.library.life import FATE_STATES
+
+        used = {"T1"} | {s for f, share in self.fates.items() if share > 0 for s in FATE_STATES[f]}
+        return [s for s in STATES if s in used]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"records": self.records, "interval_days": self.interval_days,
+                "duty_speed_deg_s": self.duty_speed_deg_s, "duty_load_Nm": self.duty_load_Nm,
+                "moving_fraction": self.moving_fraction, "fates": dict(self.fates),
+                "onset_days": self.onset_days.to_toml(), "wear_coefficient": self.wear_coefficient.to_toml(),
+                "wear_failure_m": self.wear_failure_m, "crack_initial_m": self.crack_initial_m,
+                "crack_angle_deg": self.crack_angle_deg.to_toml(), "crack_days": self.crack_days.to_toml(),
+                "crack_failure_fraction": self.crack_failure_fraction,
+                "broken_fraction": self.broken_fraction.to_toml(), "sensor_fault_share": self.sensor_fault_share,
+                "sensor_fault_kinds": list(self.sensor_fault_kinds)}
+
+
+def _parse_history(raw: Mapping[str, Any], w: str) -> HistoryConfig:
+    """Validate a ``[history]`` table (``w``: "FILE: [history]"); every error names its key."""
+    from rvdiag.library.life import FATE_STATES, SENSOR_FAULTS
+
+    for key in ("records", "interval_days", "fates"):
+        if key not in raw:
+            raise ConfigError(f"{w} {key}: missing")
+    d = HistoryConfig(records=1, interval_days=1.0, fates={})
+    fates_raw = raw["fates"]
+    if not isinstance(fates_raw, Mapping) or not fates_raw:
+        raise ConfigError(f"{w} fates: a table of shares per fate, e.g. {{healthy = 0.5, wear = 0.2, crack = 0.2, "
+                          "broken = 0.1}")
+    fates = {}
+    for fate, share in fates_raw.items():
+        if fate in ("pitting", "spalling"):
+            raise ConfigError(f"{w} fates: {fate!r} is not grown by a life history yet (no area-growth law); "
+                              f"known: {', '.join(FATE_STATES)}")
+        if fate not in FATE_STATES:
+            raise ConfigError(f"{w} fates: unknown fate {fate!r}; known: {', '.join(FATE_STATES)}")
+        fates[fate] = _number(share, f"{w} fates.{fate}")
+        if fates[fate] < 0:
+            raise ConfigError(f"{w} fates.{fate}: a share must be >= 0, got {fates[fate]:g}")
+    if abs(sum(fates.values()) - 1.0) > 1e-9:
+        raise ConfigError(f"{w} fates: the shares must add up to 1, got {sum(fates.values()):g}")
+    fates = {f: fates[f] for f in FATE_STATES if f in fates}  # canonical order
+
+    def positive(key: str, default: float) -> float:
+        return _positive(raw.get(key, default), f"{w} {key}")
+
+    def within(key: str, default: Sweep, lo: float, hi: float) -> Sweep:
+        sweep = Sweep.parse(raw.get(key, default.to_toml()), f"{w} {key}")
+        if not (lo <= sweep.lo and sweep.hi <= hi):
+            raise ConfigError(f"{w} {key}: must lie in [{lo:g}, {hi:g}], got {sweep.lo:g}..{sweep.hi:g}")
+        return sweep
+
+    moving = positive("moving_fraction", d.moving_fraction)
+    if moving > 1:
+        raise ConfigError(f"{w} moving_fraction: the share of the hours the joint moves, in (0, 1], got {moving:g}")
+    wear_fail = _number(raw.get("wear_failure_m", d.wear_failure_m), f"{w} wear_failure_m")
+    wp = SEVERITY_PARAMETERS["wear_depth"]
+    if not wp.lo <= wear_fail <= wp.hi:
+        raise ConfigError(f"{w} wear_failure_m: must lie in wear_depth's valid range [{wp.lo:g}, {wp.hi:g}] m, "
+                          f"got {wear_fail:g}")
+    crack_fraction = positive("crack_failure_fraction", d.crack_failure_fraction)
+    if crack_fraction >= 1:
+        raise ConfigError(f"{w} crack_failure_fraction: the share of the sun tooth's root chord at which the "
+                          f"tooth breaks, in (0, 1), got {crack_fraction:g}")
+    a0 = positive("crack_initial_m", d.crack_initial_m)
+    if a0 >= SEVERITY_PARAMETERS["crack_depth"].hi:
+        raise ConfigError(f"{w} crack_initial_m: must be below crack_depth's upper end "
+                          f"{SEVERITY_PARAMETERS['crack_depth'].hi:g} m, got {a0:g}")
+    share = _number(raw.get("sensor_fault_share", d.sensor_fault_share), f"{w} sensor_fault_share")
+    if not 0.0 <= share <= 1.0:
+        raise ConfigError(f"{w} sensor_fault_share: the share of reducers whose sensor fails, in [0, 1], got "
+                          f"{share:g}")
+    kinds = raw.get("sensor_fault_kinds", list(d.sensor_fault_kinds))
+    if not isinstance(kinds, (list, tuple)) or not kinds or any(k not in SENSOR_FAULTS for k in kinds) \
+            or len(set(kinds)) != len(kinds):
+        raise ConfigError(f"{w} sensor_fault_kinds: a list of distinct kinds among {', '.join(SENSOR_FAULTS)}, got "
+                          f"{kinds!r}")
+    ap, bp = SEVERITY_PARAMETERS["crack_angle_deg"], SEVERITY_PARAMETERS["broken_fraction"]
+    return HistoryConfig(
+        records=_int(raw["records"], f"{w} records", minimum=1),
+        interval_days=positive("interval_days", 1.0),
+        fates=fates,
+        duty_speed_deg_s=positive("duty_speed_deg_s", d.duty_speed_deg_s),
+        duty_load_Nm=positive("duty_load_Nm", d.duty_load_Nm),
+        moving_fraction=moving,
+        onset_days=_positive_sweep(raw.get("onset_days", d.onset_days.to_toml()), f"{w} onset_days"),
+        wear_coefficient=within("wear_coefficient", d.wear_coefficient, 1e-20, 1e-13),
+        wear_failure_m=wear_fail,
+        crack_initial_m=a0,
+        crack_angle_deg=within("crack_angle_deg", d.crack_angle_deg, ap.lo, ap.hi),
+        crack_days=_positive_sweep(raw.get("crack_days", d.crack_days.to_toml()), f"{w} crack_days"),
+        crack_failure_fraction=crack_fraction,
+        broken_fraction=within("broken_fraction", d.broken_fraction, bp.lo, bp.hi),
+        sensor_fault_share=share,
+        sensor_fault_kinds=tuple(kinds),
+    )
+
+
+def _history_states(raw_states: Any, history: HistoryConfig, source: str) -> dict[str, Any]:
+    """The ``[states]`` of a life-history config: those its fates pass through (:meth:`HistoryConfig.states`) when the
+    file gives none; else the file's, which must hold them and no severity (a history grows its own)."""
+    need = history.states()
+    if raw_states is None:
+        return {s: {} for s in need}
+    if not isinstance(raw_states, Mapping):
+        return raw_states
+    for sname, raw in raw_states.items():
+        if isinstance(raw, Mapping) and raw:
+            raise ConfigError(f"{source}: [states.{sname}] {sorted(raw)[0]}: a life history grows its severities by "
+                              "[history]; remove it")
+    missing = [s for s in need if s not in raw_states]
+    if missing:
+        raise ConfigError(f"{source}: [history] fates: the fates reach {', '.join(need)}; add [states.{missing[0]}] "
+                          "(or leave [states] out)")
+    return raw_states
 
 
 # ---------------------------------------------------------------------- the config
@@ -466,6 +603,8 @@ class LibraryConfig:
     noise_density_ug_per_rthz: Sweep | None = None
     #: the ``[baseline]`` table of a paired library (:class:`BaselineConfig`), ``None``: not paired
     baseline: BaselineConfig | None = None
+    #: the ``[history]`` table of a life-history library (:class:`HistoryConfig`, with ``baseline``), else ``None``
+    history: HistoryConfig | None = None
     train_per_state: int = 0
     test_per_state: int = 0
     assign: str = "random"
@@ -516,7 +655,16 @@ class LibraryConfig:
         return self.baseline is not None
 
     @property
+    def commissioning_records(self) -> int:
+        """Commissioning records per reducer of a paired library (0 otherwise)."""
+        if self.baseline is None:
+            return 0
+        return len(self.baseline.operating_points) * self.baseline.records_per_point
+
+    @property
     def n_simulations(self) -> int:
+        if self.history is not None and self.baseline is not None:
+            return self.baseline.reducers * (self.commissioning_records + self.history.records)
         if self.baseline is not None:
             return self.baseline.reducers * len(self.baseline.schedule(self.classes))
         return len(self.states) * self.simulations_per_state
@@ -577,7 +725,7 @@ class LibraryConfig:
             raise ConfigError(f"{source}: mode: must be one of {', '.join(MODES)}, got {mode!r}")
         if "seed" not in data:
             raise ConfigError(f"{source}: seed: missing (every random draw derives from it)")
-        seed = _int(data["seed"], f"{source}: seed", 0)
+        seed = _int(data["seed"], f"{source}: seed", minimum=0)
         name = data.get("name", Path(source).stem if source != "<dict>" else "library")
         if not isinstance(name, str):
             raise ConfigError(f"{source}: name: expected a string, got {name!r}")
@@ -606,8 +754,8 @@ class LibraryConfig:
         transient_s = _number(sig.get("transient_s", DEFAULT_TRANSIENT_S), f"{w} transient_s")
         if transient_s < 0:
             raise ConfigError(f"{w} transient_s: must be >= 0, got {transient_s:g}")
-        segment_length = _int(sig["segment_length"], f"{w} segment_length", 16)
-        hop = _int(sig.get("hop", segment_length), f"{w} hop", 1)
+        segment_length = _int(sig["segment_length"], f"{w} segment_length", minimum=16)
+        hop = _int(sig.get("hop", segment_length), f"{w} hop", minimum=1)
         n_keep = int(round(duration_s * fs))
         if segment_length > n_keep:
             raise ConfigError(
@@ -697,7 +845,17 @@ class LibraryConfig:
                                      move_s=transient_s + duration_s, model=model)
 
         # --- states
+        history = None
+        if "history" in data:
+            if not isinstance(data["history"], Mapping):
+                raise ConfigError(f"{source}: [history] must be a table")
+            if "baseline" not in data:
+                raise ConfigError(f"{source}: [history]: a life history is a paired library (its first records are "
+                                  "the commissioning ones); add a [baseline] table with operating_points")
+            history = _parse_history(sections["history"], f"{source}: [history]")
         raw_states = data.get("states")
+        if history is not None:
+            raw_states = _history_states(raw_states, history, source)
         if not isinstance(raw_states, Mapping) or not raw_states:
             raise ConfigError(f"{source}: [states]: missing; add a table per state, e.g. [states.T1]")
         states: dict[str, dict[str, Sweep]] = {}
@@ -746,8 +904,8 @@ class LibraryConfig:
             for key in ("train_per_state", "test_per_state"):
                 if key not in spl:
                     raise ConfigError(f"{w} {key}: missing (paper mode splits each state's segments)")
-            train = _int(spl["train_per_state"], f"{w} train_per_state", 1)
-            test = _int(spl["test_per_state"], f"{w} test_per_state", 0)
+            train = _int(spl["train_per_state"], f"{w} train_per_state", minimum=1)
+            test = _int(spl["test_per_state"], f"{w} test_per_state", minimum=0)
             if train + test > n_seg:
                 raise ConfigError(
                     f"{w}: train_per_state + test_per_state = {train + test} exceeds the {n_seg} segments of one "
@@ -769,6 +927,12 @@ class LibraryConfig:
                                   f"({', '.join(ARM_KEYS)})")
             kw["baseline"] = _parse_baseline(sections["baseline"], spl, f"{source}: [baseline]", w,
                                              speed_key=speed_key, speed=speed, load=load, states=list(states))
+            if history is not None:
+                for key in ("monitored_healthy", "monitored_per_state"):
+                    if key in sections["baseline"]:
+                        raise ConfigError(f"{source}: [baseline] {key}: a life history's monitored records are "
+                                          "[history] records; remove it")
+                kw["history"] = history
         else:
             for key in ("train_per_state", "test_per_state", "assign"):
                 if key in spl:
@@ -781,8 +945,8 @@ class LibraryConfig:
                     raise ConfigError(f"{w} {key}: only for a paired library (a [baseline] table)")
             if "simulations_per_state" not in spl:
                 raise ConfigError(f"{w} simulations_per_state: missing")
-            n_sim = _int(spl["simulations_per_state"], f"{w} simulations_per_state", 1)
-            n_test = _int(spl.get("test_simulations_per_state", 0), f"{w} test_simulations_per_state", 0)
+            n_sim = _int(spl["simulations_per_state"], f"{w} simulations_per_state", minimum=1)
+            n_test = _int(spl.get("test_simulations_per_state", 0), f"{w} test_simulations_per_state", minimum=0)
             if n_test >= n_sim:
                 raise ConfigError(
                     f"{w} test_simulations_per_state: {n_test} leaves no training simulation out of "
@@ -840,6 +1004,11 @@ class LibraryConfig:
             out["profile"] = self.profile.to_dict()
         if self.baseline is not None:  # only then: a config without it keeps its hash
             out["baseline"] = self.baseline.to_dict()
+        if self.history is not None:  # only then: a config without it keeps its hash
+            out["history"] = self.history.to_dict()
+            for key in ("monitored_healthy", "monitored_per_state"):
+                out["baseline"].pop(key)
+            out["states"] = {s: {} for s in self.states}  # a history grows its severities
         return out
 
     def _randomise_dict(self) -> dict[str, Any]:
@@ -889,6 +1058,13 @@ class LibraryConfig:
 
     def describe(self) -> str:
         """One line: mode, states, simulations and samples."""
+        if self.history is not None and self.baseline is not None:
+            h = self.history
+            return (f"{self.name}: life histories of {self.baseline.reducers} reducers, each "
+                    f"{self.commissioning_records} commissioning + {h.records} records every {h.interval_days:g} days "
+                    f"({self.n_simulations} simulations of {self.transient_s + self.duration_s:g} s, {self.n_samples} "
+                    f"samples of {self.segment_length} points at {self.fs:g} Hz); fates "
+                    + ", ".join(f"{f} {v:g}" for f, v in h.fates.items()))
         return (
             f"{self.name}: mode {self.mode}, {len(self.states)} states, {self.n_simulations} simulations of "
             f"{self.transient_s + self.duration_s:g} s, {self.n_samples} samples of {self.segment_length} points "

@@ -83,6 +83,9 @@ class Unit:
     role: str | None = None
     operating_point: int | None = None
     variation: Mapping[str, float] = field(default_factory=dict)
+    #: a life-history library (``[history]``, :mod:`rvdiag.library.life`): the record's truth, ``life.*`` column ->
+    #: value (:data:`rvdiag.library.life.LIFE_COLUMNS`), its ``life.sensor_fault`` applied to the record; else empty
+    life: Mapping[str, Any] = field(default_factory=dict)
 
     def sensor_geometry(self, radius_m: float) -> tuple[tuple[float, float] | None, tuple[float, float]]:
         """``(sensor point (x, y) in m or None for the model's default, unit sensing direction (dx, dy))`` of the
@@ -157,6 +160,8 @@ class Job:
     specimen_columns: bool = False
     #: a paired library: record ``reducer``, ``role``, ``operating_point`` and the run-to-run factors
     paired_columns: bool = False
+    #: a life-history library: record the ``life.*`` truth columns and apply the records' sensor faults
+    life_columns: bool = False
     #: the client's rvdiag release and physics revision: a worker running other code refuses the unit
     #: (``None``: not checked)
     rvdiag_version: str | None = None
@@ -174,7 +179,7 @@ class Job:
             profile_columns=cfg.profile is not None, rvdiag_version=__version__,
             physics_revision=_physics_revision(), noise_mode=cfg.noise_mode,
             noise_reference=cfg.noise_reference() if cfg.noise_floor else None, specimen_columns=cfg.specimen,
-            paired_columns=cfg.paired,
+            paired_columns=cfg.paired, life_columns=cfg.history is not None,
         )
 
 
@@ -438,6 +443,12 @@ def finish_unit(unit: Unit, job: Job, result: Any, t0: float, twin: Any = None) 
         if job.noise_mode is not None:
             sigma = math.sqrt(float(snr_power(x, unit.noise_snr_db).item()))
         x = add_coloured_noise(x, unit.noise_snr_db, unit.noise_exponent or 0.0, np.random.default_rng(noise_ss))
+    fault = unit.life.get("life.sensor_fault") if job.life_columns else None
+    if fault:  # a life history's failed sensor, after the sensor's own noise: what the acquisition records
+        from rvdiag.library.life import SENSOR_FAULT_STREAM, apply_sensor_fault
+
+        x = apply_sensor_fault(x, fault, np.random.default_rng(np.random.SeedSequence(
+            unit.seed, spawn_key=(SENSOR_FAULT_STREAM,))))
     starts = segment_starts(x.shape[0], job.segment_length, job.hop)
     if job.mode == "paper":
         n = starts.shape[0]
@@ -491,6 +502,9 @@ def finish_unit(unit: Unit, job: Job, result: Any, t0: float, twin: Any = None) 
         meta["operating_point"] = [unit.operating_point] * rows
         for key, value in unit.variation.items():
             meta["variation." + key] = [value] * rows
+    if job.life_columns:
+        for key, value in unit.life.items():
+            meta[key] = [value] * rows
     if job.profile_columns:
         for key, value in unit.profile.items():
             meta[key] = [value] * rows

@@ -30,6 +30,7 @@ from sklearn.utils.multiclass import check_classification_targets
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from rvdiag.errors import ParameterError
+from rvdiag.validation import finite_number
 
 
 def sq_distances(A: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -100,8 +101,7 @@ class KELMClassifier(ClassifierMixin, BaseEstimator):
             v = getattr(self, name)
             if name == "sigma" and isinstance(v, str) and v == "scale":
                 continue
-            if not (isinstance(v, (int, float, np.integer, np.floating)) and np.isfinite(v) and v > 0):
-                raise ParameterError(f"KELM {name} must be a finite number > 0, got {v!r}")
+            finite_number(v, f"KELM {name}", 0, strict=True)
 
     def fit(self, X, y):
         """Compute beta = (I/C + Omega)^-1 T from the training set.  Returns ``self``."""

@@ -81,6 +81,7 @@ from rvdiag.errors import ParameterError
 from rvdiag.features.spectrum import LOGSPEC_EPS, log_spectrum  # noqa: F401 (LOGSPEC_EPS: re-exported)
 from rvdiag.io.windows import COVER_POLICIES, covering_starts
 from rvdiag.models.cnn import ARCHITECTURES, DEFAULT_INPUT_LENGTH, architecture_name, build_network
+from rvdiag.validation import integer, positive
 
 NORMALIZATIONS = ("window", "global", "none")
 LONG_INPUT = COVER_POLICIES
@@ -239,13 +240,10 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         if self.long_input not in LONG_INPUT:
             raise ParameterError(f"long_input must be one of {LONG_INPUT}, got {self.long_input!r}")
         for name in ("max_epochs", "batch_size", "n_iter_no_change"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, np.integer)) and value >= 1):
-                raise ParameterError(f"{name} must be an integer >= 1, got {value!r}")
+            integer(getattr(self, name), name, 1)
         if not (0.0 <= float(self.validation_fraction) < 1.0):
             raise ParameterError(f"validation_fraction must be in [0, 1), got {self.validation_fraction}")
-        if not float(self.learning_rate) > 0:
-            raise ParameterError(f"learning_rate must be > 0, got {self.learning_rate}")
+        positive(self.learning_rate, "learning_rate")
         W = self.input_length if self.input_length is not None else DEFAULT_INPUT_LENGTH[architecture_name(self.architecture)]
         if W is None:
             W = length
@@ -274,9 +272,8 @@ class CNNClassifier(ClassifierMixin, BaseEstimator):
         if not (self.fs is not None and float(self.fs) > 0):
             raise ParameterError(f"representation {self.representation!r} needs the sampling rate fs > 0 Hz, "
                                  f"got {self.fs}")
-        if self.samples_per_rev is not None and not (isinstance(self.samples_per_rev, (int, np.integer))
-                                                     and self.samples_per_rev >= 8):
-            raise ParameterError(f"samples_per_rev must be an integer >= 8, got {self.samples_per_rev!r}")
+        if self.samples_per_rev is not None:
+            integer(self.samples_per_rev, "samples_per_rev", 8)
 
     def network_input_length(self, n_points: int) -> int:
         """Check the settings and return the network input (points) for samples of ``n_points``: the

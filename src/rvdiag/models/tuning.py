@@ -31,6 +31,7 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 from rvdiag.errors import ParameterError
 from rvdiag.models.kelm import KELMClassifier, one_hot_pm1, solve_output_weights, sq_distances
 from rvdiag.progress import report
+from rvdiag.validation import integer
 
 #: optimiser name -> (mealpy module, class); the names of ``rvdiag train --model kelm-<name>``
 OPTIMIZERS = {
@@ -55,9 +56,7 @@ def _optimizer(name: str, epoch: int, pop_size: int):
         raise ParameterError(f"unknown optimizer {name!r}; use one of {sorted(OPTIMIZERS)}")
     if not (isinstance(epoch, (int, np.integer)) and epoch >= 1):
         raise ParameterError(f"epoch must be a positive integer, got {epoch!r}")
-    if not (isinstance(pop_size, (int, np.integer)) and pop_size >= 10):
-        # mealpy's GA tournament takes k = 0.2 pop_size parents and needs k >= 2
-        raise ParameterError(f"pop_size must be an integer >= 10, got {pop_size!r}")
+    integer(pop_size, "pop_size", 10)  # mealpy's GA tournament takes k = 0.2 pop_size parents and needs k >= 2
     mod, cls = OPTIMIZERS[name]
     return getattr(importlib.import_module(mod), cls)(epoch=int(epoch), pop_size=int(pop_size))
 
@@ -176,8 +175,7 @@ class TunedKELM(ClassifierMixin, BaseEstimator):
         if self.classes_.size < 2:
             raise ParameterError(f"tuning needs at least 2 classes in y; got {self.classes_.size} class")
         min_count = int(np.bincount(y_idx).min())
-        if not (isinstance(self.cv, (int, np.integer)) and self.cv >= 2):
-            raise ParameterError(f"cv must be an integer >= 2, got {self.cv!r}")
+        integer(self.cv, "cv", 2)
         n_splits = min(int(self.cv), min_count)
         if n_splits < 2:
             raise ParameterError("every class needs at least 2 samples for cross-validated tuning")

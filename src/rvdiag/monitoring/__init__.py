@@ -24,6 +24,8 @@ Modules
 ``diagnosis``             :func:`monitor_record` -> :class:`MonitorResult`: one record against its baseline, with
                           the checks that it is recognised
 ``training``              :func:`train_monitor`, :func:`evaluate_monitor` on a paired store
+``life``                  :func:`evaluate_life`: change detection and remaining life over a life store's
+                          histories (``rvdiag evaluate --life``)
 ========================  ==================================================================================
 
 The baseline-referenced *features* (:class:`rvdiag.features.relative.BaselineReferencedFeatures`, the TSA change,
@@ -41,9 +43,10 @@ from __future__ import annotations
 from rvdiag.monitoring.baseline import Baseline, make_baseline, needs_baseline, open_baseline, reducer_type
 from rvdiag.monitoring.detector import BaselineMonitor, save_monitor
 from rvdiag.monitoring.diagnosis import MonitorResult, monitor_record
+from rvdiag.monitoring.life import evaluate_life
 from rvdiag.monitoring.pairing import is_paired, match_baseline, paired_features, record_means
 from rvdiag.monitoring.training import evaluate_monitor, train_monitor
 
-__all__ = ["Baseline", "BaselineMonitor", "MonitorResult", "evaluate_monitor", "is_paired", "make_baseline",
+__all__ = ["Baseline", "BaselineMonitor", "MonitorResult", "evaluate_life", "evaluate_monitor", "is_paired", "make_baseline",
            "match_baseline", "monitor_record", "needs_baseline", "open_baseline", "paired_features", "record_means",
            "reducer_type", "save_monitor", "train_monitor"]

@@ -228,6 +228,11 @@ class BaselineMonitor(ClassifierMixin, BaseEstimator):
         self.classes_ = np.unique(y)
         self.classifier_ = None  # healthy pairs only: a detector without states
         if self.classes_.size > 1:
+            few = [(c, int(np.sum(y == c))) for c in self.classes_ if np.sum(y == c) < 3]
+            if few:
+                raise ParameterError(f"the state {few[0][0]} has {few[0][1]} training record(s); the state "
+                                     "classifier's 3-fold calibration needs >= 3 of each state: simulate more "
+                                     "records or reducers")
             svc = SVC(kernel="rbf", C=self.C, gamma=self.gamma, random_state=self.random_state)
             self.classifier_ = CalibratedClassifierCV(svc, method="sigmoid", ensemble=False, cv=3).fit(
                 (D - self.mean_) / self.scale_, y)

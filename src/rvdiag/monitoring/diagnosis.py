@@ -6,8 +6,11 @@ model and the baseline loaded once (:func:`rvdiag.workflows.load_model`, :func:`
 The record is cut into adjacent windows of the model's input length; each window's change against the baseline
 records at the record's operating point (:func:`rvdiag.monitoring.pairing.paired_features`) is one row, and the
 record is decided on the mean of its rows, as the alarm was calibrated.  Before that the record must be recognised:
-not flat, with the reducer's mesh lines where the baseline shows them (:func:`mesh_check_against_baseline`), at a
-level within :data:`LEVEL_FACTOR` of the baseline's (:func:`level_check_against_baseline`).
+not flat, with the reducer's mesh lines where the baseline shows them (:func:`mesh_check_against_baseline`), and
+with the machine's level and spectrum as the baseline's measuring chain records them: not a disconnected sensor,
+not the baseline's spectrum at another gain or unit, not another machine's spectrum
+(:func:`level_check_against_baseline`).
+"Not recognised" never means "too faulty": a machine far louder than its baseline is judged by its health index.
 """
 
 from __future__ import annotations
@@ -161,7 +164,7 @@ def monitor_record(model, rec, base: Baseline, *, output_speed: float | None = N
     bs = base.samples
     rec_ok = mesh_check_against_baseline(rec_ok, x, bs, float(rec.fs), speed, L, load,
                                         model.card.get("baseline"))
-    rec_ok = level_check_against_baseline(rec_ok, x, bs)
+    rec_ok = level_check_against_baseline(rec_ok, x, bs, float(rec.fs), L, speed, load, model.card.get("baseline"))
     res.recognised, res.reason, res.checks = rec_ok["recognised"], rec_ok["reason"], rec_ok["checks"]
     res.operating_point = {"output_speed_deg_s": speed.get("output_speed_deg_s"),
                            "speed_source": speed.get("detail") or speed.get("error"), "load_Nm": load}
@@ -193,6 +196,16 @@ def monitor_record(model, rec, base: Baseline, *, output_speed: float | None = N
 MASK_DB = 6.0
 
 
+def _mean_power_spectrum(X: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """(frequencies, the mean over the rows of ``X`` of their squared Hann amplitude spectra): Welch's averaged
+    periodogram (Welch 1967) of windows of equal length, adjacent, without overlap."""
+    from rvdiag.spectral import amplitude_spectrum
+
+    X = np.atleast_2d(np.asarray(X, dtype=np.float64))
+    f = amplitude_spectrum(X[0], fs)[0]
+    return f, np.mean([np.square(amplitude_spectrum(w, fs)[1]) for w in X], axis=0)
+
+
 def _mesh_lines_mean(X: np.ndarray, fs: float, speed: float) -> dict:
     """The two mesh lines (:func:`rvdiag.features.mesh_lines.mesh_lines`) read on the mean power spectrum of the
     windows ``X`` (rows of equal length; Welch 1967, the averaged periodogram): ``{name: {"hz", "height_db",
@@ -202,10 +215,9 @@ def _mesh_lines_mean(X: np.ndarray, fs: float, speed: float) -> dict:
     from rvdiag.kinematics import characteristic_frequencies
     from rvdiag.motor.lines import line_height
     from rvdiag.params import ReducerParams
-    from rvdiag.spectral import amplitude_spectrum
 
     X = np.atleast_2d(np.asarray(X, dtype=np.float64))
-    amp = np.sqrt(np.mean([np.square(amplitude_spectrum(w, fs)[1]) for w in X], axis=0))
+    amp = np.sqrt(_mean_power_spectrum(X, fs)[1])
     df = fs / X.shape[1]
     cf = characteristic_frequencies(ReducerParams.default(), output_speed_deg_s=float(speed))
     out: dict = {"present": []}
@@ -279,27 +291,150 @@ def mesh_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float, speed
     return {"recognised": True, "reason": None, "checks": checks}
 
 
-#: a record whose RMS lies more than this factor above or below every baseline window's is "not recognised"
+#: a record whose RMS lies more than this factor below every baseline window's is "not recognised" (a disconnected
+#: sensor, another gain or unit); one more than this factor above (a "loud" record) is recognised only with the
+#: machine's spectrum, louder (:func:`level_check_against_baseline`)
 LEVEL_FACTOR = 10.0
+#: every third-octave band of a record more than this factor (amplitude) above the baseline's, or every band more
+#: than this factor below, is the baseline's spectrum at another gain or unit when the bands stand within
+#: :data:`SPREAD_FACTOR` of one another, or when the record is loud.  Measured (bench/HISTORY.md, 2026-11-28 "a loud
+#: fault is a fault"): the quietest band of 49 simulated faulty records (T2-T6, up to 18.9x the baseline's RMS)
+#: stood 0.66-1.01x the baseline's, of 274 healthy records 0.52-0.96x, of the same healthy records converted
+#: from g to m/s^2 (x9.81) 6.6-8.9x
+GAIN_FACTOR = 2.5
+#: a gain moves every band alike: the loudest band's ratio over the quietest's (``max / min``) of the 274 healthy
+#: records stood at most 2.3, that of the 21 faulty records more than 3x the baseline's RMS 6.7-79
+SPREAD_FACTOR = 4.0
+#: a loud record whose loudest band gained more than this factor over its bands together (:func:`band_ratios`'
+#: ``shape``) puts its energy where the machine's baseline has little: another machine or sensor.  Measured (as
+#: :data:`GAIN_FACTOR`): the 49 faulty records 1.0-5.4; other machines' records (a bearing rig, a gearbox, a
+#: robot's RV reducer) 10-22000x louder than the baseline 4.3-50, those of them that keep a band within
+#: :data:`GAIN_FACTOR` of the baseline's 6.5 (2 records) and 14.6-50
+SHAPE_FACTOR = 8.0
+#: a third-octave band counts when it holds at least this many spectral lines: a noise-like signal's power in it
+#: then has at most 16 degrees of freedom in one window (fewer, as the Hann window's neighbouring lines overlap),
+#: and the narrow low bands of a few lines, which scatter most, are left out
+BAND_MIN_LINES = 8
 
 
-def level_check_against_baseline(rec: dict, x: np.ndarray, base) -> dict:
-    """A record whose level (RMS) lies more than :data:`LEVEL_FACTOR` outside the range of the baseline windows'
-    is not this machine's signal as the baseline records it (another sensor, gain or unit, a loose mount): "not
-    recognised", with the factor.  The alarm judges smaller changes."""
+def band_ratios(X: np.ndarray, B: np.ndarray, fs: float) -> dict:
+    """The amplitude ratio of the windows ``X`` to the windows ``B`` (rows of equal length) in each base-ten
+    third-octave band (IEC 61260-1:2014: midband frequencies ``1000 * 10**(n/10)`` Hz, edges a twentieth of a
+    decade either side; the top band cut at ``fs / 2``) that holds at least :data:`BAND_MIN_LINES` lines: the square
+    root of the ratio of the band powers read on the mean power spectra (:func:`_mean_power_spectrum`).
+
+    Returns ``{"hz": midbands, "ratio": ratios, "min", "median", "max", "overall", "shape", "quietest_hz",
+    "loudest_hz"}`` (empty arrays and None when no band holds enough lines): ``overall`` the ratio of the bands
+    together, ``shape`` the loudest band's ratio over ``overall`` (1 for the baseline's spectrum at any gain).
+
+    A gain (a unit, a sensor of another sensitivity, an amplifier setting) multiplies every band by the same factor,
+    the measuring chain's own floor with it; a machine's change adds vibration in the bands it excites and leaves
+    the others where they were.  So ``min`` far above 1 says "the baseline's spectrum at another gain", not "a
+    louder machine"; ``shape`` far above 1 says that one band gained far more than the whole: energy where the
+    baseline has little, another machine's spectrum rather than this one's.
+    """
+    f, px = _mean_power_spectrum(X, fs)
+    pb = _mean_power_spectrum(B, fs)[1]
+    n = np.arange(math.floor(10 * math.log10(max(f[1], 1e-12) / 1000.0)), math.ceil(10 * math.log10(fs / 2000.0)) + 1)
+    hz, bx, bb = [], [], []
+    for m in 1000.0 * 10.0 ** (n / 10.0):
+        lo, hi = m * 10.0 ** -0.05, min(m * 10.0 ** 0.05, fs / 2.0)
+        sel = (f >= lo) & (f < hi)
+        if lo >= fs / 2.0 or np.count_nonzero(sel) < BAND_MIN_LINES or not pb[sel].sum() > 0:
+            continue
+        hz.append(float(m))
+        bx.append(float(px[sel].sum()))
+        bb.append(float(pb[sel].sum()))
+    if not hz:
+        return {"hz": np.asarray(hz), "ratio": np.asarray([]), **dict.fromkeys(
+            ("min", "median", "max", "overall", "shape", "quietest_hz", "loudest_hz"))}
+    r = np.sqrt(np.asarray(bx) / np.asarray(bb))
+    overall = math.sqrt(sum(bx) / sum(bb))
+    return {"hz": np.asarray(hz), "ratio": r, "min": float(r.min()), "median": float(np.median(r)),
+            "max": float(r.max()), "overall": overall, "shape": float(r.max()) / overall if overall > 0 else math.inf,
+            "quietest_hz": hz[int(np.argmin(r))], "loudest_hz": hz[int(np.argmax(r))]}
+
+
+def level_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float | None = None, L: int | None = None,
+                                 speed: dict | None = None, load: float | None = None,
+                                 tolerances: dict | None = None) -> dict:
+    """Is the record's level this machine's as the baseline records it?  "Not recognised" means that the record
+    does not look like the reducer through the baseline's measuring chain (a disconnected sensor, another sensor,
+    gain or unit, another machine), never that it is too faulty: a machine far louder than its baseline that keeps
+    the machine's spectrum is recognised, and its health index judges it.
+
+    Its RMS more than :data:`LEVEL_FACTOR` below every baseline window's is not recognised.  Otherwise its
+    third-octave band levels are read against those of the baseline windows at its operating point
+    (:func:`band_ratios` on windows of ``L`` points; :func:`_baseline_rows` at the card's ``tolerances``, all the
+    baseline windows without a speed or where none lies within them).  A gain multiplies every band alike, the
+    measuring chain's floor with it; a fault adds vibration in the bands it excites and leaves the others at the
+    baseline's level (a simulated broken tooth at 18.9x the baseline's RMS kept its top band, the sensor's floor,
+    at 0.98x).  Not recognised:
+
+    - every band more than :data:`GAIN_FACTOR` below the baseline's (another gain or unit, a disconnected sensor
+      that picks up a hum);
+    - every band more than :data:`GAIN_FACTOR` above the baseline's, and either the bands within
+      :data:`SPREAD_FACTOR` of one another (the baseline's spectrum at a gain: g for m/s^2 is 9.81x) or the record
+      loud, more than :data:`LEVEL_FACTOR` above the baseline's RMS range (no band left at the machine's level);
+    - a loud record whose loudest band gained more than :data:`SHAPE_FACTOR` over its spectrum as a whole
+      (``shape``): energy where the machine's baseline has little, another machine or sensor.
+
+    A loud record that passes is recognised as the machine, louder (``checks["level"]["louder"]``).  Without ``fs``,
+    ``L`` or a band of enough lines, the RMS alone decides: a loud record is not recognised either.
+    """
     if not rec["recognised"]:
         return rec
     rms = float(np.sqrt(np.mean(np.square(x))))
-    b = np.sqrt(np.mean(np.square(np.asarray(base.X, dtype=np.float64)), axis=1))
+    BX = np.asarray(base.X, dtype=np.float64)
+    b = np.sqrt(np.mean(np.square(BX), axis=1))
     lo, hi = float(b.min()), float(b.max())
-    checks = {**rec.get("checks", {}), "level": {"rms": rms, "baseline_rms": [lo, hi], "factor": LEVEL_FACTOR}}
-    if lo > 0 and not (lo / LEVEL_FACTOR <= rms <= hi * LEVEL_FACTOR):
-        ratio = rms / hi if rms > hi else lo / rms if rms > 0 else math.inf
-        side = "above" if rms > hi else "below"
-        return {"recognised": False, "checks": checks,
-                "reason": f"its level (RMS {rms:.4g}) lies {ratio:.3g}x {side} the baseline's range ({lo:.4g}-"
-                          f"{hi:.4g}): another sensor, gain or unit than the baseline's?"}
+    level = {"rms": rms, "baseline_rms": [lo, hi], "factor": LEVEL_FACTOR, "gain_factor": GAIN_FACTOR,
+             "spread_factor": SPREAD_FACTOR, "shape_factor": SHAPE_FACTOR}
+    checks = {**rec.get("checks", {}), "level": level}
+    span = f"the baseline's range ({lo:.4g}-{hi:.4g})"
+
+    def refused(reason: str) -> dict:
+        return {"recognised": False, "checks": checks, "reason": reason}
+
+    if lo > 0 and rms < lo / LEVEL_FACTOR:
+        return refused(f"its level (RMS {rms:.4g}) lies {lo / rms if rms > 0 else math.inf:.3g}x below {span}: a "
+                       "disconnected sensor, or another sensor, gain or unit than the baseline's?")
+    loud = lo > 0 and rms > hi * LEVEL_FACTOR
+    bands = None
+    if fs and L and x.size >= L:
+        near = np.arange(BX.shape[0])
+        v = (speed or {}).get("output_speed_deg_s")
+        if v is not None:
+            try:
+                near = _baseline_rows(base, float(v), load, tolerances)
+            except ParameterError:  # no baseline at its operating point: the record's scoring says so
+                pass
+        k = x.size // L
+        bands = band_ratios(x[: k * L].reshape(k, L), BX[near], float(fs))
+        level["bands"] = {key: bands[key] for key in ("min", "median", "max", "overall", "shape", "quietest_hz",
+                                                      "loudest_hz")}
+    if bands is None or bands["min"] is None:
+        if loud:
+            return refused(f"its level (RMS {rms:.4g}) lies {rms / hi:.3g}x above {span}: another sensor, gain or "
+                           "unit than the baseline's?")
+        return {**rec, "checks": checks}
+    lo_b, hi_b = bands["min"], bands["max"]
+    if hi_b < 1.0 / GAIN_FACTOR:
+        return refused(f"every third-octave band of its spectrum stands {1 / hi_b:.3g}-{1 / lo_b:.3g}x below the "
+                       "baseline's: a disconnected sensor, or another sensor, gain or unit than the baseline's?")
+    if lo_b > GAIN_FACTOR and (loud or hi_b / lo_b <= SPREAD_FACTOR):
+        why = (f"with its RMS {rms / hi:.3g}x above {span}: no band left at the machine's level" if loud else
+               "alike")
+        return refused(f"every third-octave band of its spectrum stands {lo_b:.3g}-{hi_b:.3g}x above the "
+                       f"baseline's, {why} (a fault adds vibration in the bands it excites and leaves the others): "
+                       "another sensor, gain or unit than the baseline's?")
+    if loud and bands["shape"] > SHAPE_FACTOR:
+        return refused(f"its level (RMS {rms:.4g}) lies {rms / hi:.3g}x above {span} and its {bands['loudest_hz']:.4g} "
+                       f"Hz band gained {bands['shape']:.3g}x more than its spectrum as a whole: energy where the "
+                       "machine's baseline has little, another machine or sensor?")
+    level["louder"] = loud
     return {**rec, "checks": checks}
 
 
-__all__ = ["LEVEL_FACTOR", "MASK_DB", "MonitorResult", "level_check_against_baseline", "mesh_check_against_baseline", "monitor_record"]
+__all__ = ["BAND_MIN_LINES", "GAIN_FACTOR", "LEVEL_FACTOR", "MASK_DB", "SHAPE_FACTOR", "SPREAD_FACTOR", "MonitorResult",
+           "band_ratios", "level_check_against_baseline", "mesh_check_against_baseline", "monitor_record"]

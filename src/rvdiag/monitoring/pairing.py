@@ -192,6 +192,18 @@ def record_means(D, meta, column: str = RECORD_COLUMN):
     return means / counts[:, None], first[order], counts
 
 
+def record_ids(meta, column: str = RECORD_COLUMN) -> np.ndarray:
+    """The records' ids (metadata ``column``) in the order they first appear: the order of :func:`record_means`'s
+    rows.
+
+    >>> record_ids({"unit": np.array([7, 7, 2, 7])}).tolist()
+    [7, 2]
+    """
+    ids = np.asarray(meta[column])
+    _, first = np.unique(ids, return_index=True)
+    return ids[np.sort(first)]
+
+
 def per_record(D, s: Samples, where: str):
     """``(means, labels, reducers or None, counts)`` of the records of samples ``s`` (:func:`record_means`); a
     record whose windows carry different labels is refused."""
@@ -206,5 +218,5 @@ def per_record(D, s: Samples, where: str):
 
 
 __all__ = ["LOAD_TOLERANCE", "OPERATING_COLUMNS", "PAIRED_COLUMNS", "RECORD_COLUMN", "ROLES", "SPEED_TOLERANCE",
-           "baseline_records", "is_paired", "match_baseline", "paired_features", "per_record", "record_means", "roles",
-           "subset", "with_load_column"]
+           "baseline_records", "is_paired", "match_baseline", "paired_features", "per_record", "record_ids",
+           "record_means", "roles", "subset", "with_load_column"]

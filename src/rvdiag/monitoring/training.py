@@ -23,10 +23,12 @@ from pathlib import Path
 import numpy as np
 
 from rvdiag.errors import ParameterError, StoreError
+from rvdiag.evaluation.metrics import binomial_interval
 from rvdiag.monitoring.baseline import open_baseline_store, teeth, reducer_type
+from rvdiag.monitoring.life import check_life_store, evaluate_life, sensor_faulty
 from rvdiag.datasets.store import Samples
 from rvdiag.monitoring.pairing import (RECORD_COLUMN, baseline_records, is_paired, paired_features, per_record,
-                                       roles, subset, with_load_column)
+                                       record_ids, roles, subset, with_load_column)
 
 MONITOR_MODEL = "baseline-monitor"
 #: ``--features`` of a monitor -> (inner window features or "none", TSA change appended)
@@ -105,6 +107,15 @@ def check_reducer_split(tr, te, data) -> None:
                          "referenced model is scored on held-out reducers: split the store by reducer")
 
 
+def monitored_records(s: Samples) -> tuple[Samples, int]:
+    """The monitored samples of ``s`` without those with a sensor fault (a life store's drawn dead, clipped or
+    disconnected channel, :func:`rvdiag.monitoring.life.sensor_faulty`): neither trained on nor scored, as the fleet
+    neither judges nor counts a record it does not recognise; and how many were left out."""
+    mon = roles(s, "monitored")
+    bad = mon & sensor_faulty(s.meta)
+    return subset(s, mon & ~bad), int(bad.sum())
+
+
 def train_monitor(store, data, out: Path, *, features: str | None, alpha: float | None, seed: int,
                   conditions=(), echo=print, warn=None) -> dict:
     """Fit and save a baseline monitor on a paired store (module docstring); returns its test evaluation (or
@@ -128,11 +139,10 @@ def train_monitor(store, data, out: Path, *, features: str | None, alpha: float 
     base = baseline_records(store)
     idx = store.indices("train", list(conditions))
     tr = store.load(index=idx)
-    tr = subset(tr, roles(tr, "monitored"))
+    tr, left_out = monitored_records(tr)
     te = None
     if "test" in store.splits():
-        te = store.load("test")
-        te = subset(te, roles(te, "monitored"))
+        te, _ = monitored_records(store.load("test"))
     check_reducer_split(tr, te, data)
     if len(set(tr.y.tolist())) < 2:
         raise StoreError(f"{data}: the monitored records of the train split hold fewer than 2 states")
@@ -141,7 +151,8 @@ def train_monitor(store, data, out: Path, *, features: str | None, alpha: float 
          f"reducer's baseline at the nearest operating point) on {n_rec(tr)} monitored records ({len(tr.y)} windows) "
          f"of {len(np.unique(tr.meta['reducer']))} reducers" + (f", scoring {n_rec(te)} of "
                                                                f"{len(np.unique(te.meta['reducer']))} held-out "
-                                                               "reducers" if te is not None else ", no test split"))
+                                                               "reducers" if te is not None else ", no test split")
+         + (f"; {left_out} window(s) with a sensor fault (life.sensor_fault) left out" if left_out else ""))
     fx.fit(first_row(tr, fx))
     D, _ = paired_features(fx, tr, base, fs=store.fs, baseline_fs=store.fs, where=f"the store {data}")
     D, y, reducers, counts = per_record(D, tr, f"the store {data}")  # one row per record: its windows' mean
@@ -185,24 +196,23 @@ def first_row(s, fx):
 
 
 # ---------------------------------------------------------------------------------------------------- evaluate
-def binomial_interval(k: int, n: int, level: float = 0.95) -> list[float]:
-    """The Clopper-Pearson interval of a rate of ``k`` events in ``n`` trials (Clopper & Pearson, Biometrika 26
-    (1934) 404-413; :meth:`scipy.stats.binomtest`'s ``proportion_ci(method="exact")``)."""
-    from scipy.stats import binomtest
-
-    ci = binomtest(int(k), int(n)).proportion_ci(confidence_level=level, method="exact")
-    return [float(ci.low), float(ci.high)]
-
-
-def score(m, mon, base, fs, baseline_fs, tolerances, where, merge=None) -> dict:
-    """The state's classification metrics beside the alarm's rates on the monitored records ``mon``, each record
-    decided on the mean change of its windows (:func:`record_means`); with ``merge`` (``{"T4": "T1"}``) also the
-    state's metrics with classes merged (key ``merged``)."""
-    from rvdiag.evaluation.metrics import classification_metrics, healthy_class, merged_classification_metrics
-
+def record_rows(m, mon, base, fs, baseline_fs, tolerances, where):
+    """Each monitored record of ``mon`` as one row, its windows' mean change against its baseline
+    (:func:`paired_features`, :func:`per_record`): ``(D, labels, reducers, windows per record)``."""
     D, _ = paired_features(m.features, mon, base, fs=fs, baseline_fs=baseline_fs, card_tolerances=tolerances,
                            where=where)
-    D, y, reducers, counts = per_record(D, mon, where)
+    return per_record(D, mon, where)
+
+
+def score(m, mon, base, fs, baseline_fs, tolerances, where, merge=None, rows=None) -> dict:
+    """The state's classification metrics beside the alarm's rates on the monitored records ``mon``, each record
+    decided on the mean change of its windows (:func:`record_means`); with ``merge`` (``{"T4": "T1"}``) also the
+    state's metrics with classes merged (key ``merged``).  ``rows``: :func:`record_rows` of ``mon``, when already
+    computed."""
+    from rvdiag.evaluation.metrics import classification_metrics, healthy_class, merged_classification_metrics
+
+    D, y, reducers, counts = rows if rows is not None else record_rows(m, mon, base, fs, baseline_fs, tolerances,
+                                                                       where)
     pred = m.predict(D).astype(str)
     alarm = m.alarm(D)
     labels = [str(c) for c in m.classes_]
@@ -240,10 +250,17 @@ def headline(m: dict) -> str:
 
 
 def evaluate_monitor(loaded, store, data, split: str, where=(), baseline: Path | None = None,
-                     merge: dict | None = None) -> dict:
+                     merge: dict | None = None, *, life: bool = False, seed: int = 0) -> dict:
     """``rvdiag evaluate`` of a baseline-referenced model: the monitored records of ``split`` (all its records on a
     store without roles) against the store's own baseline records (a paired store) or ``baseline``'s; each record
-    (metadata ``unit``) decided on its windows' mean change; ``merge`` as :func:`score`."""
+    (metadata ``unit``) decided on its windows' mean change; ``merge`` as :func:`score`.  ``life``: also the
+    figures over the split's lives of a life store (:func:`rvdiag.monitoring.life.evaluate_life`, key ``life``),
+    from the same per-record changes."""
+    if life and (baseline is not None or where):
+        raise ParameterError("--life scores whole histories of a life store against its own commissioning records: "
+                             "drop " + ("--baseline" if baseline is not None else "--where"))
+    if life:
+        check_life_store(store, data)  # before the per-record scoring
 
     m = loaded.estimator
     where = list(where or ())
@@ -259,18 +276,23 @@ def evaluate_monitor(loaded, store, data, split: str, where=(), baseline: Path |
     else:
         raise ParameterError(f"the model {loaded.path} is baseline-referenced and {data} is not a paired store: "
                              "give --baseline BASE.zarr, a healthy store of the same machine")
-    s = subset(s, roles(s, "monitored"))
+    s, bad = monitored_records(s)
     s = Samples(X=s.X, y=s.y, meta=with_load_column(s.meta), index=s.index)
     if not len(s.y):
         raise StoreError(f"the split {split!r} of {data} holds no monitored records"
                          + (f" where {' and '.join(where)}" if where else ""))
     if loaded.fs and store.fs and abs(store.fs - loaded.fs) > 1e-9 * loaded.fs:
         raise ParameterError(f"{data} is sampled at {store.fs:g} Hz, the model at {loaded.fs:g} Hz")
-    out = score(m, s, base, store.fs, bfs, loaded.card.get("baseline"), f"the store {data}", merge)
+    rows = record_rows(m, s, base, store.fs, bfs, loaded.card.get("baseline"), f"the store {data}")
+    out = score(m, s, base, store.fs, bfs, loaded.card.get("baseline"), f"the store {data}", merge, rows)
     out["split"] = split
+    if bad:
+        out["n_sensor_fault_samples_left_out"] = bad
+    if life:
+        out["life"] = evaluate_life(loaded, store, data, split, seed=seed, scored=(record_ids(s.meta), rows[0]))
     return out
 
 
 __all__ = ["DEFAULT_ALPHA", "DEFAULT_CURRENT_MONITOR_FEATURES", "DEFAULT_MONITOR_FEATURES", "MONITOR_FEATURES",
-           "MONITOR_MODEL", "binomial_interval", "calibration_words", "default_monitor_features", "evaluate_monitor",
+           "MONITOR_MODEL", "calibration_words", "default_monitor_features", "evaluate_monitor", "record_rows",
            "headline", "monitor_features", "score", "train_monitor", "wants_monitor"]

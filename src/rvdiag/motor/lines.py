@@ -24,6 +24,7 @@ import math
 
 import numpy as np
 
+from rvdiag.deprecation import renamed_names
 from rvdiag.errors import ParameterError
 from rvdiag.spectral import amplitude_spectrum, peak_frequency
 
@@ -121,3 +122,7 @@ def current_lines(x: np.ndarray, fs: float, params, output_speed_deg_s: float | 
                        "height_db": None if math.isnan(h) else h}
     return {"output_speed_deg_s": float(output_speed_deg_s), "speed_source": source,
             "frequencies": {k: float(v) for k, v in fr.as_dict().items()}, "lines": lines}
+
+
+#: old names, served with a DeprecationWarning naming the new one
+__getattr__ = renamed_names(__name__, {"estimate_output_speed": "output_speed_from_current"})

@@ -24,6 +24,7 @@ import numpy as np
 
 from rvdiag.errors import ParameterError
 from rvdiag.params.schema import Motor
+from rvdiag.validation import finite_number
 
 
 @dataclass(frozen=True)
@@ -107,8 +108,7 @@ def sample_current(x: np.ndarray, fs: float, fs_out: float) -> np.ndarray:
 
 def current_rate_ratio(fs: float, fs_out: float) -> Fraction:
     """``fs_out / fs`` as a fraction of small integers, or a one-line error naming the rate."""
-    if isinstance(fs_out, bool) or not isinstance(fs_out, (int, float)) or not (math.isfinite(fs_out) and fs_out > 0):
-        raise ParameterError(f"current sampling rate must be a number > 0 Hz, got {fs_out!r}")
+    finite_number(fs_out, "current sampling rate (Hz)", 0, strict=True, noun="a number")
     if fs_out > fs:
         raise ParameterError(f"current sampling rate {fs_out:g} Hz is above the simulation's {fs:g} Hz")
     r = Fraction(float(fs_out) / float(fs)).limit_denominator(1000)

@@ -17,6 +17,7 @@ Examples
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import tomllib
 from dataclasses import dataclass, field, fields
@@ -28,26 +29,22 @@ import tomli_w
 
 from rvdiag.errors import ConfigError
 from rvdiag.tomlfile import read_toml
+from rvdiag.validation import at_least, number, positive, whole_number
 
 DEFAULT_PARAMS_NAME = "rv20e.toml"
 
 
-def _positive(**kw: Any) -> Any:
+def _checked(check: str, **kw: Any) -> Any:
+    """A field whose value :func:`_check_value` checks as ``check`` ("positive", "nonnegative" or "any"), with the
+    other metadata (``unit``...) and the ``default`` of ``kw``."""
     if "default" in kw:
-        return field(default=kw.pop("default"), metadata={"check": "positive", **kw})
-    return field(metadata={"check": "positive", **kw})
+        return field(default=kw.pop("default"), metadata={"check": check, **kw})
+    return field(metadata={"check": check, **kw})
 
 
-def _nonnegative(**kw: Any) -> Any:
-    if "default" in kw:
-        return field(default=kw.pop("default"), metadata={"check": "nonnegative", **kw})
-    return field(metadata={"check": "nonnegative", **kw})
-
-
-def _any(**kw: Any) -> Any:
-    if "default" in kw:
-        return field(default=kw.pop("default"), metadata={"check": "any", **kw})
-    return field(metadata={"check": "any", **kw})
+_positive = functools.partial(_checked, "positive")
+_nonnegative = functools.partial(_checked, "nonnegative")
+_any = functools.partial(_checked, "any")
 
 
 @dataclass(frozen=True)
@@ -483,22 +480,15 @@ def _build_section(section_cls: type, values: Any, where: str) -> Any:
 
 
 def _check_value(value: Any, f: dataclasses.Field, where: str) -> Any:
-    want_int = f.type in (int, "int")
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(f"{where}: expected a number, got {value!r}")
-    if want_int:
-        if float(value) != int(value):
-            raise ConfigError(f"{where}: expected a whole number, got {value!r}")
-        value = int(value)
+    if f.type in (int, "int"):
+        value = whole_number(value, where, error=ConfigError)
     else:
-        value = float(value)
-    if not math.isfinite(value):
-        raise ConfigError(f"{where}: must be finite, got {value!r}")
+        value = number(value, where, error=ConfigError)
     check = f.metadata.get("check", "any")
-    if check == "positive" and value <= 0:
-        raise ConfigError(f"{where}: must be > 0, got {value!r}")
-    if check == "nonnegative" and value < 0:
-        raise ConfigError(f"{where}: must be >= 0, got {value!r}")
+    if check == "positive":
+        positive(value, where, error=ConfigError)
+    if check == "nonnegative":
+        at_least(value, where, 0, error=ConfigError)
     return value
 
 

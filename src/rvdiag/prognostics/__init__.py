@@ -7,7 +7,9 @@ on a joint's sequence of record scores / health indices (it consumes the monitor
 - :mod:`rvdiag.prognostics.prognosis`: :func:`joint_prognosis`, the fleet's entry point.
 - :mod:`rvdiag.prognostics.synthetic`: life histories with known truth (wear by Archard, a root crack by Paris' law)
   for validation.
-- :mod:`rvdiag.prognostics.metrics`: interval coverage and alpha-lambda accuracy.
+- :mod:`rvdiag.prognostics.metrics`: :func:`~rvdiag.prognostics.metrics.life_metrics`, the figures over joints'
+  lives (lifetime false alarms, detection delay, the remaining life's interval coverage and alpha-lambda accuracy)
+  that ``rvdiag evaluate --life`` and ``bench/prognostics.py`` report.
 """
 
 from rvdiag.prognostics.change import ConformalMartingale, Cusum, Detection, DetectorState, PageHinkley

@@ -70,16 +70,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rvdiag.errors import ParameterError
+from rvdiag.validation import finite_array
 
 #: default lifetime false-alarm probability per joint
 DEFAULT_DELTA = 0.01
-
-
-def _finite(name: str, values) -> np.ndarray:
-    a = np.asarray(values, dtype=float).ravel()
-    if not np.all(np.isfinite(a)):
-        raise ParameterError(f"{name} must be finite numbers")
-    return a
 
 
 @dataclass(frozen=True)
@@ -141,7 +135,7 @@ class _Detector:
     def run(self, scores) -> Detection:
         """Feed every score in order (after the commissioning records given at construction)."""
         stats, ps = [], []
-        for s in _finite("scores", scores):
+        for s in finite_array(scores, "scores"):
             st = self.update(float(s))
             stats.append(st.statistic)
             ps.append(st.p_value)
@@ -203,7 +197,7 @@ class ConformalMartingale(_Detector):
         self._rng = np.random.default_rng(self.seed)
         self._weights = np.array([self.stay_weight] + [(1.0 - self.stay_weight) / len(eps)] * len(eps))
         self._capital = self._weights.copy()          # the martingale starts at 1
-        self._bag = np.sort(_finite("baseline_scores", baseline_scores))
+        self._bag = np.sort(finite_array(baseline_scores, "baseline_scores"))
         self.n_baseline = len(self._bag)
         self._reset_history()
         self._min_value = 1.0                          # M_0 = 1: a martingale that only rises has its minimum before
@@ -240,7 +234,7 @@ class ConformalMartingale(_Detector):
 
 class _Standardised(_Detector):
     def __init__(self, baseline_scores, threshold: float):
-        base = _finite("baseline_scores", baseline_scores)
+        base = finite_array(baseline_scores, "baseline_scores")
         if len(base) < 2:
             raise ParameterError("CUSUM and Page-Hinkley need at least 2 commissioning scores to standardise by")
         sd = float(np.std(base, ddof=1))
@@ -282,7 +276,7 @@ class PageHinkley(_Standardised):
 
     def __init__(self, baseline_scores, *, delta: float = 0.5, lam: float = 5.0):
         super().__init__(baseline_scores, lam)
-        base = (_finite("baseline_scores", baseline_scores) - self.mean0) / self.sd0
+        base = (finite_array(baseline_scores, "baseline_scores") - self.mean0) / self.sd0
         self.delta_ph, self._sum_z, self._count, self._m, self._m_min = float(delta), float(base.sum()), \
             len(base), 0.0, 0.0
 

@@ -17,6 +17,7 @@ import numpy as np
 from rvdiag.errors import ParameterError
 from rvdiag.prognostics.change import DEFAULT_DELTA, ConformalMartingale
 from rvdiag.prognostics.rul import ASSUMPTION, RulEstimate, estimate_rul
+from rvdiag.validation import positive
 
 #: horizons (days after the last record) at which ``p_before`` is given by default
 DEFAULT_HORIZONS_DAYS = (30.0, 90.0, 365.0)
@@ -211,8 +212,7 @@ def joint_prognosis(times, scores=None, p_values=None, health_index=None, baseli
 
     thr = threshold
     if threshold is not None and reference_level is not None and len(healthy):
-        if not reference_level > 0:
-            raise ParameterError(f"reference_level must be > 0, got {reference_level!r}")
+        positive(reference_level, "reference_level")
         boot = np.random.default_rng(seed + 1).choice(healthy, size=(4000, len(healthy)), replace=True)
         thr = float(threshold) * np.median(boot, axis=1) / float(reference_level)
 

@@ -13,20 +13,18 @@ its own distribution (run-to-run noise and a reducer-to-reducer offset that cros
 docs/monitoring.md).  The failure threshold on the index is the population's mean index at the failure size,
 (d + lambda_fail) / q; the true failure time is when the fault size reaches its failure size.
 
-Growth laws (truth):
+Growth laws (truth), from :mod:`rvdiag.gears.growth` (their one home, shared with the library's simulated life
+histories, :mod:`rvdiag.library.life`):
 
-* ``wear``: sun flank wear by Archard's law (:func:`rvdiag.gears.wear.wear_depth_history`) over the joint's duty
-  from a drawn onset (e.g. lubricant lost), with a wear coefficient drawn log-uniformly from ``k_wear_range``; the
-  size is the deepest point of the sun flank, failure at ``wear_fail_m`` (20 um: the plausibility table's heavy
-  wear).
-* ``crack``: a root crack of ``crack_a0_m`` at onset growing by Paris' law (:mod:`rvdiag.gears.crack_growth`) to
-  ``crack_fail_fraction`` of the sun tooth's root chord, when the tooth breaks (the index jumps to the broken-tooth
-  level).  The sun's own root stress at the joint's load leaves a crack below the growth threshold
-  (:mod:`rvdiag.gears.crack_growth`), so the stress range is the one under which the crack reaches failure in a
-  drawn propagation time (``crack_days_range``), and :class:`History` records it.  The growth threshold is left
-  out (a threshold would stop these cracks: at the stresses that give 40-200 days, about the sun's own root stress,
-  Delta K at 0.1 mm is under 2 MPa sqrt(m)); the histories stand for a crack that grows, not a claim that one
-  does.
+* ``wear``: sun flank wear by Archard's law (:func:`rvdiag.gears.growth.wear_growth`) over the joint's duty from a
+  drawn onset (e.g. lubricant lost), with a wear coefficient drawn log-uniformly from ``k_wear_range``; the size is
+  the deepest point of the sun flank, failure at ``wear_fail_m`` (20 um: the plausibility table's heavy wear).
+* ``crack``: a root crack of ``crack_a0_m`` at onset growing by Paris' law (:func:`rvdiag.gears.growth.crack_growth`)
+  to ``crack_fail_fraction`` of the sun tooth's root chord in a drawn propagation time (``crack_days_range``), when
+  the tooth breaks (the index jumps to the broken-tooth level); :class:`History` records the stress range this
+  takes.  The growth threshold is left out (a threshold would stop these cracks: at the stresses that give 40-200
+  days, about the sun's own root stress, Delta K at 0.1 mm is under 2 MPa sqrt(m)); the histories stand for a crack
+  that grows, not a claim that one does.
 * ``broken``: a broken tooth at the onset (a step of the index to lambda_broken); failed at onset (detection only).
 * ``healthy``: no fault.
 
@@ -37,14 +35,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from functools import lru_cache
 
 import numpy as np
 from scipy import stats
 
 from rvdiag.errors import ParameterError
-from rvdiag.gears.crack_growth import paris_crack_depth, paris_stress_for_cycles, sun_root_stress
-from rvdiag.gears.wear import DutyCycle, mesh_passes, wear_depth_history
+from rvdiag.gears.growth import Growth, broken_step, crack_growth, sun_root_chord, wear_growth
+from rvdiag.gears.wear import DutyCycle
 
 KINDS = ("healthy", "wear", "crack", "broken")
 
@@ -110,21 +107,6 @@ class History:
         return i if i < len(self.days) else None
 
 
-@lru_cache(maxsize=8)
-def _wear_curve(params, duty: DutyCycle, k_ref: float, hours_max: float):
-    """Deepest sun wear against hours at ``k_ref`` (depth depends on k and hours only through their product)."""
-    hours = np.concatenate([[0.0], np.geomspace(1.0, hours_max, 60)])
-    depth = np.array([w.max_depth for w in wear_depth_history(params, hours, duty, k_ref)])
-    return hours, depth
-
-
-def _sun_root_chord(params) -> float:
-    from rvdiag.gears.geometry import GearPair
-
-    sun = GearPair.sun_planet(params).driver
-    return 2.0 * sun.root_radius * math.sin(sun.root_half_angle)
-
-
 def draw_history(kind: str, seed: int, params, spec: HistorySpec = HistorySpec()) -> History:
     """One synthetic history of ``kind`` (``KINDS``) for the reducer ``params`` (module docstring).
 
@@ -140,42 +122,28 @@ def draw_history(kind: str, seed: int, params, spec: HistorySpec = HistorySpec()
     onset = float(rng.uniform(*spec.onset_days)) if kind != "healthy" else None
     q = spec.quantile99
     truth: dict = {}
-    passes_per_day = mesh_passes(params, 24.0, spec.duty, "sun")
     if kind == "wear":
         k = float(np.exp(rng.uniform(*np.log(spec.k_wear_range))))
         k_ref = spec.k_wear_range[0]
-        hours, depth = _wear_curve(params, spec.duty, k_ref, 24.0 * 3000.0 * spec.k_wear_range[1] / k_ref)
-        fail_hours_ref = float(np.interp(spec.wear_fail_m, depth, hours))
-        failure = onset + fail_hours_ref * k_ref / k / 24.0
-
-        def size_at(days):
-            h_ref = np.clip(days - onset, 0.0, None) * 24.0 * k / k_ref
-            return np.interp(h_ref, hours, depth)
-        a_fail = spec.wear_fail_m
-        truth.update(k_wear=k)
+        growth = wear_growth(params, spec.duty, onset, k, spec.wear_fail_m, k_ref=k_ref,
+                             hours_ref_max=24.0 * 3000.0 * spec.k_wear_range[1] / k_ref)
     elif kind == "crack":
-        a_fail = spec.crack_fail_fraction * _sun_root_chord(params)
-        prop_days = float(rng.uniform(*spec.crack_days_range))
-        dsigma = paris_stress_for_cycles(spec.crack_a0_m, a_fail, prop_days * passes_per_day)
-        failure = onset + prop_days
-
-        def size_at(days):
-            n = np.clip(days - onset, 0.0, None) * passes_per_day
-            a = paris_crack_depth(spec.crack_a0_m, n, dsigma, delta_k_th=0.0)
-            return np.where(days >= onset, np.minimum(a, a_fail), 0.0)
-        truth.update(stress_range_MPa=dsigma, sun_root_stress_MPa=sun_root_stress(params, spec.duty.load_Nm) / 1e6,
-                     propagation_days=prop_days)
+        a_fail = spec.crack_fail_fraction * sun_root_chord(params)
+        growth = crack_growth(params, spec.duty, onset, spec.crack_a0_m, a_fail,
+                              float(rng.uniform(*spec.crack_days_range)))
+    elif kind == "broken":
+        growth = broken_step(onset, 1.0)
     else:
-        a_fail, failure = 1.0, (onset if kind == "broken" else None)
-
-        def size_at(days):
-            return np.zeros_like(days) if kind == "healthy" else (days >= onset).astype(float)
+        growth = Growth()
+    truth.update(growth.truth)
+    a_fail = 1.0 if kind in ("healthy", "broken") else growth.failure_size
+    failure = None if kind == "healthy" else growth.failure_days
     lam_broken = float(np.exp(rng.uniform(*np.log(spec.lambda_broken))))
     n = spec.n_records
     if failure is not None and kind in ("wear", "crack"):
         n = min(spec.max_records, max(n, int(math.ceil(failure / spec.interval_days)) + 1))
     days = spec.interval_days * np.arange(1, n + 1, dtype=float)
-    size = size_at(days)
+    size = growth.size(days)
     lam = spec.lambda_fail * (size / a_fail) ** 2
     if kind == "crack":
         lam = np.where(days >= failure, np.maximum(lam, lam_broken), lam)

@@ -39,6 +39,7 @@ from rvdiag.errors import ParameterError, RvdiagError
 from rvdiag.params import ReducerParams
 from rvdiag.updating.objectives import Objective
 from rvdiag.updating.space import Bound, apply_values, bounds_for
+from rvdiag.validation import finite_number
 
 #: RK4 steps per second of simulated time kept near the model's 9 sub-steps at 48 kHz
 _STEP_RATE_HZ = 432000.0
@@ -267,10 +268,8 @@ def update_parameters(
     UpdateResult
     """
     measured = np.asarray(measured, dtype=np.float64).ravel()
-    if not (math.isfinite(fs) and fs > 0):
-        raise ParameterError(f"fs must be positive, got {fs}")
-    if not (math.isfinite(duration_s) and duration_s > 0):
-        raise ParameterError(f"duration must be positive, got {duration_s}")
+    finite_number(fs, "fs", 0, strict=True, noun="a number")
+    finite_number(duration_s, "duration_s", 0, strict=True, noun="a number")
     n_sim = int(round(duration_s * fs))
     if measured.size < n_sim:
         raise ParameterError(f"the measured record has {measured.size} samples ({measured.size / fs:.3g} s); "

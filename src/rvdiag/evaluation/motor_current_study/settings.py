@@ -3,13 +3,13 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from rvdiag.errors import ParameterError
 from rvdiag.models.cnn_features import CNN_FEATURE_REPRESENTATIONS, default_representation
+from rvdiag.validation import finite_number
 
 FORMAT = "rvdiag-mcsa/1"
 
@@ -118,14 +118,12 @@ class McsaSettings:
             raise ParameterError(f"repeats must be a whole number >= 1, got {self.repeats}")
         if not (isinstance(self.test_size, (int, float)) and 0.0 < float(self.test_size) < 1.0):
             raise ParameterError(f"test_size must be a fraction in (0, 1), got {self.test_size}")
-        if not (math.isfinite(self.svm_c) and self.svm_c > 0):
-            raise ParameterError(f"svm_c must be a number > 0, got {self.svm_c}")
+        finite_number(self.svm_c, "svm_c", 0, strict=True, noun="a number")
         if self.cnn_epochs < 1:
             raise ParameterError(f"cnn_epochs must be >= 1, got {self.cnn_epochs}")
         if self.cnn_batch_size < 1:
             raise ParameterError(f"cnn_batch_size must be >= 1, got {self.cnn_batch_size}")
-        if not (math.isfinite(self.cnn_lr) and self.cnn_lr > 0):
-            raise ParameterError(f"cnn_lr must be a number > 0, got {self.cnn_lr}")
+        finite_number(self.cnn_lr, "cnn_lr", 0, strict=True, noun="a number")
         if self.cnn_patience < 1:
             raise ParameterError(f"cnn_patience must be >= 1, got {self.cnn_patience}")
         if not 0.0 <= self.cnn_validation_fraction < 1.0:
