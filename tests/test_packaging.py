@@ -15,7 +15,7 @@ import rvdiag
 from rvdiag.library.config import LibraryConfig, builtin_config_path, builtin_configs
 
 PYPROJECT = tomllib.loads((REPO / "pyproject.toml").read_text())
-SHIPPED = {"demo", "demo-fleet", "demo-monitoring", "life", "mcsa", "mcsa-study", "monitoring", "monitoring-current", "paper", "independent", "transfer", "experiments/snr", "experiments/independent20",
+SHIPPED = {"demo", "demo-fleet", "demo-monitoring", "demo-life", "life", "mcsa", "mcsa-study", "monitoring", "monitoring-current", "paper", "independent", "transfer", "experiments/snr", "experiments/independent20",
            "experiments/independent-speed"}
 
 
