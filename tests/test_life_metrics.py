@@ -14,7 +14,7 @@ from rvdiag.errors import ParameterError
 from rvdiag.evaluation.metrics import binomial_interval
 from rvdiag.features.orders import shaft_frequency
 from rvdiag.params import ReducerParams
-from rvdiag.prognostics import ConformalMartingale, Cusum, joint_prognosis
+from rvdiag.prognostics import ConformalMartingale, Cusum, Persistence, joint_prognosis
 from rvdiag.prognostics.metrics import LifeHistory, alpha_lambda_met, life_metrics, prediction_index
 from rvdiag.prognostics.synthetic import HistorySpec, draw_history
 from test_monitoring_cli import FS, L, OPS, fingerprint, params_attrs, record, vary
@@ -80,6 +80,29 @@ def test_a_huge_step_is_detected_on_its_third_record_and_cusum_at_once():
     assert Cusum(hs[0].baseline_scores).run(hs[0].score).alarm_index == 0
     # a sudden broken tooth has failed at onset: no remaining life is scored
     assert out["rul_coverage_80"]["n"] == 0
+    # the monitor's own alarm (index > 1) held for 3 of 3 records: its third faulty record (delay 2)
+    m = out["monitor_alarm"]
+    assert m["detection_delay_records"]["T2"]["median"] == 2 and m["detected_within_3"]["T2"]["share"] == 1.0
+    assert m["lifetime_false_alarm"]["bound"] is None
+
+
+def test_the_monitors_persistence_alarm_counts_k_of_n_and_its_false_alarms():
+    """Persistence: alarms once k of the last n indices exceed the level, onset at the window's first alarming
+    record; over lives, a healthy history whose index runs above 1 in three records running is a false alarm (no
+    bound), and one above 1 in two records of three is not (3 of 3)."""
+    assert Persistence(k=2, n=3).run([0.1, 2.0, 0.1, 2.0, 0.1]).alarm_index == 3
+    run = Persistence(k=3, n=3).run([0.1, 2.0, 0.1, 2.0, 2.0, 2.0, 0.1])
+    assert run.alarm_index == 5 and run.onset_index == 3 and list(run.statistic) == [0, 1, 1, 2, 2, 3, 2]
+    with pytest.raises(ParameterError, match="1 <= k <= n"):
+        Persistence(k=4, n=3)
+    days = 7.0 * np.arange(1, 11)
+    runs_high = np.array([0.2] * 4 + [1.5] * 3 + [0.2] * 3)
+    two_of_three = np.array([0.2] * 4 + [1.5, 0.2, 1.5] + [0.2] * 3)
+    hs = [LifeHistory(days, runs_high, "healthy", name="a"), LifeHistory(days, two_of_three, "healthy", name="b")]
+    out = life_metrics(hs)
+    fa = out["pooled"]["monitor_alarm"]["lifetime_false_alarm"]
+    assert fa["n"] == 2 and fa["n_alarmed"] == 1 and fa["rate"] == 0.5
+    assert out["per_reducer"]["a"]["monitor_alarm"]["lifetime_false_alarm"]["n_alarmed"] == 1
 
 
 def test_delay_from_the_first_record_whose_true_state_is_faulty():
@@ -333,7 +356,7 @@ def test_evaluate_life_human_output(life, capsys):
     code, out, err = run_cli(["evaluate", life["model"], life["store"], "--life"], capsys)
     assert code == 0, err
     assert "life (4 held-out histories" in out and "healthy histories ever alarming" in out
-    assert "linear extrapolation: 80 % interval" in out
+    assert "linear extrapolation: 80 % interval" in out and "the monitor's alarm, 3 of 3 records" in out
 
 
 @pytest.mark.parametrize("extra, msg", [

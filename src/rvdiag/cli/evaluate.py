@@ -175,11 +175,15 @@ def _print_life(life: dict) -> None:
     typer.echo(f"life ({p['n_histories']} held-out histories: "
                + ", ".join(f"{n} {f}" for f, n in p["fates"].items()) + "): "
                f"healthy histories ever alarming {pct(fa['rate'])}{ci} of {fa['n']} (bound {pct(fa['bound'])})")
+    rec = (lambda v: "never" if v is None else f"{v:g}")
+    ma = p["monitor_alarm"]
     for state, d in p["detection_delay_records"].items():
-        w = p["detected_within_3"][state]
-        rec = (lambda v: "never" if v is None else f"{v:g}")
+        w, mw = p["detected_within_3"][state], ma["detected_within_3"][state]
         typer.echo(f"  {state}: delay median {rec(d['median'])}, p90 {rec(d['p90'])} records; within 3 records "
-                   f"{pct(w['share'])} of {w['n']}")
+                   f"{pct(w['share'])} of {w['n']} (the monitor's alarm, 3 of 3: {pct(mw['share'])})")
+    mf = ma["lifetime_false_alarm"]
+    typer.echo(f"  the monitor's alarm, 3 of 3 records: healthy histories ever alarming {pct(mf['rate'])} of "
+               f"{mf['n']} (no lifetime bound)")
     for name, r in (("remaining life", p), ("linear extrapolation", p["baseline"])):
         c, a = r["rul_coverage_80"], r["alpha_lambda"]
         typer.echo(f"  {name}: 80 % interval holds the truth in {pct(c['rate'])} of {c['n']}, alpha-lambda "

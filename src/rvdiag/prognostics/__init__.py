@@ -12,9 +12,9 @@ on a joint's sequence of record scores / health indices (it consumes the monitor
   that ``rvdiag evaluate --life`` and ``bench/prognostics.py`` report.
 """
 
-from rvdiag.prognostics.change import ConformalMartingale, Cusum, Detection, DetectorState, PageHinkley
+from rvdiag.prognostics.change import ConformalMartingale, Cusum, Detection, DetectorState, PageHinkley, Persistence
 from rvdiag.prognostics.prognosis import Prognosis, joint_prognosis, model_for_state
 from rvdiag.prognostics.rul import ASSUMPTION, RulEstimate, estimate_rul
 
-__all__ = ["ASSUMPTION", "ConformalMartingale", "Cusum", "Detection", "DetectorState", "PageHinkley", "Prognosis",
-           "RulEstimate", "estimate_rul", "joint_prognosis", "model_for_state"]
+__all__ = ["ASSUMPTION", "ConformalMartingale", "Cusum", "Detection", "DetectorState", "PageHinkley", "Persistence",
+           "Prognosis", "RulEstimate", "estimate_rul", "joint_prognosis", "model_for_state"]

@@ -70,7 +70,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rvdiag.errors import ParameterError
-from rvdiag.validation import finite_array
+from rvdiag.validation import finite_array, finite_number
 
 #: default lifetime false-alarm probability per joint
 DEFAULT_DELTA = 0.01
@@ -291,3 +291,39 @@ class PageHinkley(_Standardised):
         self._m += z - self._sum_z / self._count - self.delta_ph
         self._m_min = min(self._m_min, self._m)
         return self._record(self._m - self._m_min)
+
+
+class Persistence(_Detector):
+    """The monitor's own per-record alarm with persistence: alarm when ``k`` of the last ``n`` records have an
+    index above ``level`` (ISO 17359's alarm criteria; the fleet's k-of-n rule, :mod:`rvdiag.fleet.rules`).  The
+    monitor's health index is its change over its alarm threshold, so ``level`` 1 is its own alarm at its stated
+    per-record rate, calibrated across reducers: no lifetime bound, and a reducer whose healthy index runs high
+    alarms more often than stated (docs/monitoring.md).  The statistic is the count of alarming records among the
+    last ``n``; the onset is the first alarming record of the window that raised the alarm.
+
+    >>> Persistence(k=3, n=3).run([0.5, 2.0, 0.4, 3.0, 5.0, 4.0]).alarm_index
+    5
+    """
+
+    def __init__(self, *, level: float = 1.0, k: int = 3, n: int = 3):
+        if not (isinstance(k, int) and isinstance(n, int) and 1 <= k <= n):
+            raise ParameterError(f"persistence k of n needs 1 <= k <= n, got k={k!r}, n={n!r}")
+        self.level = finite_number(level, "level")
+        self.k, self.n, self.threshold = k, n, float(k)
+        self._window: list[bool] = []
+        self._reset_history()
+
+    def parameters(self) -> dict:
+        return {"method": "the monitor's per-record alarm, k of the last n (ISO 17359)", "level": self.level,
+                "k": self.k, "n": self.n}
+
+    def update(self, score: float) -> DetectorState:
+        self._window = (self._window + [float(score) > self.level])[-self.n:]
+        count = sum(self._window)
+        i = self._n
+        st = self._record(float(count))
+        if st.alarm and self.alarm_index == i:
+            first = len(self._window) - self._window.index(True)
+            self.onset_index = i - first + 1
+            st = DetectorState(st.index, st.statistic, True, self.alarm_index, self.onset_index, None)
+        return st

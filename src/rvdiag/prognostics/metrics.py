@@ -37,6 +37,11 @@ pooled, JSON-ready:
     ``rul_coverage_80`` and ``alpha_lambda`` of linear extrapolation of the index (:func:`rvdiag.prognostics.rul.
     estimate_rul` with ``model="linear"``, the product's ``rul_baseline``) on the same histories and predictions,
     and, where asked (``classical``), the false-alarm and delay figures of CUSUM and Page-Hinkley.
+``monitor_alarm``
+    the same three figures (``lifetime_false_alarm`` without a bound, ``detection_delay_records``,
+    ``detected_within_3``) for the monitor's own per-record alarm (index > 1, at its stated per-record rate,
+    calibrated across reducers) held for 3 of the last 3 records (:class:`rvdiag.prognostics.change.Persistence`,
+    the fleet's default persistence): how fast the alarm a user sees speaks, beside the martingale's bound.
 ``rul_models``
     per remaining-life model (the product's choice, or each asked for, and ``linear``): ``rul_coverage_80``,
     ``alpha_lambda``, ``estimated`` (share), the median relative error of the predicted median, the share with the
@@ -57,7 +62,7 @@ import numpy as np
 
 from rvdiag.errors import ParameterError
 from rvdiag.evaluation.metrics import binomial_interval
-from rvdiag.prognostics.change import DEFAULT_DELTA, ConformalMartingale, Cusum, PageHinkley
+from rvdiag.prognostics.change import DEFAULT_DELTA, ConformalMartingale, Cusum, PageHinkley, Persistence
 from rvdiag.prognostics.prognosis import joint_prognosis, model_for_state
 
 #: the product's remaining-life model: :func:`model_for_state` of the monitor's state at the prediction
@@ -69,6 +74,8 @@ HEALTHY_STATE = "T1"
 SUDDEN_FATES = ("broken",)
 #: Saxena et al. (2010)'s settings the interface states
 ALPHA, LAMBDA, BETA, LEVEL = 0.2, 0.5, 0.5, 0.8
+#: the monitor's own alarm (its index over its threshold) and the fleet's default persistence, k of n
+MONITOR_LEVEL, PERSISTENCE = 1.0, (3, 3)
 
 
 @dataclass
@@ -171,7 +178,8 @@ def alpha_lambda_met(t_prediction: float, rul_samples, eol: float, alpha: float 
 
 def _detectors(h: LifeHistory, delta: float, classical: bool) -> dict:
     days, s, _ = h.stream()
-    out = {"martingale": ConformalMartingale(h.baseline_scores, delta=delta, seed=h.seed).run(s)}
+    out = {"martingale": ConformalMartingale(h.baseline_scores, delta=delta, seed=h.seed).run(s),
+           "monitor_alarm": Persistence(level=MONITOR_LEVEL, k=PERSISTENCE[0], n=PERSISTENCE[1]).run(s)}
     if classical:
         out["cusum"] = Cusum(h.baseline_scores).run(s)
         out["page_hinkley"] = PageHinkley(h.baseline_scores).run(s)
@@ -326,6 +334,9 @@ def summarise(outcomes: list[dict], *, delta: float, models: Sequence[str], clas
     base = {"method": "linear extrapolation of the health index (rvdiag.prognostics.rul, model 'linear')",
             "rul_coverage_80": dict(by_model["linear"]["rul_coverage_80"], level=LEVEL),
             "alpha_lambda": dict(by_model["linear"]["alpha_lambda"], alpha=alpha, **{"lambda": lam}, beta=beta)}
+    out["monitor_alarm"] = dict(_detection(outcomes, "monitor_alarm", None),
+                                method=f"the monitor's per-record alarm (index > {MONITOR_LEVEL:g}), "
+                                       f"{PERSISTENCE[0]} of the last {PERSISTENCE[1]} records; no lifetime bound")
     if classical:
         for name in ("cusum", "page_hinkley"):
             base[name] = _detection(outcomes, name, None)
