@@ -32,6 +32,9 @@ Cases:
 - ``joint``: the teeth and the 9 stiffness factors identified together: from the ``nominal`` case's teeth (the
   teeth first, as docs/twin.md's ``--gn-teeth-first``), a fresh Jacobian there (40 simulations), then
   Levenberg-Marquardt on both with the factors' step held within ``--trust`` (as docs/twin.md's ``--gn-trust``);
+- ``oracle_nuisance``, ``nominal_nuisance``: the oracle and nominal cases with the record's five run-to-run
+  factors fitted beside the teeth (their prior the draw's spread; the chord Jacobian's columns from the same
+  nominal point), the covariance the white floor only;
 - ``oracle_refresh``, ``nominal_refresh``: the case's fit, then a fresh teeth Jacobian at its estimate (22
   simulations) and the fit again from there (the chord's fixed point is biased where the Jacobian at the
   nominal reducer differs from the one at the specimen; the refreshed one removes most of that).
@@ -55,7 +58,7 @@ from rvdiag.library.paired import draw_variation
 from rvdiag.params import ReducerParams
 from rvdiag.updating import observability as ob
 
-CASES = ("oracle", "nominal", "joint", "oracle_refresh", "nominal_refresh")
+CASES = ("oracle", "nominal", "joint", "oracle_refresh", "nominal_refresh", "oracle_nuisance", "nominal_nuisance")
 
 
 def base_params() -> ReducerParams:
@@ -108,7 +111,8 @@ def identify(spec, pars, J, Ci, y, case: str, f_true: dict, op, trust: float, it
     factors; returns the teeth (m), the factors, the history and the count of simulations."""
     teeth = [j for j, p in enumerate(pars) if p.kind == "tooth"]
     facs = [j for j, p in enumerate(pars) if p.kind == "factor"]
-    est = teeth + (facs if case == "joint" else [])
+    nuis = [j for j, p in enumerate(pars) if p.group == "run-to-run"]
+    est = teeth + (facs if case == "joint" else []) + (nuis if case.endswith("_nuisance") else [])
     L, _ = ob.prior_square_root([pars[j] for j in est], ob.sun_tooth_prior(spec))
     Jl = J.columns["te"][:, est] @ L                             # per unit of z
     A = Jl.T @ Ci @ Jl
@@ -116,9 +120,9 @@ def identify(spec, pars, J, Ci, y, case: str, f_true: dict, op, trust: float, it
 
     def predict(z):
         th = L @ z
-        fac = dict(f_true) if case == "oracle" else {}
+        fac = dict(f_true) if case.startswith("oracle") else {}
         for k, j in enumerate(est):
-            if pars[j].kind == "factor":
+            if pars[j].kind != "tooth":
                 fac[pars[j]] = th[k]
         return ob.observe(spec, op, ob.Perturbation(fac), th[:len(teeth)])["te"], th
 
@@ -160,7 +164,7 @@ def identify(spec, pars, J, Ci, y, case: str, f_true: dict, op, trust: float, it
         hist.append(float(np.sqrt(np.mean((th[:len(teeth)] - truth) ** 2))))
         if rel < 1e-5:
             break
-    facs_est = th[len(teeth):] if case == "joint" else None
+    facs_est = th[len(teeth):len(teeth) + len(facs)] if case == "joint" else None
     return th[:len(teeth)], facs_est, hist, sims
 
 
@@ -202,6 +206,9 @@ def main() -> None:
                 pickle.dump((base, pars, J, G, D), fh)
     print(f"chord Jacobian, run-to-run columns and {a.draws} draws: {time.perf_counter() - t0:.0f} s", flush=True)
     recs = [int(k) for k in a.records.split(",")]
+    rr = list(G.parameters)                                 # the run-to-run factors, as nuisance parameters
+    Jx = ob.Jacobian(pars + rr, {s: np.hstack([J.columns[s], G.columns[s]]) for s in ob.OBSERVATIONS}, J.nominal,
+                     {}, J.vibration_power)
     cases = a.cases.split(",")
     facs = [p for p in pars if p.kind == "factor"]
     s1 = base.stage1
@@ -221,6 +228,7 @@ def main() -> None:
               f"off; {max(recs)} records in {time.perf_counter() - ts:.0f} s", flush=True)
         for n in recs:
             Ci = np.linalg.inv(covariance(G, D, noise, n))
+            Cw = np.eye(Ci.shape[0]) * n / noise.line_variance("te", 1.0, 1.0)
             y = Y[:n].mean(axis=0)
             done = {}
             for case in cases:
@@ -251,6 +259,9 @@ def main() -> None:
                                                    truth, start=t1)
                     hist, sims = h1 + hist[1:], s1_ + sims + 2 * len(tp)
                     ts -= sec1 if first in cases and cases.index(first) < cases.index(case) else 0.0
+                elif case.endswith("_nuisance"):     # the record's run-to-run factors fitted, white floor only
+                    est, fe, hist, sims = identify(spec, pars + rr, Jx, Cw, y, case, f_true, op, a.trust,
+                                                   a.iterations, truth)
                 else:
                     est, fe, hist, sims = identify(spec, pars, J, Ci, y, case, f_true, op, a.trust, a.iterations,
                                                    truth)
