@@ -53,7 +53,7 @@ import time
 
 import numpy as np
 
-from rvdiag.library.config import STIFFNESS_KEYS
+from rvdiag.errors import RvdiagError
 from rvdiag.library.paired import draw_variation
 from rvdiag.params import ReducerParams
 from rvdiag.updating import observability as ob
@@ -147,10 +147,14 @@ def identify(spec, pars, J, Ci, y, case: str, f_true: dict, op, trust: float, it
                 dth = L @ dz
                 big = np.max(np.abs(dth[len(teeth):])) / trust
                 dz = dz / max(big, 1.0)
-            yn, thn = predict(z + dz)
             sims += 1
-            rn = y - yn
-            cn = cost(rn, z + dz)
+            try:
+                yn, thn = predict(z + dz)
+            except RvdiagError:                                  # e.g. a stiffness below zero: refused
+                cn = np.inf
+            else:
+                rn = y - yn
+                cn = cost(rn, z + dz)
             if cn < c:
                 break
             lam *= 10.0
