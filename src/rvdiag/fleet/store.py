@@ -21,6 +21,7 @@ import math
 import os
 import re
 import secrets
+from dataclasses import replace
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -408,6 +409,7 @@ class Fleet:
                 lastj = judged[-1] if judged else None
                 n_all = s.scalar(select(func.count()).select_from(db.Record).where(db.Record.joint_id == j.id))
                 learn = None
+                failure_index = R.Rules.from_dict(j.rules).failure_index
                 if d["rules"] is not None:
                     learn = max(0, d["rules"].learning - sum(st.learning for st in d["steps"]))
                 rows.append({
@@ -420,8 +422,7 @@ class Fleet:
                     else False,
                     "epoch": None if d["epoch"] is None else d["epoch"].number, "signal": j.signal_kind,
                     "learning_left": learn, "trend": [r.health_index for r in judged[-TREND_RECORDS:]],
-                    "failure_index": R.Rules.from_dict(j.rules).failure_index,
-                    **prognosis_of(judged, lastj, R.Rules.from_dict(j.rules).failure_index)})
+                    "failure_index": failure_index, **prognosis_of(judged, lastj, failure_index)})
         return rows
 
     def history(self, joint: str, limit: int | None = None) -> list[dict]:
@@ -522,12 +523,11 @@ class Fleet:
         t = now() if time is None else _aware(time)
         with self._writes() as s, s.begin():
             j = self._joint(s, joint, lock=True)
-            rl = R.Rules.from_dict({**R.Rules.from_dict(j.rules).to_dict(),
-                                    "failure_index": None if value is None else float(value)})
-            old = R.Rules.from_dict(j.rules).failure_index
+            old = R.Rules.from_dict(j.rules)
+            rl = replace(old, failure_index=None if value is None else float(value)).check()
             j.rules = rl.to_dict()
             ep = self._epochs(s, j.id)
-            text = f"failure index {_fmt_index(old)} -> {_fmt_index(rl.failure_index)}" + (f": {note}" if note else "")
+            text = f"failure index {_fmt_index(old.failure_index)} -> {_fmt_index(rl.failure_index)}" + (f": {note}" if note else "")
             s.add(db.Event(joint_id=j.id, kind="failure-index", time=t, by=_who(by), note=text,
                            epoch_id=ep[-1].id if ep else None))
         return {"joint": joint, "kind": "failure-index", "time": _iso(t), "by": _who(by), "note": text,
@@ -630,6 +630,7 @@ def prognosis_of(judged: list, last, failure_index: float | None = None) -> dict
     detector's ranking pool (its commissioning records have no index against themselves)."""
     from rvdiag.errors import ParameterError
     from rvdiag.prognostics import joint_prognosis
+    from rvdiag.prognostics.rul import NO_THRESHOLD
 
     recs = [r for r in judged if r.health_index is not None and math.isfinite(float(r.health_index))]
     if not recs:
@@ -643,7 +644,7 @@ def prognosis_of(judged: list, last, failure_index: float | None = None) -> dict
         return {"onset_time": None, "change_alarm_time": None, "change_evidence": None,
                 "rul": {"estimated": False, "reason": str(exc)}}
     rul = p["rul"]
-    if failure_index is None and not rul.get("estimated") and "threshold" in str(rul.get("reason")):
+    if rul.get("reason") == NO_THRESHOLD:
         rul = {**rul, "reason": "the joint has no failure index (the health index its remaining life is counted "
                                 "to): set one with 'rvdiag fleet set JOINT --failure-index X'"}
     return {"onset_time": p["onset_time"], "change_alarm_time": p["alarm_time"], "change_evidence": p["evidence"],

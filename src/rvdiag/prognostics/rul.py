@@ -57,6 +57,8 @@ ASSUMPTION = ("Assumes the joint's duty cycle (speed, load and hours in motion) 
               "foreseen.")
 
 MODELS = ("exponential", "size", "paris", "linear")
+#: the reason a remaining life is not estimated when no failure threshold is given
+NO_THRESHOLD = "no failure threshold on the health index is set"
 
 
 @dataclass
@@ -178,7 +180,7 @@ def estimate_rul(t_days, health_index, *, threshold: float | None, healthy_level
               "confidence": float(confidence), "seed": int(seed),
               "prior": "reference (1/sigma^2)" if prior is None else "normal-inverse-gamma"}
     if thr is None or not np.all(np.isfinite(thr)) or thr.size == 0:
-        return RulEstimate(False, "no failure threshold on the health index is set", model, as_of,
+        return RulEstimate(False, NO_THRESHOLD, model, as_of,
                            parameters=params)
     if thr.size not in (1, n_samples):
         raise ParameterError(f"threshold must be one number or {n_samples} draws")
