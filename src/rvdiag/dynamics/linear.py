@@ -18,6 +18,7 @@ import scipy.linalg
 from rvdiag.dynamics import model as mdl
 from rvdiag.errors import SimulationError
 from rvdiag.gears.cycloid import modification_clearance
+from rvdiag.gears.pin_wear import table_function
 
 
 def _residual(model: mdl.Model, t: float, q: np.ndarray) -> np.ndarray:
@@ -206,6 +207,9 @@ def potential_energy(model: mdl.Model, t: float, q: np.ndarray) -> float:
             sin_eta = (ehat[0] * pins[:, 1] - ehat[1] * pins[:, 0]) / Rp
             delta -= modification_clearance(cos_eta, sin_eta, e * Zp / Rp, P[mdl.I_DRRP], P[mdl.I_DRP],
                                             P[mdl.I_CLOSE])
+            if P[mdl.I_PINWEAR] != 0:  # the worn stage's clearance growth, a table over cos(eta)
+                w0 = int(P[mdl.I_PINWEAR])
+                delta -= table_function(P[w0:w0 + int(P[mdl.I_NPINWEAR])])(cos_eta)
         if bil == 0:
             delta = np.maximum(delta, 0.0)
         V += 0.5 * P[mdl.I_KPIN] * np.sum(delta**2)

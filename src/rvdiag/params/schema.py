@@ -106,6 +106,9 @@ class Stage2:
     cycloid_face_width: float = _positive()
     equidistant_modification: float = _any()
     offset_modification: float = _any()
+    #: wear of the discs' flanks and the pins: the largest clearance growth along a contact normal on each flank
+    #: (m), shaped by Archard's law at the rated torque (:mod:`rvdiag.gears.pin_wear`); 0 (default): new
+    pin_wear_depth: float = _nonnegative(default=0.0)
 
     @property
     def short_amplitude_coefficient(self) -> float:
