@@ -69,7 +69,7 @@ from rvdiag.errors import ParameterError
 from rvdiag.gears.cycloid import (closing_offset, modification_clearance, pin_contact_stiffness,
                                   theoretical_curvature_radius)
 from rvdiag.gears.wear import DEFAULT_WEAR_COEFFICIENT, DutyCycle
-from rvdiag.validation import finite_number
+from rvdiag.validation import is_number
 
 #: the deepest pin-stage wear (m) the simulator takes: ten times the 7 um radial clearance of the default
 #: modification, 2.8 arcmin of added lost motion on the RV-20E (the catalogue's limit is 1 arcmin in all)
@@ -297,6 +297,16 @@ def pin_wear_profile(params, hours: float, duty: DutyCycle, k_wear: float = DEFA
     return pin_wear_history(params, [hours], duty, k_wear, flanks=flanks, points_per_pitch=points_per_pitch)[0]
 
 
+def check_pin_wear_depth(depth, name: str = "[stage2] pin_wear_depth", scale: float = 1.0, unit: str = "m") -> float:
+    """``depth`` (m) as a float when it is a finite number in ``[0, MAX_PIN_WEAR_DEPTH]``, else a one-line
+    :class:`~rvdiag.errors.ParameterError` naming ``name`` (the value shown divided by ``scale``, in ``unit``)."""
+    if not is_number(depth) or not 0.0 <= float(depth) <= MAX_PIN_WEAR_DEPTH:
+        shown = f"{depth / scale:g} {unit}" if is_number(depth) else repr(depth)
+        raise ParameterError(f"{name} must be between 0 and {MAX_PIN_WEAR_DEPTH / scale:g} {unit} (ten times the "
+                             f"stage's radial clearance), got {shown}")
+    return float(depth)
+
+
 @lru_cache(maxsize=16)
 def _table(params, depth: float, points: int) -> np.ndarray:
     """:func:`pin_wear_table` for a parameter set (hashable, its own ``pin_wear_depth`` 0) and a depth > 0."""
@@ -331,11 +341,7 @@ def pin_wear_table(params, depth: float | None = None, points: int = PIN_WEAR_TA
     >>> float(t.max()), float(t[0]), float(t[-1])
     (2e-06, 0.0, 0.0)
     """
-    depth = params.stage2.pin_wear_depth if depth is None else depth
-    finite_number(depth, "pin wear depth", 0)
-    if depth > MAX_PIN_WEAR_DEPTH:
-        raise ParameterError(f"pin wear depth {depth:g} m exceeds {MAX_PIN_WEAR_DEPTH:g} m (ten times the "
-                             f"stage's radial clearance)")
+    depth = check_pin_wear_depth(params.stage2.pin_wear_depth if depth is None else depth)
     if depth == 0.0:
         return np.zeros(int(points))
     base = params.replace(stage2={"pin_wear_depth": 0.0}, name="pin wear")
