@@ -26,7 +26,7 @@ from rvdiag.gears.pin_wear import (MAX_PIN_WEAR_DEPTH, lost_motion, pin_wear_pro
 from rvdiag.gears.wear import DutyCycle
 from rvdiag.params import ReducerParams
 
-from conftest import potential_gradient, run_cli
+from conftest import assert_forces_are_minus_gradient, run_cli
 
 P0 = ReducerParams.default()
 S2 = P0.stage2
@@ -172,13 +172,8 @@ def test_forces_are_minus_gradient_of_the_potential_with_wear():
     worn = P0.replace(stage2={"pin_wear_depth": 20e-6})
     for load in (100.0, -100.0):
         m = prepare(worn, output_speed_deg_s=45.0, load_Nm=load, settings=st)
-        m0 = prepare(P0, output_speed_deg_s=45.0, load_Nm=load, settings=st)
-        t = 0.21
-        q = static_equilibrium(m, t) + 1e-8 * rng.standard_normal(m.n_dof)
-        y = np.concatenate([q, np.zeros_like(q)])
-        Ma = mdl.make_rhs(m)(t, y)[m.n_dof:] * m.mass
-        assert np.max(np.abs(Ma - mdl.make_rhs(m0)(t, y)[m.n_dof:] * m.mass)) > 1e-2 * np.max(np.abs(Ma))
-        np.testing.assert_allclose(Ma, -potential_gradient(m, t, q), rtol=0, atol=1e-6 * np.max(np.abs(Ma)))
+        assert_forces_are_minus_gradient(m, prepare(P0, output_speed_deg_s=45.0, load_Nm=load, settings=st), 0.21,
+                                         rng)
 
 
 def test_bad_depths_are_one_line_errors(tmp_path):

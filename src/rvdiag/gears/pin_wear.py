@@ -68,7 +68,7 @@ import numpy as np
 from rvdiag.errors import ParameterError
 from rvdiag.gears.cycloid import (closing_offset, modification_clearance, pin_contact_stiffness,
                                   theoretical_curvature_radius)
-from rvdiag.gears.wear import DEFAULT_WEAR_COEFFICIENT, DutyCycle
+from rvdiag.gears.wear import DEFAULT_WEAR_COEFFICIENT, DutyCycle, history_arguments
 from rvdiag.validation import is_number
 
 #: the deepest pin-stage wear (m) the simulator takes: ten times the 7 um radial clearance of the default
@@ -210,6 +210,19 @@ class _Stage:
         force = np.where(on, self.k_pin * np.maximum(x[:, None] * a - gap, 0.0), 0.0)
         return force.T.reshape(-1)
 
+    def clearance(self, disc: np.ndarray, pin: np.ndarray) -> np.ndarray:
+        """The clearance growth at each phase: the disc's depth there plus the pin's (``pin`` along ``pin_arc``) at
+        the point it touches."""
+        return disc + np.interp(self.arc, self.pin_arc, pin)
+
+    def advance(self, disc: np.ndarray, pin: np.ndarray, k_wear: float, most: float) -> tuple:
+        """One step of the run-in: ``(disc, pin, revolutions)`` after at most ``most`` output revolutions, fewer
+        where the clearance would grow by more than ``_STEP`` of the most loaded pin's elastic approach."""
+        force = self.loads(self.clearance(disc, pin))
+        d_rate, p_rate = self.rates(force, k_wear)
+        step = min(most, _STEP * force.max() / self.k_pin / float(self.clearance(d_rate, p_rate).max()))
+        return disc + d_rate * step, pin + p_rate * step, step
+
     def rates(self, force: np.ndarray, k_wear: float) -> tuple[np.ndarray, np.ndarray]:
         """Depth per output revolution (m) of the disc at each phase and of the pin along ``pin_arc``."""
         w = force / self.b
@@ -232,15 +245,7 @@ def _revolutions(hours: float, duty: DutyCycle, flanks: int) -> float:
 def pin_wear_history(params, hours, duty: DutyCycle, k_wear: float = DEFAULT_WEAR_COEFFICIENT, *, flanks: int = 2,
                      points_per_pitch: int = _POINTS_PER_PITCH) -> list[PinWearProfile]:
     """:func:`pin_wear_profile` at each of the increasing ``hours`` (a sequence), from one integration."""
-    hours = list(hours)
-    for value in hours + [k_wear]:
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-                or not math.isfinite(value) or value < 0:
-            raise ParameterError(f"hours and the wear coefficient must be finite numbers >= 0, got {value!r}")
-    if any(b < a for a, b in zip(hours, hours[1:])):
-        raise ParameterError("hours must not decrease")
-    if not isinstance(duty, DutyCycle):
-        raise ParameterError(f"duty must be a DutyCycle, got {type(duty).__name__}")
+    hours = history_arguments(hours, duty, k_wear)
     if flanks not in (1, 2):
         raise ParameterError(f"flanks must be 1 or 2, got {flanks!r}")
     st = _Stage(params, duty.load_Nm, points_per_pitch)
@@ -250,15 +255,12 @@ def pin_wear_history(params, hours, duty: DutyCycle, k_wear: float = DEFAULT_WEA
     for t in hours:
         target = _revolutions(t, duty, flanks)
         while done < target and k_wear > 0.0 and duty.load_Nm != 0.0:
-            force = st.loads(disc + np.interp(st.arc, st.pin_arc, pin))
-            d_rate, p_rate = st.rates(force, k_wear)
-            rate = d_rate + np.interp(st.arc, st.pin_arc, p_rate)
-            step = min(target - done, _STEP * force.max() / st.k_pin / float(rate.max()))
-            disc, pin, done = disc + d_rate * step, pin + p_rate * step, done + step
-        force = st.loads(disc + np.interp(st.arc, st.pin_arc, pin))
+            disc, pin, step = st.advance(disc, pin, k_wear, target - done)
+            done += step
+        force = st.loads(st.clearance(disc, pin))
         half = st.loaded
         out.append(PinWearProfile(eta=st.eta[half], disc=disc[half].copy(),
-                                  pin=np.interp(st.arc, st.pin_arc, pin)[half], pin_arc=st.pin_arc.copy(),
+                                  pin=(st.clearance(disc, pin) - disc)[half], pin_arc=st.pin_arc.copy(),
                                   pin_depth=pin.copy(), force_N=force[half], revolutions=float(target),
                                   k_wear=float(k_wear), flanks=int(flanks)))
     return out
@@ -318,12 +320,8 @@ def _table(params, depth: float, points: int) -> np.ndarray:
     prev = total = np.zeros_like(st.eta)
     while total.max() < depth:
         prev = total
-        force = st.loads(total)
-        d_rate, p_rate = st.rates(force, k)
-        rate = d_rate + np.interp(st.arc, st.pin_arc, p_rate)
-        step = _STEP * force.max() / st.k_pin / float(rate.max())
-        disc, pin = disc + d_rate * step, pin + p_rate * step
-        total = disc + np.interp(st.arc, st.pin_arc, pin)
+        disc, pin, _ = st.advance(disc, pin, k, math.inf)
+        total = st.clearance(disc, pin)
     lo, hi = prev.max(), total.max()                     # the step that crossed the depth, linearly
     clearance = prev + (depth - lo) / (hi - lo) * (total - prev)
     clearance *= depth / clearance.max()

@@ -199,10 +199,9 @@ def wear_depth_profile(params, hours: float, duty: DutyCycle, k_wear: float = DE
     return wear_depth_history(params, [hours], duty, k_wear, run_in=run_in, points=points)[0]
 
 
-def wear_depth_history(params, hours, duty: DutyCycle, k_wear: float = DEFAULT_WEAR_COEFFICIENT, *,
-                       run_in: bool = True, points: int = _POINTS) -> list[WearDepthProfile]:
-    """:func:`wear_depth_profile` at each of the increasing ``hours`` (a sequence) of one steady duty, from one
-    integration (the growth law of a life history: the profile at a record's time in service)."""
+def history_arguments(hours, duty: DutyCycle, k_wear: float) -> list:
+    """``hours`` as a list, once checked with ``duty`` and ``k_wear`` as a wear history's arguments: finite numbers
+    >= 0, the hours not decreasing, a :class:`DutyCycle` (one-line :class:`~rvdiag.errors.ParameterError` else)."""
     hours = list(hours)
     for value in hours + [k_wear]:
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
@@ -212,6 +211,14 @@ def wear_depth_history(params, hours, duty: DutyCycle, k_wear: float = DEFAULT_W
         raise ParameterError("hours must not decrease")
     if not isinstance(duty, DutyCycle):
         raise ParameterError(f"duty must be a DutyCycle, got {type(duty).__name__}")
+    return hours
+
+
+def wear_depth_history(params, hours, duty: DutyCycle, k_wear: float = DEFAULT_WEAR_COEFFICIENT, *,
+                       run_in: bool = True, points: int = _POINTS) -> list[WearDepthProfile]:
+    """:func:`wear_depth_profile` at each of the increasing ``hours`` (a sequence) of one steady duty, from one
+    integration (the growth law of a life history: the profile at a record's time in service)."""
+    hours = history_arguments(hours, duty, k_wear)
     pair = GearPair.sun_planet(params)
     path, pb = pair.path_of_contact, pair.base_pitch
     s = np.linspace(0.0, path, int(points))
