@@ -4,12 +4,18 @@ Checked here: the Archard depth of the discs' flanks and of the pins against a h
 sharing of an unmodified stage, the sliding over the contact's travel); the kernels' clearance row against the
 modification formula plus the table; a zero table run through the wear's code path gives the unworn model to the
 bit; Q = -grad V of the NumPy potential with wear; the lost motion grows monotonically with the depth, in the
-geometry and in the model's static hysteresis test; bad depths as one-line errors (API, parameter file, CLI).
+geometry and in the model's static hysteresis test; bad depths as one-line errors (API, parameter file, CLI); the GPU
+ensemble under numba's CUDA simulator.
 """
 
 from __future__ import annotations
 
+import json
 import math
+import os
+import subprocess
+import sys
+import textwrap
 
 import numpy as np
 import pytest
@@ -17,7 +23,7 @@ from scipy.optimize import brentq
 
 from rvdiag.dynamics import kernels as kn
 from rvdiag.dynamics import model as mdl
-from rvdiag.dynamics import prepare, simulate
+from rvdiag.dynamics import prepare
 from rvdiag.dynamics.linear import static_equilibrium
 from rvdiag.errors import ConfigError, ParameterError
 from rvdiag.gears.cycloid import closing_offset, modification_clearance, theoretical_curvature_radius
@@ -26,7 +32,7 @@ from rvdiag.gears.pin_wear import (MAX_PIN_WEAR_DEPTH, lost_motion, pin_wear_pro
 from rvdiag.gears.wear import DutyCycle
 from rvdiag.params import ReducerParams
 
-from conftest import assert_forces_are_minus_gradient, run_cli
+from conftest import REPO, assert_forces_are_minus_gradient, run_cli
 
 P0 = ReducerParams.default()
 S2 = P0.stage2
@@ -190,8 +196,6 @@ def test_bad_depths_are_one_line_errors(tmp_path):
 def test_cli_route(tmp_path, capsys):
     """``rvdiag simulate --pin-wear-depth MM`` records the depth in the result's parameters; a bad value, or a bad
     ``[stage2] pin_wear_depth`` in a parameter file, is one ``error:`` line with exit code 2 and writes nothing."""
-    import json
-
     out = tmp_path / "r.npz"
     base = ["simulate", "--output-speed", "45", "--duration", "0.005", "--transient", "0.005", "--quiet", "-o", out]
     code, _, err = run_cli(base + ["--pin-wear-depth", "0.002"], capsys)
@@ -210,3 +214,32 @@ def test_cli_route(tmp_path, capsys):
         code, _, err = run_cli(base + extra, capsys)
         assert code == 2 and err.startswith("error:") and err.count("\n") == 1 and name in err, err
         assert not out.exists()
+
+
+def test_gpu_ensemble_carries_the_wear():
+    """The GPU ensemble (``rvdiag library build --device cuda``) under numba's CUDA simulator, in a child process (as
+    tests/test_gpu_ensemble.py): worn and unworn models in one call equal integrate() bit for bit, the worn P (with
+    its table) in a group of its own.  A GPU's own arithmetic is bench/gpu_ensemble.py's to report."""
+    code = textwrap.dedent("""
+        import json
+        import numpy as np
+        from rvdiag.dynamics import ModelSettings, prepare
+        from rvdiag.dynamics.ensemble import IntegrationRequest, integrate_ensemble
+        from rvdiag.dynamics.integrate import integrate
+        from rvdiag.dynamics.linear import static_equilibrium
+        from rvdiag.params import ReducerParams
+
+        fs, st, p = 48000.0, ModelSettings(substeps=4, chunk_samples=20), ReducerParams.default()
+        reqs = []
+        for d in (0.0, 5e-6, 2e-6):
+            m = prepare(p.replace(stage2={"pin_wear_depth": d}), output_speed_deg_s=45.0, settings=st)
+            reqs.append(IntegrationRequest(m, m.initial_state(static_equilibrium(m, -10 / fs), -10 / fs), fs, 40, 10))
+        out = integrate_ensemble(reqs)
+        equal = [bool(np.array_equal(integrate(r.model, r.y0, fs, 40, 10)[0], o[0])) for r, o in zip(reqs, out)]
+        print(json.dumps({"equal": equal, "differs": bool(np.max(np.abs(out[1][0] - out[0][0])) > 0)}))
+    """)
+    env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1", "PYTHONPATH": str(REPO / "src")}
+    proc = subprocess.run([sys.executable, "-c", code], env=env, cwd=REPO, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    res = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert res == {"equal": [True, True, True], "differs": True}
