@@ -152,7 +152,9 @@ def test_kernel_clearance_row_adds_the_table():
 
 def test_zero_wear_is_the_unworn_model_to_the_bit():
     """A zero depth packs nothing (the same P as the default reducer), and a table of zeros forced through the wear's
-    code path gives the unworn model's signal to the last bit in the same run; 5 um changes it."""
+    code path gives the unworn model's signal to the last bit in the same run; 5 um changes it.  Unstated, the depth
+    stays out of the parameters' dict (every earlier store's parameter hash stays)."""
+    assert "pin_wear_depth" not in P0.to_dict()["stage2"] and P0.stage2.pin_wear_depth is None
     kw = dict(output_speed_deg_s=45.0, load_Nm=167.0)
     m0 = prepare(P0, **kw)
     np.testing.assert_array_equal(prepare(P0.replace(stage2={"pin_wear_depth": 0.0}), **kw).P, m0.P)
@@ -205,12 +207,12 @@ def test_cli_route(tmp_path, capsys):
     out.unlink()
     bad = tmp_path / "bad.toml"
     text = P0.to_toml()
-    assert "pin_wear_depth = 0.0" in text
+    assert "pin_wear_depth" not in text and text.count("[stage2]\n") == 1
     for extra, value in ((["--pin-wear-depth", "-0.001"], None), (["--pin-wear-depth", "0.5"], None),
                          (["--pin-wear-depth", "nan"], None), (["--params", bad], "-1e-6"), (["--params", bad], "1.0")):
         name = "--pin-wear-depth" if value is None else "pin_wear_depth"
         if value is not None:
-            bad.write_text(text.replace("pin_wear_depth = 0.0", f"pin_wear_depth = {value}"))
+            bad.write_text(text.replace("[stage2]\n", f"[stage2]\npin_wear_depth = {value}\n"))
         code, _, err = run_cli(base + extra, capsys)
         assert code == 2 and err.startswith("error:") and err.count("\n") == 1 and name in err, err
         assert not out.exists()

@@ -119,10 +119,10 @@ def _pack_profile_modification(P: np.ndarray, params: ReducerParams, mean_load_N
     (:func:`rvdiag.gears.pin_wear.pin_wear_table`) is appended to ``P`` (``P[I_PINWEAR]`` its start); returns
     ``P``."""
     from rvdiag.gears.cycloid import closing_offset
-    from rvdiag.gears.pin_wear import pin_wear_table, table_function
+    from rvdiag.gears.pin_wear import pin_wear_table, stage_wear_depth, table_function
 
     s2 = params.stage2
-    drrp, drp, worn = s2.equidistant_modification, s2.offset_modification, s2.pin_wear_depth > 0.0
+    drrp, drp, worn = s2.equidistant_modification, s2.offset_modification, stage_wear_depth(params) > 0.0
     if drrp == 0.0 and drp == 0.0 and not worn:
         return P
     k1 = s2.eccentricity * s2.pins / s2.pin_circle_radius

@@ -330,7 +330,7 @@ def _table(params, depth: float, points: int) -> np.ndarray:
 
 def pin_wear_table(params, depth: float | None = None, points: int = PIN_WEAR_TABLE_POINTS) -> np.ndarray:
     """The clearance growth (m) on ``points`` equally spaced ``cos eta`` in [-1, 1] of a stage worn ``depth`` deep
-    (default ``params.stage2.pin_wear_depth``) on both flanks: the shape Archard's law gives it at the parameter
+    (default the parameter set's ``[stage2] pin_wear_depth``, :func:`stage_wear_depth`) on both flanks: the shape Archard's law gives it at the parameter
     set's rated torque (run-in load sharing included; the speed and the coefficient change only how long it takes),
     scaled to ``depth`` at its deepest.  Zeros for ``depth = 0``.  Cached per stage and depth.
 
@@ -339,8 +339,14 @@ def pin_wear_table(params, depth: float | None = None, points: int = PIN_WEAR_TA
     >>> float(t.max()), float(t[0]), float(t[-1])
     (2e-06, 0.0, 0.0)
     """
-    depth = check_pin_wear_depth(params.stage2.pin_wear_depth if depth is None else depth)
+    depth = check_pin_wear_depth(stage_wear_depth(params) if depth is None else depth)
     if depth == 0.0:
         return np.zeros(int(points))
-    base = params.replace(stage2={"pin_wear_depth": 0.0}, name="pin wear")
-    return _table(dataclasses.replace(base, source=""), float(depth), int(points)).copy()
+    base = dataclasses.replace(params, stage2=dataclasses.replace(params.stage2, pin_wear_depth=None), name="",
+                               source="")
+    return _table(base, float(depth), int(points)).copy()
+
+
+def stage_wear_depth(params) -> float:
+    """The parameter set's ``[stage2] pin_wear_depth`` (m; 0 where it is not stated)."""
+    return float(params.stage2.pin_wear_depth or 0.0)

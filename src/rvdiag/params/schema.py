@@ -107,8 +107,9 @@ class Stage2:
     equidistant_modification: float = _any()
     offset_modification: float = _any()
     #: wear of the discs' flanks and the pins: the largest clearance growth along a contact normal on each flank
-    #: (m), shaped by Archard's law at the rated torque (:mod:`rvdiag.gears.pin_wear`); 0 (default): new
-    pin_wear_depth: float = _nonnegative(default=0.0)
+    #: (m), shaped by Archard's law at the rated torque (:mod:`rvdiag.gears.pin_wear`); unstated (None, the default)
+    #: is a new stage, and is left out of the parameters' dict, so that the hash of every earlier store stays
+    pin_wear_depth: float | None = _nonnegative(default=None)
 
     @property
     def short_amplitude_coefficient(self) -> float:
