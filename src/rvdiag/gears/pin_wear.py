@@ -69,11 +69,9 @@ from rvdiag.errors import ParameterError
 from rvdiag.gears.cycloid import (closing_offset, modification_clearance, pin_contact_stiffness,
                                   theoretical_curvature_radius)
 from rvdiag.gears.wear import DEFAULT_WEAR_COEFFICIENT, DutyCycle, history_arguments
+from rvdiag.params.schema import MAX_PIN_WEAR_DEPTH
 from rvdiag.validation import is_number
 
-#: the deepest pin-stage wear (m) the simulator takes: ten times the 7 um radial clearance of the default
-#: modification, 2.8 arcmin of added lost motion on the RV-20E (the catalogue's limit is 1 arcmin in all)
-MAX_PIN_WEAR_DEPTH = 1.0e-4
 #: points of the clearance table over cos(eta) in [-1, 1] that the simulator interpolates
 PIN_WEAR_TABLE_POINTS = 1025
 #: crank angles per pin pitch at which the load distribution is solved (the phase grid is Zp times finer)
