@@ -245,3 +245,50 @@ def test_gpu_ensemble_carries_the_wear():
     assert proc.returncode == 0, proc.stderr[-4000:]
     res = json.loads(proc.stdout.strip().splitlines()[-1])
     assert res == {"equal": [True, True, True], "differs": True}
+
+
+def _library(randomise=None, **top):
+    """A small synthetic-simulator library config (the draws and columns do not depend on the simulator)."""
+    from rvdiag.library import LibraryConfig
+
+    data = {"mode": "split-by-simulation", "seed": 5, "simulator": "rvdiag.library.synthetic:simulate",
+            "signal": {"fs": 4000.0, "duration_s": 0.2, "transient_s": 0.02, "segment_length": 400, "hop": 400},
+            "operation": {"input_speed_rpm": {"min": 1000.0, "max": 2000.0}, "load_Nm": [50.0, 100.0]},
+            "randomise": {"stiffness_pct": 5.0, **(randomise or {})},
+            "split": {"simulations_per_state": 3, "test_simulations_per_state": 1},
+            "states": {"T1": {}, "T2": {}}, **top}
+    return LibraryConfig.from_dict(data, source="pins.toml")
+
+
+def test_library_draws_the_stage_wear_per_simulation(tmp_path):
+    """``[randomise] pin_wear_depth`` draws the stage's wear per simulation after every other draw (a config
+    without it plans the same units and keeps its hash), puts it into the unit's reducer and records the column;
+    out of range, or in a paired library, it is one ConfigError line."""
+    from rvdiag.datasets import SampleStore
+    from rvdiag.library import build_library, make_plan
+    from rvdiag.library.build import Job, stored_config, unit_params
+
+    plain, worn = _library(), _library({"pin_wear_depth": {"min": 0.0, "max": 5e-6}})
+    assert "pin_wear_depth" not in plain.to_dict()["randomise"]
+    a, b = make_plan(plain), make_plan(worn)
+    depths = [u.pin_wear_depth for u in b]
+    assert all(u.pin_wear_depth is None for u in a) and all(0.0 <= d <= 5e-6 for d in depths)
+    assert len(set(depths)) == len(depths)
+    for ua, ub in zip(a, b):  # every other draw as before
+        assert (ua.severity, ua.speed, ua.load_Nm, ua.scales) == (ub.severity, ub.speed, ub.load_Nm, ub.scales)
+    params = unit_params(b[0], Job.from_config(worn, worn.reducer_params()))
+    assert params.stage2.pin_wear_depth == depths[0]
+    assert stored_config(plain, plain.reducer_params()) != stored_config(worn, worn.reducer_params())
+    build_library(worn, tmp_path / "w.zarr", workers=0, progress=False)
+    d = SampleStore.open(tmp_path / "w.zarr").load()
+    for u in b:
+        assert set(d.meta["pin_wear_depth"][d.meta["unit"] == u.index].tolist()) == {u.pin_wear_depth}
+    for bad, match in (({"pin_wear_depth": {"min": 0.0, "max": 1e-3}}, "must lie in"),
+                       ({"pin_wear_depth": -1e-6}, "must lie in")):
+        with pytest.raises(ConfigError, match=match) as exc:
+            _library(bad)
+        assert "\n" not in str(exc.value) and "[randomise] pin_wear_depth" in str(exc.value)
+    with pytest.raises(ConfigError, match="paired or life-history"):
+        _library({"pin_wear_depth": 1e-6}, mode="split-by-simulation",
+                 operation={"output_speed_deg_s": 45.0, "load_Nm": 90.0},
+                 baseline={"operating_points": [[45.0, 90.0]]}, split={"reducers": 4, "test_reducers": 2})
