@@ -181,7 +181,7 @@ def test_forces_are_minus_gradient_of_the_potential_with_wear():
     for load in (100.0, -100.0):
         m = prepare(worn, output_speed_deg_s=45.0, load_Nm=load, settings=st)
         assert_forces_are_minus_gradient(m, prepare(P0, output_speed_deg_s=45.0, load_Nm=load, settings=st), 0.21,
-                                         rng)
+                                         rng, rtol=2e-6)  # the differences' rounding: up to 1.1e-6 at 20 um
 
 
 def test_bad_depths_are_one_line_errors(tmp_path):

@@ -307,30 +307,47 @@ def check_pin_wear_depth(depth, name: str = "[stage2] pin_wear_depth", scale: fl
     return float(depth)
 
 
-@lru_cache(maxsize=16)
-def _table(params, depth: float, points: int) -> np.ndarray:
-    """:func:`pin_wear_table` for a parameter set (hashable, its own ``pin_wear_depth`` 0) and a depth > 0."""
-    rated = float(params.operation.rated_torque)
-    st = _Stage(params, rated, _POINTS_PER_PITCH)
-    disc = np.zeros_like(st.eta)
-    pin = np.zeros_like(st.pin_arc)
-    k = DEFAULT_WEAR_COEFFICIENT
-    prev = total = np.zeros_like(st.eta)
-    while total.max() < depth:
-        prev = total
-        disc, pin, _ = st.advance(disc, pin, k, math.inf)
-        total = st.clearance(disc, pin)
-    lo, hi = prev.max(), total.max()                     # the step that crossed the depth, linearly
-    clearance = prev + (depth - lo) / (hi - lo) * (total - prev)
-    clearance *= depth / clearance.max()
-    return clearance_table(st.eta[st.loaded], clearance[st.loaded], points)
+class _RunIn:
+    """One stage's run-in at its rated torque, integrated as far as a table has asked for and kept (the clearance
+    profile after each step), so that every depth up to there is an interpolation between two kept steps."""
+
+    def __init__(self, params):
+        self.stage = _Stage(params, float(params.operation.rated_torque), _POINTS_PER_PITCH)
+        self.disc = np.zeros_like(self.stage.eta)
+        self.pin = np.zeros_like(self.stage.pin_arc)
+        self.profiles = [np.zeros_like(self.stage.eta)]
+        self.depths = [0.0]
+
+    def table(self, depth: float, points: int) -> np.ndarray:
+        st = self.stage
+        while self.depths[-1] < depth:
+            self.disc, self.pin, _ = st.advance(self.disc, self.pin, DEFAULT_WEAR_COEFFICIENT, math.inf)
+            self.profiles.append(st.clearance(self.disc, self.pin))
+            self.depths.append(float(self.profiles[-1].max()))
+        i = int(np.searchsorted(self.depths, depth))           # the step that crossed the depth, linearly
+        lo, hi = self.profiles[i - 1], self.profiles[i]
+        clearance = lo + (depth - self.depths[i - 1]) / (self.depths[i] - self.depths[i - 1]) * (hi - lo)
+        table = clearance_table(st.eta[st.loaded], clearance[st.loaded], points)
+        return table * (depth / table.max())                   # its deepest node the depth
+
+
+@lru_cache(maxsize=8)
+def _run_in(stage1, stage2, material, rated: float) -> _RunIn:
+    """The run-in of a stage: what its shape depends on (the two stages, whose teeth give the ratio, the material
+    and the rated torque), not the depth, so that a library drawing a depth per simulation integrates it once."""
+    from rvdiag.params import ReducerParams
+
+    base = ReducerParams.default()
+    return _RunIn(dataclasses.replace(base, stage1=stage1, stage2=stage2, material=material,
+                                      operation=dataclasses.replace(base.operation, rated_torque=rated)))
 
 
 def pin_wear_table(params, depth: float | None = None, points: int = PIN_WEAR_TABLE_POINTS) -> np.ndarray:
     """The clearance growth (m) on ``points`` equally spaced ``cos eta`` in [-1, 1] of a stage worn ``depth`` deep
-    (default the parameter set's ``[stage2] pin_wear_depth``, :func:`stage_wear_depth`) on both flanks: the shape Archard's law gives it at the parameter
-    set's rated torque (run-in load sharing included; the speed and the coefficient change only how long it takes),
-    scaled to ``depth`` at its deepest.  Zeros for ``depth = 0``.  Cached per stage and depth.
+    (default the parameter set's ``[stage2] pin_wear_depth``, :func:`stage_wear_depth`) on both flanks: the shape
+    Archard's law gives it at the parameter set's rated torque (run-in load sharing included; the speed and the coefficient change only how long it takes),
+    scaled to ``depth`` at its deepest.  Zeros for ``depth = 0``.  The run-in is kept per stage (the last 8), so another
+depth of the same stage costs only the steps beyond the deepest asked for so far.
 
     >>> from rvdiag.params import ReducerParams
     >>> t = pin_wear_table(ReducerParams.default(), 2e-6)
@@ -340,9 +357,9 @@ def pin_wear_table(params, depth: float | None = None, points: int = PIN_WEAR_TA
     depth = check_pin_wear_depth(stage_wear_depth(params) if depth is None else depth)
     if depth == 0.0:
         return np.zeros(int(points))
-    base = dataclasses.replace(params, stage2=dataclasses.replace(params.stage2, pin_wear_depth=None), name="",
-                               source="")
-    return _table(base, float(depth), int(points)).copy()
+    run_in = _run_in(params.stage1, dataclasses.replace(params.stage2, pin_wear_depth=None), params.material,
+                     float(params.operation.rated_torque))
+    return run_in.table(float(depth), int(points))
 
 
 def stage_wear_depth(params) -> float:
