@@ -2,7 +2,7 @@
 
 For each output speed and load, noise-free, on the signal ``rvdiag simulate`` writes (channel x): RMS, crest
 factor and kurtosis of T1 (healthy), a broken tooth (fraction 1.0 and 0.5), wear of 3 and 9 um (the ends of the
-shipped libraries' draws: the sun's Archard depth over a robot's life, docs/model.md), 20 um of wear (late life:
+monitoring libraries' draws: the sun's Archard depth over a robot's life, docs/model.md), 20 um of wear (late life:
 the 20,000 h life at k = 1e-17 m^2/N wears 29 um) and a 2 mm root crack, their ratios to healthy, the share of the
 acceleration energy above 10 kHz, and the dynamic mesh-force factor (largest ratio of a mesh force to its
 quasi-static value at the same angle, :func:`dynamic_mesh_factor`) with the smallest mesh force over the static

@@ -106,15 +106,15 @@ def test_life_consistent_wear_changes_the_rms_little(point, life_wear):
 
 
 def _library_wear_draws() -> tuple[float, float]:
-    """The wear depths (m) the shipped libraries draw: configs/monitoring.toml's T3 range (the other shipped
-    configs draw the same, docs/library.md)."""
+    """The wear depths (m) the monitoring libraries draw: configs/monitoring.toml's T3 range (demo-monitoring.toml
+    draws the same; docs/library.md says which shipped configs keep other draws, and why)."""
     from rvdiag.library import LibraryConfig
 
     return LibraryConfig.load("monitoring").states["T3"]["wear_depth"].values
 
 
 def test_the_libraries_draw_wear_of_a_robots_life(life_wear):
-    """The shipped wear draws span the sun's Archard depth over a robot's life (docs/model.md: 3.1 um after
+    """The monitoring libraries' wear draws span the sun's Archard depth over a robot's life (docs/model.md: 3.1 um after
     20,000 h at 30 deg/s, 8.9 um after 30,000 h at 60 deg/s, k = 1e-18 m^2/N), not the 10-80 um of before."""
     from rvdiag.gears.wear import DutyCycle, wear_depth_profile
 
