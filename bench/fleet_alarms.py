@@ -509,15 +509,47 @@ def _summary(per_joint, stated, rules, ingest_per_record, wall) -> dict:
         "sensor_fault_shown": f"{sum(sens)} of {len(sens)}",
         "sensor_as_gear_fault": tot("sensor_as_gear_fault"),
         "ingest_s_per_record": ingest_per_record, "wall_s": wall,
-        # where the false alarms fall: the joints that raised any (record positions after commissioning), and those
-        # whose own record-alarm rate after learning lies above alpha beyond its 95 % interval (not exchangeable
-        # with their learning records)
+        # where the false alarms fall: the joints that raised any (record positions after commissioning)
         "false_alarm_joints": {j["joint"]: j.get("false_alarms_at", j["false_alarms"]) for j in per_joint
                                if j["false_alarms"]},
-        "joints_record_alarms_above_alpha": {
-            j["joint"]: f"{j['record_alarms']} of {j['healthy_judged']}" for j in per_joint
-            if j["healthy_judged"] and clopper_pearson(j["record_alarms"], j["healthy_judged"])[0] > rules["alpha"]},
+        **_exchangeability(per_joint, rules),
     }
+
+
+def _exchangeability(per_joint, rules) -> dict:
+    """Are a joint's later healthy records exchangeable with its learning records, as the stated rate assumes?
+
+    - ``record_alarm_rate_per_joint``: each joint's record alarms after learning; given its ``N`` learning records
+      a joint alarms at a rate ``F ~ Beta(j, N - j + 1)``, ``j = floor(alpha (N + 1))``
+      (:func:`rvdiag.fleet.rules.false_alarms_per_year`), so a rate well above alpha is expected of some joints;
+      ``joints_rate_beyond_calibration`` names those above that law's 99th percentile;
+    - ``joints_later_above_learning``: the joints whose later health indices stand above their learning ones (a
+      one-sided Mann-Whitney U test, p < 0.01; Mann & Whitney 1947), as a drift or a learning period unlike the
+      joint's life would.
+
+    Needs each joint's ``health_index`` series (``--years``); the learning records are its first ``learning``
+    recognised ones, the later ones those up to the broken tooth."""
+    from scipy.stats import beta, mannwhitneyu
+
+    if not per_joint or "health_index" not in per_joint[0]:
+        return {}
+    n_cal = int(rules["learning"])
+    j = math.floor(rules["alpha"] * (n_cal + 1) + 1e-9)
+    top = float(beta.ppf(0.99, j, n_cal - j + 1))
+    rates, beyond, drift = {}, {}, {}
+    for pj in per_joint:
+        hi = [v for v in pj["health_index"][:len(pj["health_index"]) - len(pj["t2_states"])] if v is not None]
+        learn, later = hi[:n_cal], hi[n_cal:]
+        rate = pj["record_alarms"] / pj["healthy_judged"] if pj["healthy_judged"] else None
+        rates[pj["joint"]] = rate
+        if rate is not None and rate > top:
+            beyond[pj["joint"]] = f"{pj['record_alarms']} of {pj['healthy_judged']}"
+        if learn and later:
+            p = float(mannwhitneyu(learn, later, alternative="less").pvalue)
+            if p < 0.01:
+                drift[pj["joint"]] = p
+    return {"record_alarm_rate_per_joint": rates, "calibration_rate_99th_percentile": top,
+            "joints_rate_beyond_calibration": beyond, "joints_later_above_learning": drift}
 
 
 if __name__ == "__main__":

@@ -83,3 +83,7 @@ def test_a_joints_history_gives_its_false_alarms_and_the_broken_tooth(bench, tmp
     lo, hi = s["false_alarms_per_joint_year_ci95"]
     assert lo < s["false_alarms_per_joint_year"] < hi
     assert s["broken_tooth_acknowledged_ci95"][0] == pytest.approx(0.025 ** 0.5)  # Clopper-Pearson, 2 of 2
+    assert s["joints_later_above_learning"] == {} and s["record_alarm_rate_per_joint"]["bench/life/r0"] > 0
+    drifted = {**pj, "health_index": [v if v is None or i < 19 else v + 5.0 for i, v in enumerate(pj["health_index"])]}
+    assert list(bench._summary([drifted], 0.766, fleet.rules("bench/life/r0").to_dict(), 0.1, 1.0)[
+        "joints_later_above_learning"]) == ["bench/life/r0"]
