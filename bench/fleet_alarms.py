@@ -525,18 +525,20 @@ def _exchangeability(per_joint, rules) -> dict:
       ``joints_rate_beyond_calibration`` names those above that law's 99th percentile;
     - ``joints_later_above_learning``: the joints whose later health indices stand above their learning ones (a
       one-sided Mann-Whitney U test, p < 0.01; Mann & Whitney 1947), as a drift or a learning period unlike the
-      joint's life would.
+      joint's life would; ``later_above_learning_pooled``: the joints' tests pooled (Stouffer's z, the sum of the
+      joints' normal scores over the square root of their number; Stouffer et al. 1949), which sees a shift that
+      each joint's 19 learning records alone cannot.
 
     Needs each joint's ``health_index`` series (``--years``); the learning records are its first ``learning``
     recognised ones, the later ones those up to the broken tooth."""
-    from scipy.stats import beta, mannwhitneyu
+    from scipy.stats import beta, mannwhitneyu, norm
 
     if not per_joint or "health_index" not in per_joint[0]:
         return {}
     n_cal = int(rules["learning"])
     j = math.floor(rules["alpha"] * (n_cal + 1) + 1e-9)
     top = float(beta.ppf(0.99, j, n_cal - j + 1))
-    rates, beyond, drift = {}, {}, {}
+    rates, beyond, drift, z = {}, {}, {}, []
     for pj in per_joint:
         hi = [v for v in pj["health_index"][:len(pj["health_index"]) - len(pj["t2_states"])] if v is not None]
         learn, later = hi[:n_cal], hi[n_cal:]
@@ -546,10 +548,13 @@ def _exchangeability(per_joint, rules) -> dict:
             beyond[pj["joint"]] = f"{pj['record_alarms']} of {pj['healthy_judged']}"
         if learn and later:
             p = float(mannwhitneyu(learn, later, alternative="less").pvalue)
+            z.append(float(norm.isf(p)))
             if p < 0.01:
                 drift[pj["joint"]] = p
     return {"record_alarm_rate_per_joint": rates, "calibration_rate_99th_percentile": top,
-            "joints_rate_beyond_calibration": beyond, "joints_later_above_learning": drift}
+            "joints_rate_beyond_calibration": beyond, "joints_later_above_learning": drift,
+            "later_above_learning_pooled": {"z": sum(z) / math.sqrt(len(z)), "p": float(norm.sf(sum(z) / math.sqrt(
+                len(z))))} if z else None}
 
 
 if __name__ == "__main__":
