@@ -522,7 +522,11 @@ def _exchangeability(per_joint, rules) -> dict:
     - ``record_alarm_rate_per_joint``: each joint's record alarms after learning; given its ``N`` learning records
       a joint alarms at a rate ``F ~ Beta(j, N - j + 1)``, ``j = floor(alpha (N + 1))``
       (:func:`rvdiag.fleet.rules.false_alarms_per_year`), so a rate well above alpha is expected of some joints;
-      ``joints_rate_beyond_calibration`` names those above that law's 99th percentile;
+      ``joints_rate_beyond_calibration`` names those above that law's 99th percentile; ``record_alarms_pooled``:
+      the joints' record alarms together against what that law implies (each joint's count beta-binomial with
+      ``n`` its judged records: mean ``n j / (N + 1)``, variance ``n a b (a + b + n) / ((a + b)^2 (a + b + 1))``,
+      ``a = j``, ``b = N - j + 1``), as a z-score: the per-record rate's test that allows for the joints' shared
+      calibrations, which a binomial interval on the pooled records does not;
     - ``joints_later_above_learning``: the joints whose later health indices stand above their learning ones (a
       one-sided Mann-Whitney U test, p < 0.01; Mann & Whitney 1947), as a drift or a learning period unlike the
       joint's life would; ``later_above_learning_pooled``: the joints' tests pooled (Stouffer's z, the sum of the
@@ -539,11 +543,17 @@ def _exchangeability(per_joint, rules) -> dict:
     j = math.floor(rules["alpha"] * (n_cal + 1) + 1e-9)
     top = float(beta.ppf(0.99, j, n_cal - j + 1))
     rates, beyond, drift, z = {}, {}, {}, []
+    a, b = j, n_cal - j + 1
+    pooled = {"alarms": 0, "expected": 0.0, "variance": 0.0}
     for pj in per_joint:
         hi = [v for v in pj["health_index"][:len(pj["health_index"]) - len(pj["t2_states"])] if v is not None]
         learn, later = hi[:n_cal], hi[n_cal:]
         rate = pj["record_alarms"] / pj["healthy_judged"] if pj["healthy_judged"] else None
         rates[pj["joint"]] = rate
+        n = pj["healthy_judged"]
+        pooled["alarms"] += pj["record_alarms"]
+        pooled["expected"] += n * a / (a + b)
+        pooled["variance"] += n * a * b * (a + b + n) / ((a + b) ** 2 * (a + b + 1))
         if rate is not None and rate > top:
             beyond[pj["joint"]] = f"{pj['record_alarms']} of {pj['healthy_judged']}"
         if learn and later:
@@ -551,7 +561,11 @@ def _exchangeability(per_joint, rules) -> dict:
             z.append(float(norm.isf(p)))
             if p < 0.01:
                 drift[pj["joint"]] = p
+    if pooled["variance"] > 0:
+        pooled["z"] = (pooled["alarms"] - pooled["expected"]) / math.sqrt(pooled["variance"])
+        pooled["p_above"] = float(norm.sf(pooled["z"]))
     return {"record_alarm_rate_per_joint": rates, "calibration_rate_99th_percentile": top,
+            "record_alarms_pooled": pooled,
             "joints_rate_beyond_calibration": beyond, "joints_later_above_learning": drift,
             "later_above_learning_pooled": {"z": sum(z) / math.sqrt(len(z)), "p": float(norm.sf(sum(z) / math.sqrt(
                 len(z))))} if z else None}

@@ -87,3 +87,5 @@ def test_a_joints_history_gives_its_false_alarms_and_the_broken_tooth(bench, tmp
     drifted = {**pj, "health_index": [v if v is None or i < 19 else v + 5.0 for i, v in enumerate(pj["health_index"])]}
     assert list(bench._summary([drifted], 0.766, fleet.rules("bench/life/r0").to_dict(), 0.1, 1.0)[
         "joints_later_above_learning"]) == ["bench/life/r0"]
+    pooled = s["record_alarms_pooled"]  # two joints of 30 judged records each: mean 30 / 20 each
+    assert pooled["alarms"] == 2 * pj["record_alarms"] and pooled["expected"] == pytest.approx(2 * 30 / 20)
