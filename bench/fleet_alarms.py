@@ -347,11 +347,53 @@ def years(a, argv) -> dict:
             kept = {"key": key, "joints": joints, "ingest_s": dt_all, "ingested": n_all,
                     "stated": fleet.stated_false_alarms_per_year(j0), "rules": fleet.rules(j0).to_dict()}
             done.write_text(json.dumps(kept))
-        per_joint += kept["joints"]
+        per_joint += _with_operating_points(kept["joints"], SampleStore.open(out / f"{name}.zarr"))
         ingest_s, n_ingested = ingest_s + kept["ingest_s"], n_ingested + kept["ingested"]
         stated, rules = kept["stated"], kept["rules"]
     res = _summary(per_joint, stated, rules, ingest_s / max(n_ingested, 1), time.perf_counter() - t_start)
     return _report(res, a, argv)
+
+
+def _by_operating_point(per_joint, n_cal: int) -> dict:
+    """:func:`_exchangeability`'s ``by_operating_point``."""
+    from scipy.stats import norm
+
+    out = {"above_own_point": 0, "expected": 0.0, "variance": 0.0, "alarms_at_point": {}}
+    for pj in per_joint:
+        n_later = len(pj["health_index"]) - len(pj["t2_states"])
+        kept = [(h, p) for h, p in zip(pj["health_index"][:n_later], pj["operating_points"][:n_later])
+                if h is not None]
+        cal, later = kept[:n_cal], kept[n_cal:]
+        top = max(h for h, _ in cal) if cal else None
+        for point in sorted({p for _, p in kept}):
+            c = [h for h, p in cal if p == point]
+            mine = [h for h, p in later if p == point]
+            if not c or not mine:
+                continue
+            n, m = len(c), len(mine)
+            out["above_own_point"] += sum(h > max(c) for h in mine)
+            out["expected"] += m / (n + 1)
+            out["variance"] += m * (1 / (n + 1)) * (n / (n + 1)) * (n + 1 + m) / (n + 2)
+            key = str(point)
+            out["alarms_at_point"][key] = out["alarms_at_point"].get(key, 0) + sum(h > top for h in mine)
+    if out["variance"] > 0:
+        out["z"] = (out["above_own_point"] - out["expected"]) / math.sqrt(out["variance"])
+        out["p_above"] = float(norm.sf(out["z"]))
+    return out
+
+
+def _with_operating_points(joints: list, store) -> list:
+    """The joints' figures with each one's later records' operating points (``operating_points``, the index into
+    the config's ``[baseline] operating_points``, in record order) from its life store, for :func:`_exchangeability`."""
+    meta = store.meta
+    first = np.asarray(meta["segment"]) == 0
+    role, reducer = np.asarray(meta["role"]).astype(str), np.asarray(meta["reducer"])
+    out = []
+    for pj in joints:
+        sel = first & (role == "monitored") & (reducer == pj["reducer"])
+        order = np.argsort(np.asarray(meta["life.record"])[sel])
+        out.append({**pj, "operating_points": np.asarray(meta["operating_point"])[sel][order].tolist()})
+    return out
 
 
 def _fresh_db(db: Path) -> None:
@@ -465,7 +507,9 @@ def _judge_joint(joint, h, history, rules, Item, Rules, replay) -> dict:
             "in_alarm_before_t2_acknowledged": bool(t2) and t2[0] > 0 and state[t2[0] - 1] == "alarm",
             "t2_record_alarms": [bool(h[i]["record_alarm"]) for i in t2],
             "false_alarms_at": [st.key for st in steps if "raised" in st.events and st.key in set(judged)],
-            "health_index": [h[i]["health_index"] for i in range(len(h))],
+            # the index series of the gear's records: None where not recognised or a sensor fault
+            "health_index": [h[i]["health_index"] if h[i]["recognised"] and not history[i]["sensor"] else None
+                             for i in range(len(h))],
             "joint_p_value": [h[i].get("joint_p_value") for i in range(len(h))],
             "sensor_fault_shown": {history[i]["sensor"]: h[i]["joint_state"] == "sensor-fault" for i in sensors},
             "sensor_as_gear_fault": int(sum(bool(h[i]["record_alarm"]) or h[i]["fault_state"] is not None
@@ -533,6 +577,11 @@ def _exchangeability(per_joint, rules) -> dict:
       joints' normal scores over the square root of their number; Stouffer et al. 1949), which sees a shift that
       each joint's 19 learning records alone cannot.
 
+    - ``by_operating_point`` (with each joint's ``operating_points``): the index may depend on the operating point,
+      and then a joint's rank is in effect its rank among its learning records at the later record's point; the
+      later records above every learning record of their own point, against ``m / (n_p + 1)`` expected of ``m``
+      exchangeable records over ``n_p`` learning records at that point (its variance beta-binomial as above).
+
     Needs each joint's ``health_index`` series (``--years``); the learning records are its first ``learning``
     recognised ones, the later ones those up to the broken tooth."""
     from scipy.stats import beta, mannwhitneyu, norm
@@ -561,11 +610,12 @@ def _exchangeability(per_joint, rules) -> dict:
             z.append(float(norm.isf(p)))
             if p < 0.01:
                 drift[pj["joint"]] = p
+    by_point = _by_operating_point(per_joint, n_cal) if "operating_points" in per_joint[0] else None
     if pooled["variance"] > 0:
         pooled["z"] = (pooled["alarms"] - pooled["expected"]) / math.sqrt(pooled["variance"])
         pooled["p_above"] = float(norm.sf(pooled["z"]))
     return {"record_alarm_rate_per_joint": rates, "calibration_rate_99th_percentile": top,
-            "record_alarms_pooled": pooled,
+            "record_alarms_pooled": pooled, "by_operating_point": by_point,
             "joints_rate_beyond_calibration": beyond, "joints_later_above_learning": drift,
             "later_above_learning_pooled": {"z": sum(z) / math.sqrt(len(z)), "p": float(norm.sf(sum(z) / math.sqrt(
                 len(z))))} if z else None}

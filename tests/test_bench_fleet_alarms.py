@@ -89,3 +89,8 @@ def test_a_joints_history_gives_its_false_alarms_and_the_broken_tooth(bench, tmp
         "joints_later_above_learning"]) == ["bench/life/r0"]
     pooled = s["record_alarms_pooled"]  # two joints of 30 judged records each: mean 30 / 20 each
     assert pooled["alarms"] == 2 * pj["record_alarms"] and pooled["expected"] == pytest.approx(2 * 30 / 20)
+    # one operating point: read point by point is the joint's own rank
+    one = {**pj, "operating_points": [0] * len(pj["health_index"])}
+    by = bench._summary([one], 0.766, fleet.rules("bench/life/r0").to_dict(), 0.1, 1.0)["by_operating_point"]
+    assert by["above_own_point"] == pj["record_alarms"] == by["alarms_at_point"]["0"]
+    assert by["expected"] == pytest.approx(30 / 20)
