@@ -157,13 +157,15 @@ def life_config(out: Path, signal: str, name: str, seed: int, reducers: int, rec
     if signal == "current":
         text = MONITORING_CURRENT.read_text()
         body = text[text.index('name = "monitoring-current"'):]
-        subs = [('name = "monitoring-current"', f'name = "bench-fleet-current-{name}"'), ("seed = 31", f"seed = {seed}"),
+        subs = [('name = "monitoring-current"', f'name = "bench-fleet-current-{name}"'),
+                ("seed = 31", f"seed = {seed}"),
                 ("monitored_healthy = 6", ""), ("monitored_per_state = 3", "")]
         broken = "broken_fraction = 1.0"
     else:
         text = DEMO_MONITORING.read_text()
         body = text[text.index('name = "demo-monitoring"'):]
-        subs = [("noise_snr_db = 30.0", "noise_snr_db = 20.0"), ('name = "demo-monitoring"', f'name = "bench-fleet-{name}"'),
+        subs = [("noise_snr_db = 30.0", "noise_snr_db = 20.0"),
+                ('name = "demo-monitoring"', f'name = "bench-fleet-{name}"'),
                 ("seed = 27", f"seed = {seed}"), ("monitored_healthy = 8\nmonitored_per_state = 1\n", "")]
         broken = "broken_fraction = {min = 0.5, max = 1.0}"
     subs.append(("reducers = 12\ntest_reducers = 6", f"reducers = {reducers}\ntest_reducers = {reducers // 2}"))
@@ -525,7 +527,8 @@ def _summary(per_joint, stated, rules, ingest_per_record, wall) -> dict:
     ra, ma, ma_all, rec_all = tot("record_alarms"), tot("monitor_alarms"), tot("monitor_alarms_all"), \
         tot("healthy_recognised")
     t2 = [j["t2_alarm_within_3"] for j in per_joint if j["t2_alarm_within_3"] is not None]
-    t2a = [j["t2_alarm_within_3_acknowledged"] for j in per_joint if j.get("t2_alarm_within_3_acknowledged") is not None]
+    t2a = [j["t2_alarm_within_3_acknowledged"] for j in per_joint
+           if j.get("t2_alarm_within_3_acknowledged") is not None]
     t2r = [j["t2_raised_within_3_acknowledged"] for j in per_joint if j.get("t2_alarm_within_3") is not None]
     sens = [v for j in per_joint for v in j["sensor_fault_shown"].values()]
     return {

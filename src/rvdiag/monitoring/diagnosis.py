@@ -467,4 +467,5 @@ def level_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float | Non
 
 
 __all__ = ["BAND_MIN_LINES", "GAIN_FACTOR", "LEVEL_FACTOR", "MASK_DB", "SHAPE_FACTOR", "SPREAD_FACTOR", "MonitorResult",
-           "band_ratios", "baseline_spectrum", "level_check_against_baseline", "mesh_check_against_baseline", "monitor_record"]
+           "band_ratios", "baseline_spectrum", "level_check_against_baseline", "mesh_check_against_baseline",
+           "monitor_record"]
