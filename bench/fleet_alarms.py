@@ -44,7 +44,7 @@ never acknowledges here, so a false alarm would otherwise hold the joint in alar
 
 Usage (a library or monitor that exists is reused; the libraries are 112 + 246 + 402 simulations, 10-30 min on 2
 shared cores, the rest about 4 min; ``--years``: 9 x 179 simulations a set, about 25 min a set with 2 workers on
-the shared machine, and 0.1-0.2 s a record to ingest)::
+the shared machine, and 0.1-0.4 s a record to ingest)::
 
     PYTHONPATH=src nice python bench/fleet_alarms.py --out out/bench-fleet [--sets 2] [--json FILE]
     PYTHONPATH=src nice python bench/fleet_alarms.py --signal current --out out/bench-fleet-current [--json FILE]
