@@ -4,9 +4,9 @@
 The coverage a conformal set states holds for a new sample exchangeable with the calibration samples.  The
 sets of ``rvdiag train`` are judged on new *reducers* (groups of windows): the held-out reducers of a library's
 test split and the rig of bench/hidden_rig.py (each state its own reducer).  This bench keeps the calibration
-scores of one training run and recomputes the thresholds by each rule of
-:func:`rvdiag.models.conformal.group_threshold` (and by the window-pooled rule the sets used first), so every rule
-is judged on the same network and the same probabilities:
+scores of one training run and recomputes the thresholds by each rule of :data:`RULES` (the window-pooled default
+and the hierarchical ``rule="reducers"`` of :mod:`rvdiag.models.conformal`, Dunn et al.'s subsampling and a
+reducer-level tolerance rule), so every rule is judged on the same network and the same probabilities:
 
 ``capture STORE MODEL``
     trains the default model on STORE exactly as ``rvdiag train STORE --out MODEL --seed S`` does
@@ -98,15 +98,10 @@ def windows_threshold(s, g, alpha):
 
 
 def reducers_threshold(s, g, alpha):
-    """Hierarchical conformal (Lee, Barber & Willett 2023): the (1 - alpha) quantile of the scores weighted
-    1 / ((K + 1) N_k) for the N_k windows of each of K reducers, with weight 1 / (K + 1) at +inf."""
-    names, inv = np.unique(g, return_inverse=True)
-    K = names.size
-    w = 1.0 / ((K + 1) * np.bincount(inv)[inv])
-    order = np.argsort(s, kind="stable")
-    cum = np.cumsum(w[order])
-    k = int(np.searchsorted(cum, (1.0 - alpha) - 1e-12))
-    return float(s[order][k]) if k < s.size else float("inf")
+    """Hierarchical conformal (Lee, Barber & Willett 2023): :func:`rvdiag.models.conformal.reducer_threshold`."""
+    from rvdiag.models.conformal import reducer_threshold
+
+    return reducer_threshold(s, g, alpha)
 
 
 def subsample_threshold(s, g, alpha, draws=1000, seed=0):
@@ -178,8 +173,8 @@ def compare(model: Path, evals: list[str]) -> dict:
     data = {spec: _evaluation(model, spec) for spec in evals}
     out = {"model": str(model), "n_calibration": int(z["y"].size),
            "calibration_reducers": {c: int(np.unique(z["g"][z["y"] == c]).size) for c in classes},
-           "windows_rule_reproduces_card": bool(all(
-               calibrated("windows", z["P"], z["y"], z["g"], classes, cover).thresholds[c] == stored.thresholds[c]
+           "card_rule": stored.rule, "card_reproduced": bool(all(
+               calibrated(stored.rule, z["P"], z["y"], z["g"], classes, cover).thresholds[c] == stored.thresholds[c]
                for c in classes)), "rules": {}}
     for rule in RULES:
         ps = calibrated(rule, z["P"], z["y"], z["g"], classes, cover)

@@ -294,8 +294,8 @@ def calibration_split(tr, fraction: float, seed: int, coverage: dict[str, float]
     """The training samples held out to calibrate the prediction sets (:func:`rvdiag.models.conformal.split_by_group`:
     whole reducers, the metadata column ``unit``, ``fraction`` of each state's, drawn with ``[seed, 4]``), as a
     boolean mask, and None; or None and the reason there are none (``fraction`` 0, no ``unit`` column, a state
-    with too few held-out reducers for its stated ``coverage``, :func:`rvdiag.models.conformal.reducer_threshold`:
-    then nothing is held out and the fit keeps every sample)."""
+    with too few held-out samples for its stated ``coverage``: then nothing is held out and the fit keeps every
+    sample)."""
     from rvdiag.models.conformal import min_calibration_samples, split_by_group
 
     if fraction <= 0:
@@ -305,20 +305,19 @@ def calibration_split(tr, fraction: float, seed: int, coverage: dict[str, float]
         return None, "the store has no reducer column (unit) to hold whole reducers out of the fit"
     held = split_by_group(tr.y, units, fraction, [seed, 4])
     y = np.asarray(tr.y).astype(str)
-    units = np.asarray(units)
     for c in np.unique(y):
-        n, need = np.unique(units[held & (y == c)]).size, min_calibration_samples(coverage[str(c)])
+        n, need = int(np.sum(held & (y == c))), min_calibration_samples(coverage[str(c)])
         if n < need:
-            return None, (f"{n} held-out reducer(s) of {c}, fewer than the {need} a {100 * coverage[str(c)]:g} % set "
-                          "for a new reducer needs: build more reducers (simulations), raise "
-                          "--calibration-fraction or use --calibration cross")
+            return None, (f"{n} held-out sample(s) of {c}, fewer than the {need} a {100 * coverage[str(c)]:g} % set "
+                          "needs: build more reducers (simulations) or raise --calibration-fraction")
     return held, None
 
 
 def calibration_folds_of(tr, folds: int, seed: int, coverage: dict[str, float]):
     """The fold of each training sample for ``--calibration cross`` (:func:`rvdiag.models.conformal.group_folds`
     over the reducers, metadata column ``unit``, drawn with ``[seed, 5]``), and None; or None and the reason there
-    are no sets (no ``unit`` column, a state with fewer reducers than folds or than its coverage needs)."""
+    are no sets (no ``unit`` column, a state with fewer reducers than folds or fewer samples than its coverage
+    needs)."""
     from rvdiag.models.conformal import group_folds, min_calibration_samples
 
     units = tr.meta.get("unit")
@@ -326,10 +325,9 @@ def calibration_folds_of(tr, folds: int, seed: int, coverage: dict[str, float]):
         return None, "the store has no reducer column (unit) to fold the reducers"
     y = np.asarray(tr.y).astype(str)
     for c in np.unique(y):
-        n, need = np.unique(np.asarray(units)[y == c]).size, min_calibration_samples(coverage[str(c)])
+        n, need = int(np.sum(y == c)), min_calibration_samples(coverage[str(c)])
         if n < need:
-            return None, (f"{n} training reducer(s) of {c}, fewer than the {need} a {100 * coverage[str(c)]:g} % set "
-                          "for a new reducer needs")
+            return None, f"{n} training sample(s) of {c}, fewer than the {need} a {100 * coverage[str(c)]:g} % set needs"
     try:
         return group_folds(y, units, folds, [seed, 5]), None
     except ParameterError as exc:
