@@ -263,6 +263,10 @@ def test_card_round_trip(tmp_path):
     assert back == ps and math.isinf(back.thresholds["T1"])
     assert json.loads((tmp_path / "card.json").read_text())["prediction_sets"]["thresholds"]["T1"] is None
     assert from_card({"classes": CLASSES}) is None  # a model trained before: no calibration, no failure
+    hier = PredictionSets.calibrate(P, y, CLASSES, groups=np.arange(y.size), rule="reducers")
+    assert PredictionSets.from_card(hier.to_card()) == hier and hier.to_card()["rule"] == "reducers"
+    old = {k: v for k, v in ps.to_card().items() if k != "rule"}  # a card written before the rule was stored
+    assert PredictionSets.from_card(old).rule == "windows"
     with pytest.raises(ModelFileError):
         from_card({"classes": ["T1", "T2"], "prediction_sets": ps.to_card()})
     with pytest.raises(ModelFileError):
