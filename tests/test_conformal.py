@@ -424,3 +424,22 @@ def test_train_cross_calibrates_on_every_training_reducer(tone_store, tmp_path, 
     assert code == 0 and json.loads(text)["sets"]["n"] == 24, err
     code, _, err = run(["train", tone_store, "--out", tmp_path / "x", "--calibration", "both"], capsys)
     assert code == 2 and "--calibration must be split or cross" in err
+
+
+def test_train_set_rule_reducers_counts_reducers(tone_store, tmp_path, capsys):
+    """``--set-rule reducers``: the card records the rule and its thresholds are the hierarchical ones (the 10 held-out
+    reducers a state are too few for 95 % on T1: T1 is in every set, 90 % for the faults is finite); a bad rule is one
+    line, exit 2."""
+    from conftest import run_cli as run
+
+    out = tmp_path / "m"
+    code, _, err = run(["train", tone_store, "--model", "svm", "--features", "spectrum", "--out", out, "--seed", "0",
+                        "--quiet", "--calibration", "split", "--calibration-fraction", "0.25", "--set-rule",
+                        "reducers"], capsys)
+    assert code == 0, err
+    ps = from_card(read_card(out))
+    assert ps.rule == "reducers" and ps.too_few() == ["T1"]
+    assert all(math.isfinite(ps.thresholds[c]) for c in ("T2", "T3"))
+    code, _, err = run(["train", tone_store, "--model", "svm", "--out", tmp_path / "m2", "--set-rule", "groups"],
+                       capsys)
+    assert code == 2 and err.strip().splitlines()[-1].startswith("error:") and "--set-rule" in err

@@ -80,7 +80,7 @@ def train(data, out, *, model: str | None = None, features: str | None = None,
           multilabel: bool = False, echo: Callable[[str], None] | None = None,
           fit: Callable[..., None] | None = None, calibration: str | None = None, calibration_folds: int = 3,
           calibration_fraction: float = DEFAULT_CALIBRATION_FRACTION, healthy_coverage: float = HEALTHY_COVERAGE,
-          fault_coverage: float = FAULT_COVERAGE) -> TrainResult:
+          fault_coverage: float = FAULT_COVERAGE, set_rule: str | None = None) -> TrainResult:
     """Train a classifier on the ``train`` split of the store ``data`` and save it to the directory ``out`` (module
     docstring).  The keywords are those of ``rvdiag train`` (``conditions``: its ``--where``); ``echo`` gets the
     progress lines (default: none), ``fit(est, X, y, label, groups=, source=)`` fits one estimator (default
@@ -94,7 +94,10 @@ def train(data, out, *, model: str | None = None, features: str | None = None,
     calibrates on them; ``"cross"`` scores every training reducer by a model fitted on the other
     ``calibration_folds`` folds of reducers and applies the thresholds to the model fitted on all (K more fits, no
     reducer lost; measured better on the demo: bench/HISTORY.md).  Stated coverage ``healthy_coverage`` for the
-    healthy state, ``fault_coverage`` for each fault.  No sets (card ``prediction_sets_note`` says why) with
+    healthy state, ``fault_coverage`` for each fault.  ``set_rule`` (:data:`rvdiag.models.conformal.RULES`): how
+    the thresholds count the calibration samples, ``"windows"`` (the default) or ``"reducers"`` (coverage for a new
+    reducer, Lee, Barber & Willett 2023; a state with fewer calibration reducers than its coverage needs, 19 for
+    95 % and 9 for 90 %, is in every set).  No sets (card ``prediction_sets_note`` says why) with
     ``calibration_fraction`` 0, without a ``unit`` column, or where a state would get fewer calibration samples than
     its coverage needs (then nothing is held out).
 
@@ -117,6 +120,10 @@ def train(data, out, *, model: str | None = None, features: str | None = None,
     check_counts(repeat, epochs)
     if calibration not in (None, "split", "cross"):
         raise ParameterError(f"--calibration must be split or cross, got {calibration!r}")
+    from rvdiag.models.conformal import RULES
+
+    if set_rule is not None and set_rule not in RULES:
+        raise ParameterError(f"--set-rule must be one of {', '.join(RULES)}, got {set_rule!r}")
     if calibration == "cross" and calibration_folds < 2:
         raise ParameterError(f"--calibration-folds must be >= 2, got {calibration_folds}")
     if not 0.0 <= calibration_fraction < 1.0:
@@ -241,7 +248,7 @@ def train(data, out, *, model: str | None = None, features: str | None = None,
 
         P = predict_proba_store(est, cal) if stream else predict_in_chunks(est, Xcal, method="predict_proba")
         sets = PredictionSets.calibrate(P, cal.y, classes, coverage_of(classes), groups=cal.meta["unit"],
-                                        source=calibration_source(cal, calibration_fraction, seed))
+                                        source=calibration_source(cal, calibration_fraction, seed), rule=set_rule)
         extra["prediction_sets"] = sets.to_card()
     elif folds is not None:
         from rvdiag.models.conformal import PredictionSets
@@ -260,7 +267,7 @@ def train(data, out, *, model: str | None = None, features: str | None = None,
             source={"method": "cross", "refit": True, "folds": int(calibration_folds), "seed": [int(seed), 5],
                     "what": "every training reducer (metadata column unit), scored by the model fitted on the "
                             "other folds of reducers; the thresholds apply to the model fitted on all",
-                    "n_calibration": int(len(tr.y))})
+                    "n_calibration": int(len(tr.y))}, rule=set_rule)
         extra["prediction_sets"] = sets.to_card()
     else:
         extra["prediction_sets"] = None
