@@ -275,7 +275,8 @@ def _update_specimen(files: list[Path], *, params, out: Path, overwrite: bool, f
     after = result.params(base)
     d = result.to_dict()
     unc = {"identified": {"what": d["identified"], "sun_tooth_errors_um": after.modification.sun_tooth_errors_um,
-                          "posterior_sd_um": d["posterior_sd_um"], "pitch_deviation_sd_um": d["pitch_deviation_sd_um"],
+                          "posterior_sd_um": d["posterior_sd_um"], "scaled_sd_um": d["scaled_sd_um"],
+                          "birge_ratio": d["birge_ratio"], "pitch_deviation_sd_um": d["pitch_deviation_sd_um"],
                           "prior_sd_um": d["prior_sd_um"], "posterior_cov_um2": d["posterior_cov_um2"]},
            "not_identified": {"what": d["not_identified"]},
            "fit": {k: d[k] for k in ("chi2_start", "chi2", "n_lines", "residual_rms_rad", "data_rms_rad",
@@ -296,7 +297,8 @@ def _update_specimen(files: list[Path], *, params, out: Path, overwrite: bool, f
                f"{d['chi2']:.4g} over {d['n_lines']} line parts, {result.iterations} iterations, "
                f"{result.simulations} simulations, {result.seconds:.0f} s")
     for j, (e, s_) in enumerate(zip(d["sun_tooth_errors_um"], d["posterior_sd_um"])):
-        typer.echo(f"  sun tooth {j:2d}  {e:+8.4f} um  +- {s_:.4f} um")
+        typer.echo(f"  sun tooth {j:2d}  {e:+8.4f} um  +- {s_:.4f} um (scaled by the residual: "
+                   f"+- {s_ * result.birge_ratio:.4f})")
     typer.echo("not identified: " + "; ".join(d["not_identified"]))
     typer.echo(f"wrote {', '.join(str(out / n) for n in SPECIMEN_FILES)}")
 
