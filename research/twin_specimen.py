@@ -57,6 +57,9 @@ def main() -> None:
     ap.add_argument("--draws", type=int, default=8)
     ap.add_argument("--stiffness-pct", type=float, default=0.0)
     ap.add_argument("--fs", type=float, default=8000.0)
+    ap.add_argument("--planets-known", action="store_true",
+                    help="diagnosis: the twin starts from the specimen's own planet table (its error_seed), linearised "
+                         "per specimen")
     ap.add_argument("--cache", default="", help="keep the linearisation and the records in this folder")
     a = ap.parse_args()
     base = ReducerParams.default()
@@ -65,20 +68,30 @@ def main() -> None:
     lengths = [float(x) for x in a.lengths.split(",")]
     speed, load = 45.0, 90.0
     t0 = time.perf_counter()
-    lin_file = os.path.join(a.cache, f"lin_d{a.draws}.pkl") if a.cache else ""
-    if lin_file and os.path.exists(lin_file):
-        with open(lin_file, "rb") as fh:
-            pm = pickle.load(fh)
-    else:
-        pm = sp.linearise(base, speed, load, a.fs, st, progress=lambda m: print("  linearise:", m, flush=True))
+
+    def linearisation(start: ReducerParams, tag: str):
+        lin_file = os.path.join(a.cache, f"lin_d{a.draws}{tag}.pkl") if a.cache else ""
+        if lin_file and os.path.exists(lin_file):
+            with open(lin_file, "rb") as fh:
+                return pickle.load(fh)
+        ts = time.perf_counter()
+        pm = sp.linearise(start, speed, load, a.fs, st, progress=lambda m: print("  linearise:", m, flush=True))
         if lin_file:
             os.makedirs(a.cache, exist_ok=True)
             with open(lin_file, "wb") as fh:
                 pickle.dump(pm, fh)
-    print(f"linearisation: {pm.simulations} simulations, {time.perf_counter() - t0:.0f} s", flush=True)
+        print(f"linearisation: {pm.simulations} simulations, {time.perf_counter() - ts:.0f} s", flush=True)
+        return pm
+
+    if not a.planets_known:
+        pm = linearisation(base, "")
     rows = []
     for seed in (int(s) for s in a.seeds.split(",")):
         spec = specimen_params(base, seed, a.stiffness_pct)
+        twin0 = base
+        if a.planets_known:                  # the specimen's planet table (its error_seed), its teeth still unknown
+            twin0 = base.replace(modification={"error_seed": seed})
+            pm = linearisation(twin0, f"_planets{seed}")
         truth = nominal_tooth_errors(spec)
         rms = float(np.sqrt(np.mean(truth ** 2)))
         ts = time.perf_counter()
@@ -98,10 +111,10 @@ def main() -> None:
               f"{time.perf_counter() - ts:.0f} s", flush=True)
         for T in lengths:
             n_s = int(round(T * a.fs))
-            recs = [sp.te_record(x[:n_s], y[:n_s], a.fs, base, load_Nm=load, name=f"{seed}-{i}", settings=st)
+            recs = [sp.te_record(x[:n_s], y[:n_s], a.fs, twin0, load_Nm=load, name=f"{seed}-{i}", settings=st)
                     for i, (x, y) in enumerate(angles)]
             for n in counts:
-                res = sp.identify_specimen(base, recs[:n], st, points=[pm])
+                res = sp.identify_specimen(twin0, recs[:n], st, points=[pm])
                 err = float(np.sqrt(np.mean((res.teeth_m - truth) ** 2)))
                 post = float(np.sqrt(np.mean(res.posterior_sd_m ** 2)))
                 row = {"seed": seed, "records": n, "length_s": T, "truth_rms_um": rms * 1e6, "error_rms_um": err * 1e6,
@@ -109,7 +122,7 @@ def main() -> None:
                        "scaled_rel": post * res.birge_ratio / rms,
                        "chi2_start": res.chi2_start, "chi2": res.chi2, "n_lines": res.n_lines,
                        "iterations": res.iterations, "simulations": res.simulations - pm.simulations,
-                       "seconds": res.seconds, "stiffness_pct": a.stiffness_pct}
+                       "seconds": res.seconds, "stiffness_pct": a.stiffness_pct, "planets_known": a.planets_known}
                 rows.append(row)
                 print(f"  {n} x {T:g} s: error {err * 1e6:.4f} um = {err / rms:.4f} of the pattern (posterior sd "
                       f"{post / rms:.4f}, scaled {post * res.birge_ratio / rms:.4f}); chi2 {res.chi2_start:.4g} -> {res.chi2:.4g} / {res.n_lines}; "

@@ -51,6 +51,8 @@ def test_te_lines_refuse_a_short_record_and_a_wrong_ratio():
     a_in, a_out = _angles(15.0, 121.0, 8000.0, 1.0, {2: (1e-6, 0.0)})
     with pytest.raises(DataFileError, match="ratio 81"):
         sp.te_lines(a_in, a_out, 8000.0, 81.0, samples_per_rev=512, period=3)
+    with pytest.raises(DataFileError, match="turns backwards"):
+        sp.te_lines(-a_in, -a_out, 8000.0, 121.0, samples_per_rev=512, period=3)
     with pytest.raises(DataFileError, match="same number"):
         sp.te_lines(a_in, a_out[:-5], 8000.0, 121.0, samples_per_rev=512, period=3)
 

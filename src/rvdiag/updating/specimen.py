@@ -113,8 +113,9 @@ def te_lines(input_angle, output_angle, fs: float, ratio: float, *, samples_per_
     if not (np.all(np.isfinite(a_in)) and np.all(np.isfinite(a_out))):
         raise DataFileError(f"{name}: the angle channels hold NaN or infinite values")
     revs = (a_in - a_out) / (2.0 * np.pi)
-    if revs[-1] < revs[0]:                                      # turning backwards: the same, mirrored
-        revs, a_in, a_out = -revs, -a_in, -a_out
+    if revs[-1] < revs[0]:
+        raise DataFileError(f"{name}: the input turns backwards (its angle falls); the model is simulated turning "
+                            "forwards: give a record at a positive speed")
     if not np.all(np.diff(revs) > 0):
         raise DataFileError(f"{name}: the sun's angle relative to the carrier, input - output angle, is not "
                             "monotonic: the record must be at a steady speed (rad channels, unwrapped)")
@@ -172,7 +173,7 @@ def te_record(input_angle, output_angle, fs: float, params: ReducerParams, *, lo
     lines, n = te_lines(input_angle, output_angle, fs, params.ratio, samples_per_rev=st.samples_per_rev,
                         period=averaging_period(params), name=name)
     a_out = np.asarray(output_angle, dtype=float).ravel()
-    speed = abs(math.degrees(a_out[-1] - a_out[0])) * fs / (a_out.size - 1)
+    speed = math.degrees(a_out[-1] - a_out[0]) * fs / (a_out.size - 1)
     f_rel = ob.OperatingPoint(output_speed_deg_s=speed).sun_hz(params)
     return TERecord(name, lines, float(fs), speed, float(load_Nm), n, n / f_rel)
 
