@@ -66,7 +66,9 @@ def test_levenberg_marquardt_reaches_the_linear_map_estimate():
     J = W @ A
     exact = np.linalg.solve(J.T @ J + np.eye(6), J.T @ W @ y)
     assert np.allclose(res.z, exact, rtol=1e-6, atol=1e-9)
-    assert res.cost < res.cost_start and res.iterations >= 1
+    assert res.cost < res.cost_start and res.iterations >= 1 and res.converged
+    short = sp.levenberg_marquardt(lambda z: W @ (y - A @ z), 0.5 * W @ A, np.zeros(6), 1, rtol=1e-12)
+    assert not short.converged and short.iterations == 1            # a poor chord Jacobian: not there in one step
 
 
 def test_a_stated_pattern_is_the_simulated_one():

@@ -280,7 +280,7 @@ def _update_specimen(files: list[Path], *, params, out: Path, overwrite: bool, f
                           "prior_sd_um": d["prior_sd_um"], "posterior_cov_um2": d["posterior_cov_um2"]},
            "not_identified": {"what": d["not_identified"]},
            "fit": {k: d[k] for k in ("chi2_start", "chi2", "n_lines", "residual_rms_rad", "data_rms_rad",
-                                     "iterations", "simulations", "seconds")},
+                                     "iterations", "converged", "cost_history", "simulations", "seconds")},
            "settings": d["settings"],
            "records": d["records"],
            "base": {"params": str(params) if params is not None else "built-in"}}
@@ -290,6 +290,9 @@ def _update_specimen(files: list[Path], *, params, out: Path, overwrite: bool, f
         (out / "specimen.json").write_text(json.dumps(d, indent=1), encoding="utf-8")
     except OSError as exc:
         raise ParameterError(f"cannot write into --out {out}: {exc}") from None
+    if not result.converged:
+        typer.echo(f"warning: the fit had not converged after {result.iterations} iterations (its cost still fell); "
+                   "raise --iterations", err=True)
     if as_json:
         typer.echo(json.dumps({**d, "out": str(out)}, indent=2))
         return

@@ -327,7 +327,8 @@ def simulated_record(params: ReducerParams, output_speed_deg_s: float, load_Nm: 
 @dataclass
 class LMResult:
     """:func:`levenberg_marquardt`'s end: the parameters ``z``, the whitened residual there, the cost
-    ``||r||^2 + ||z||^2`` at the start and the end, the iterations taken and the cost's history."""
+    ``||r||^2 + ||z||^2`` at the start and the end, the iterations taken and the cost's history; ``converged``
+    is False when the iterations ran out while the cost still fell by more than ``rtol`` a step."""
 
     z: np.ndarray
     residual: np.ndarray
@@ -336,6 +337,7 @@ class LMResult:
     iterations: int
     history: list = field(default_factory=list)
     evaluations: int = 0
+    converged: bool = False
 
 
 def levenberg_marquardt(residual: Callable[[np.ndarray], np.ndarray], Jw: np.ndarray, z0, iterations: int, *,
@@ -354,7 +356,7 @@ def levenberg_marquardt(residual: Callable[[np.ndarray], np.ndarray], Jw: np.nda
     r = residual(z)
     evals = 1
     c = float(r @ r + z @ z)
-    c0, lam, hist, it = c, 1e-3, [c], 0
+    c0, lam, hist, it, done = c, 1e-3, [c], 0, False
     for it in range(1, int(iterations) + 1):
         g = Jw.T @ r - z
         cn, rn = np.inf, None
@@ -371,8 +373,9 @@ def levenberg_marquardt(residual: Callable[[np.ndarray], np.ndarray], Jw: np.nda
             if cn < c:
                 break
             lam *= 10.0
-        if not cn < c:
+        if not cn < c:                               # no step lowers the cost: a (local) minimum
             it -= 1
+            done = True
             break
         rel = (c - cn) / c
         z, r, c = z + dz, rn, cn
@@ -381,8 +384,9 @@ def levenberg_marquardt(residual: Callable[[np.ndarray], np.ndarray], Jw: np.nda
         if on_iteration is not None:
             on_iteration(it, z, c)
         if rel < rtol:
+            done = True
             break
-    return LMResult(z, r, c0, c, it, hist, evals)
+    return LMResult(z, r, c0, c, it, hist, evals, done)
 
 
 @dataclass
@@ -396,7 +400,9 @@ class SpecimenResult:
     rate, revolutions, seconds averaged, its lines' parts and their whitened residual's square sum at the end); ``chi2_start``, ``chi2`` the whitened
     residual's square sum over all records' lines at the start and the end, ``n_lines`` their count (a fit within
     its noise has ``chi2 ~ n_lines``); ``residual_rms_rad`` and ``data_rms_rad`` the RMS of the lines' residual and
-    of the lines; ``iterations``, ``simulations``, ``seconds``; ``not_identified`` (:data:`NOT_IDENTIFIED`)."""
+    of the lines; ``iterations``, ``simulations``, ``seconds``; ``converged`` (False: the iterations ran out while
+    the cost still fell) and ``cost_history`` (the MAP cost after each iteration); ``not_identified``
+    (:data:`NOT_IDENTIFIED`)."""
 
     teeth_m: np.ndarray
     posterior_sd_m: np.ndarray
@@ -413,6 +419,8 @@ class SpecimenResult:
     simulations: int
     seconds: float
     settings: SpecimenSettings
+    converged: bool = True
+    cost_history: list = field(default_factory=list)
     not_identified: tuple = NOT_IDENTIFIED
 
     @property
@@ -446,7 +454,8 @@ class SpecimenResult:
             "records": self.records,
             "chi2_start": self.chi2_start, "chi2": self.chi2, "n_lines": self.n_lines,
             "residual_rms_rad": self.residual_rms_rad, "data_rms_rad": self.data_rms_rad,
-            "iterations": self.iterations, "simulations": self.simulations, "seconds": self.seconds,
+            "iterations": self.iterations, "converged": self.converged, "cost_history": list(self.cost_history),
+            "simulations": self.simulations, "seconds": self.seconds,
             "settings": {k: getattr(self.settings, k) for k in self.settings.__dataclass_fields__},
             "identified": "the sun's tooth position errors (um along the line of action, mean zero)",
             "not_identified": list(self.not_identified),
@@ -546,7 +555,8 @@ def identify_specimen(params: ReducerParams, records: Sequence[TERecord], settin
         teeth, np.sqrt(np.clip(np.diag(cov), 0, None)), cov, np.sqrt(np.clip(np.diag(D @ cov @ D.T), 0, None)),
         np.sqrt(np.diag(L @ L.T)), rec_out, float(lm.cost_start), float(lm.residual @ lm.residual),
         int(sum(y.size for y in Y)), float(np.sqrt(np.mean(np.concatenate(raw) ** 2))),
-        float(np.sqrt(np.mean(np.concatenate(Y) ** 2))), lm.iterations, sims, time.perf_counter() - t0, st)
+        float(np.sqrt(np.mean(np.concatenate(Y) ** 2))), lm.iterations, sims, time.perf_counter() - t0, st,
+        lm.converged, [float(c) for c in lm.history])
 
 
 __all__ = ["LMResult", "MODEL_MIN_FS", "NOT_IDENTIFIED", "PointModel", "SpecimenResult", "SpecimenSettings",
