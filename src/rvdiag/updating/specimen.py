@@ -68,6 +68,7 @@ class SpecimenSettings:
     per model simulation (a multiple of the averaging period); ``samples_per_rev``: angles per revolution of the
     average; ``max_hz``: the highest TE line kept (also at most 0.45 of the record's rate); ``te_noise_rad``: the
     output encoder's white noise per sample (rad; default the 23-bit quantisation, ``2 pi / 2^23 / sqrt 12``);
+    ``broyden``: update the chord Jacobian after each step (:func:`levenberg_marquardt`);
     ``speed_tolerance``: records whose speeds agree within this share (and with the same load and rate) share one
     operating point, simulated at their mean speed (2.5 %: the run-to-run variation's speed spans +-1 %, which
     the whitening holds)."""
@@ -80,6 +81,7 @@ class SpecimenSettings:
     max_hz: float = 4000.0
     te_noise_rad: float = ob.NoiseModel().te_sd_rad
     speed_tolerance: float = 0.025
+    broyden: bool = False
 
     def __post_init__(self) -> None:
         if self.iterations < 0 or self.draws < 0 or self.revolutions < 1:
@@ -343,15 +345,19 @@ class LMResult:
 def levenberg_marquardt(residual: Callable[[np.ndarray], np.ndarray], Jw: np.ndarray, z0, iterations: int, *,
                         step: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
                         on_iteration: Callable[[int, np.ndarray, float], None] | None = None,
-                        rtol: float = 1e-5) -> LMResult:
+                        rtol: float = 1e-5, broyden: bool = False) -> LMResult:
     """Minimise ``||r(z)||^2 + ||z||^2`` (a whitened residual and a unit Gaussian prior, the MAP of the module
     docstring) by Levenberg-Marquardt with the fixed (chord) Jacobian ``Jw = -dr/dz`` (Nocedal & Wright, sec.
     10.3; Marquardt's scaling ``diag(A) + 1``).  A step that does not lower the cost is refused and the damping
     raised tenfold (to 1e6 at most, then the search ends); ``residual`` raising :class:`~rvdiag.errors.
     RvdiagError` (e.g. a stiffness below zero) is a refused step.  ``step(z, dz)`` may shorten a step (a trust
-    region); it ends when an iteration lowers the cost by less than ``rtol`` of it."""
+    region); it ends when an iteration lowers the cost by less than ``rtol`` of it.  With ``broyden``, each
+    accepted step updates the Jacobian by Broyden's rank-one secant formula, ``Jw += (dr_obs - Jw dz) dz^T /
+    dz^T dz`` with ``dr_obs = r(z) - r(z + dz)`` (Broyden 1965, Math. Comp. 19; Dennis & Schnabel, *Numerical
+    Methods for Unconstrained Optimization*, sec. 8.1), at no simulation's cost."""
     z = np.asarray(z0, dtype=float).copy()
     m = z.size
+    Jw = np.array(Jw, dtype=float)
     A = Jw.T @ Jw
     r = residual(z)
     evals = 1
@@ -378,6 +384,9 @@ def levenberg_marquardt(residual: Callable[[np.ndarray], np.ndarray], Jw: np.nda
             done = True
             break
         rel = (c - cn) / c
+        if broyden:
+            Jw += np.outer((r - rn) - Jw @ dz, dz) / float(dz @ dz)
+            A = Jw.T @ Jw
         z, r, c = z + dz, rn, cn
         lam = max(lam / 10.0, 1e-6)
         hist.append(c)
@@ -537,7 +546,7 @@ def identify_specimen(params: ReducerParams, records: Sequence[TERecord], settin
             progress(f"iteration {it}: cost {c:.6g} ({time.perf_counter() - t0:.0f} s)")
 
     z0 = np.zeros(L.shape[1])
-    lm = levenberg_marquardt(residual, Jw_all, z0, st.iterations, on_iteration=report)
+    lm = levenberg_marquardt(residual, Jw_all, z0, st.iterations, on_iteration=report, broyden=st.broyden)
     f_end = predict(lm.z)                           # the accepted point's prediction (kept, not simulated again)
     teeth = L @ lm.z
     cov = L @ np.linalg.inv(Jw_all.T @ Jw_all + np.eye(L.shape[1])) @ L.T
