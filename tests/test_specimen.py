@@ -71,6 +71,21 @@ def test_levenberg_marquardt_reaches_the_linear_map_estimate():
     assert not short.converged and short.iterations == 1            # a poor chord Jacobian: not there in one step
 
 
+def test_broyden_updates_go_below_the_chords_fixed_point():
+    rng = np.random.default_rng(1)
+    A = rng.standard_normal((30, 5))
+    y = A @ rng.standard_normal(5) * 2.0
+
+    def residual(z):
+        u = A @ z
+        return y - (u + 0.075 * u ** 2)
+
+    chord = sp.levenberg_marquardt(residual, A, np.zeros(5), 60, rtol=1e-12)
+    secant = sp.levenberg_marquardt(residual, A, np.zeros(5), 60, rtol=1e-12, broyden=True)
+    # the chord stops where its own (wrong) gradient vanishes; the secant-updated one goes lower (14.76 < 15.13)
+    assert chord.converged and secant.converged and secant.cost < chord.cost - 0.2
+
+
 def test_a_stated_pattern_is_the_simulated_one():
     from rvdiag.dynamics.mesh import mesh_table_from_gears
     from rvdiag.library.specimens import apply_specimen, override_message
