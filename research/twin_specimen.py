@@ -57,6 +57,7 @@ def main() -> None:
     ap.add_argument("--draws", type=int, default=8)
     ap.add_argument("--stiffness-pct", type=float, default=0.0)
     ap.add_argument("--broyden", action="store_true", help="Broyden updates of the chord Jacobian")
+    ap.add_argument("--records-spread", action="store_true", help="add the records' own sample covariance")
     ap.add_argument("--fs", type=float, default=8000.0)
     ap.add_argument("--planets-known", action="store_true",
                     help="diagnosis: the twin starts from the specimen's own planet table (its error_seed), linearised "
@@ -64,7 +65,8 @@ def main() -> None:
     ap.add_argument("--cache", default="", help="keep the linearisation and the records in this folder")
     a = ap.parse_args()
     base = ReducerParams.default()
-    st = sp.SpecimenSettings(iterations=a.iterations, draws=a.draws, broyden=a.broyden)
+    st = sp.SpecimenSettings(iterations=a.iterations, draws=a.draws, broyden=a.broyden,
+                             records_spread=a.records_spread)
     counts = [int(x) for x in a.records.split(",")]
     lengths = [float(x) for x in a.lengths.split(",")]
     speed, load = 45.0, 90.0
@@ -124,7 +126,7 @@ def main() -> None:
                        "chi2_start": res.chi2_start, "chi2": res.chi2, "n_lines": res.n_lines,
                        "iterations": res.iterations, "simulations": res.simulations - pm.simulations,
                        "seconds": res.seconds, "stiffness_pct": a.stiffness_pct, "planets_known": a.planets_known,
-                       "broyden": a.broyden, "converged": res.converged}
+                       "broyden": a.broyden, "records_spread": a.records_spread, "converged": res.converged}
                 rows.append(row)
                 print(f"  {n} x {T:g} s: error {err * 1e6:.4f} um = {err / rms:.4f} of the pattern (posterior sd "
                       f"{post / rms:.4f}, scaled {post * res.birge_ratio / rms:.4f}); chi2 {res.chi2_start:.4g} -> {res.chi2:.4g} / {res.n_lines}; "

@@ -68,7 +68,9 @@ class SpecimenSettings:
     per model simulation (a multiple of the averaging period); ``samples_per_rev``: angles per revolution of the
     average; ``max_hz``: the highest TE line kept (also at most 0.45 of the record's rate); ``te_noise_rad``: the
     output encoder's white noise per sample (rad; default the 23-bit quantisation, ``2 pi / 2^23 / sqrt 12``);
-    ``broyden``: update the chord Jacobian after each step (:func:`levenberg_marquardt`);
+    ``broyden``: update the chord Jacobian after each step (:func:`levenberg_marquardt`); ``records_spread``: add
+    the sample covariance of the lines of an operating point's records (3 or more) to each one's covariance (the
+    run-to-run variation as this specimen shows it; it counts the white floor twice);
     ``speed_tolerance``: records whose speeds agree within this share (and with the same load and rate) share one
     operating point, simulated at their mean speed (2.5 %: the run-to-run variation's speed spans +-1 %, which
     the whitening holds)."""
@@ -82,6 +84,7 @@ class SpecimenSettings:
     te_noise_rad: float = ob.NoiseModel().te_sd_rad
     speed_tolerance: float = 0.025
     broyden: bool = False
+    records_spread: bool = False
 
     def __post_init__(self) -> None:
         if self.iterations < 0 or self.draws < 0 or self.revolutions < 1:
@@ -513,8 +516,12 @@ def identify_specimen(params: ReducerParams, records: Sequence[TERecord], settin
     # whitening of each record: W_r with W_r^T W_r = C_r^-1 (the Cholesky factor of C_r, inverted)
     W, Y, Jw = [], [], []
     for g, pm in zip(groups, points):
+        S = 0.0
+        if st.records_spread and len(g) >= 3:     # the records' own spread: the variation at this specimen
+            Yg = np.array([records[i].truncated(pm.max_order) for i in g])
+            S = np.cov(Yg, rowvar=False)
         for i in g:
-            Lc = np.linalg.cholesky(pm.covariance(records[i], st))
+            Lc = np.linalg.cholesky(pm.covariance(records[i], st) + S)
             Wi = np.linalg.inv(Lc)
             W.append(Wi)
             Y.append(records[i].truncated(pm.max_order))
