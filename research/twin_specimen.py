@@ -47,6 +47,27 @@ def specimen_params(base: ReducerParams, seed: int, stiffness_pct: float) -> Red
     return spec
 
 
+def summary(rows: list, lengths, counts) -> None:
+    """The table of docs/twin.md: per (records, length) the error over the pattern's RMS per specimen and pooled
+    (``sqrt(sum err^2 / sum truth^2)``), the posterior and the residual-scaled spread pooled likewise."""
+    print("\n| records x length | error / pattern RMS, per specimen | pooled | posterior sd, pooled | scaled sd, "
+          "pooled | iterations | seconds |")
+    print("|---|---|---|---|---|---|---|")
+    for T in lengths:
+        for n in counts:
+            sel = [r for r in rows if r["records"] == n and r["length_s"] == T]
+            if not sel:
+                continue
+            den = np.mean([r["truth_rms_um"] ** 2 for r in sel])
+            pooled = np.sqrt(np.mean([r["error_rms_um"] ** 2 for r in sel]) / den)
+            ppost = np.sqrt(np.mean([r["posterior_rms_um"] ** 2 for r in sel]) / den)
+            pscaled = np.sqrt(np.mean([(r["scaled_rel"] * r["truth_rms_um"]) ** 2 for r in sel]) / den)
+            per = ", ".join(f"{r['error_rel']:.3g}" for r in sel)
+            print(f"| {n} x {T:g} s | {per} | {pooled:.3g} | {ppost:.3g} | {pscaled:.3g} | "
+                  f"{min(r['iterations'] for r in sel)}-{max(r['iterations'] for r in sel)} | "
+                  f"{min(r['seconds'] for r in sel):.0f}-{max(r['seconds'] for r in sel):.0f} |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default="out/twin_specimen.json")
@@ -63,7 +84,13 @@ def main() -> None:
                     help="diagnosis: the twin starts from the specimen's own planet table (its error_seed), linearised "
                          "per specimen")
     ap.add_argument("--cache", default="", help="keep the linearisation and the records in this folder")
+    ap.add_argument("--summary", action="store_true", help="print the table of --out's rows and stop")
     a = ap.parse_args()
+    if a.summary:
+        with open(a.out) as fh:
+            rows = json.load(fh)["rows"]
+        summary(rows, sorted({r["length_s"] for r in rows}), sorted({r["records"] for r in rows}))
+        return
     base = ReducerParams.default()
     st = sp.SpecimenSettings(iterations=a.iterations, draws=a.draws, broyden=a.broyden,
                              records_spread=a.records_spread)
@@ -135,21 +162,7 @@ def main() -> None:
                 os.makedirs(os.path.dirname(a.out) or ".", exist_ok=True)
                 with open(a.out, "w") as fh:
                     json.dump({"rows": rows, "args": vars(a)}, fh, indent=1)
-    print("\n| records x length | error / pattern RMS, per specimen | pooled | posterior sd, pooled | iterations | "
-          "seconds |")
-    print("|---|---|---|---|---|---|")
-    for T in lengths:
-        for n in counts:
-            sel = [r for r in rows if r["records"] == n and r["length_s"] == T]
-            if not sel:
-                continue
-            den = np.mean([r["truth_rms_um"] ** 2 for r in sel])
-            pooled = np.sqrt(np.mean([r["error_rms_um"] ** 2 for r in sel]) / den)
-            ppost = np.sqrt(np.mean([r["posterior_rms_um"] ** 2 for r in sel]) / den)
-            per = ", ".join(f"{r['error_rel']:.3g}" for r in sel)
-            print(f"| {n} x {T:g} s | {per} | {pooled:.3g} | {ppost:.3g} | "
-                  f"{min(r['iterations'] for r in sel)}-{max(r['iterations'] for r in sel)} | "
-                  f"{min(r['seconds'] for r in sel):.0f}-{max(r['seconds'] for r in sel):.0f} |")
+    summary(rows, lengths, counts)
     print(f"\ntotal {time.perf_counter() - t0:.0f} s")
 
 

@@ -25,7 +25,7 @@ def register(app: typer.Typer) -> None:
 
     @app.command("update")
     def update_cmd(
-        measured_files: List[Path] = typer.Argument(..., metavar="FILE...", help="Measured healthy record (CSV, MAT, "
+        measured_files: List[Path] = typer.Argument(..., metavar="FILE", help="Measured healthy record (CSV, MAT, "
                                                     "NPY/NPZ, WAV, TDMS); with --specimen, the joint's commissioning "
                                                     "records (one or more)."),
         specimen: bool = typer.Option(False, "--specimen", help="Identify the joint's own sun tooth errors from the "
@@ -52,7 +52,7 @@ def register(app: typer.Typer) -> None:
         te_noise: Optional[float] = typer.Option(None, "--te-noise", help="--specimen: the output encoder's white "
                                                  "noise per sample, arcsec rms (default: 23-bit quantisation, "
                                                  "0.045 arcsec)."),
-        overwrite: bool = opt.overwrite("Overwrite an existing --out file."),
+        overwrite: bool = opt.overwrite("Overwrite an existing --out file (with --specimen, the files it writes there)."),
         force: bool = opt.deprecated("--force", flag=True),
         objective: str = typer.Option("logspec", "--objective", help="logspec (PCC of log power spectra, default), "
                                       "envelope (PCC of envelope spectra) or time (PCC of the records; only for "
