@@ -10,10 +10,11 @@ held-out reducers:
 - on the store's own split (what ``rvdiag train`` / ``evaluate`` give, with the default ``calibration``): the
   false-alarm rate with its count and 95 % Clopper-Pearson interval, the false alarms per held-out reducer,
   detection per state, six-state accuracy and recall, the crack-free accuracy (``T4=T1,T6=T5``) when the store
-  has a crack;
+  has a crack, and how many records of a broken tooth under wear (T5, T6) are not taken for wear alone (T3);
 - over ``--partitions`` random partitions of all the store's reducers into as many training and held-out reducers
   as its split (seeded by ``--seed``): the pooled false-alarm rate, its spread over partitions, the share of
-  partitions whose rate exceeds the stated one, and the mean detection and accuracy.  One split's held-out
+  partitions whose rate exceeds the stated one, the mean detection, accuracy and crack-free accuracy, and the
+  broken tooth under wear not taken for wear alone, pooled.  One split's held-out
   reducers are few, and the false alarms come per reducer: the partitions show the rate a new set of reducers
   would meet.
 
@@ -105,6 +106,9 @@ def score(m, D, y, red, healthy: str = "T1", alarm=None) -> dict:
     if any(k in labels for k in CRACK_FREE):
         merge = {k: v for k, v in CRACK_FREE.items() if k in labels and v in labels}
         out["crack_free_accuracy"] = merged_classification_metrics(y, pred, merge, labels)["accuracy"]
+    under_wear = np.isin(y, ("T5", "T6"))
+    if under_wear.any() and "T3" in labels:   # the broken tooth under wear, told from wear alone (issue 35's goal)
+        out["under_wear_not_wear"] = [int((pred[under_wear] != "T3").sum()), int(under_wear.sum())]
     return out
 
 
@@ -145,6 +149,8 @@ def main(argv=None) -> int:
               f"({', '.join(f'{c} {pct(v)}' for c, v in s['detection_per_state'].items())}), accuracy "
               f"{pct(s['accuracy'])} (recall {', '.join(f'{c} {pct(v)}' for c, v in s['recall'].items())})"
               + (f", crack-free {pct(s['crack_free_accuracy'])}" if "crack_free_accuracy" in s else "")
+              + (f", broken tooth under wear not taken for wear alone {s['under_wear_not_wear'][0]} of "
+                 f"{s['under_wear_not_wear'][1]}" if "under_wear_not_wear" in s else "")
               + f"; threshold {s['threshold']:.3g} from {s['n_calibration']} records of "
               f"{s['n_calibration_reducers']} reducers", flush=True)
     reducers = np.unique(red)
@@ -152,7 +158,7 @@ def main(argv=None) -> int:
     rng = np.random.default_rng(args.seed)
     parts = [rng.permutation(reducers)[:n_test] for _ in range(args.partitions)]
     for mode in MODES:
-        fa, nfa, nh, det, acc, over, worst = [], 0, 0, [], [], 0, []
+        fa, nfa, nh, det, acc, over, worst, crack_free, told = [], 0, 0, [], [], 0, [], [], np.zeros(2, int)
         for held in parts:
             t = np.isin(red, held)
             m = fit(D[~t], y[~t], red[~t], mode, args.alpha, args.seed)
@@ -162,6 +168,8 @@ def main(argv=None) -> int:
             nh += s["n_healthy"]
             det.append(s["detection_rate"])
             acc.append(s["accuracy"])
+            crack_free += [s["crack_free_accuracy"]] if "crack_free_accuracy" in s else []
+            told += s.get("under_wear_not_wear", [0, 0])
             over += s["false_alarm_rate"] > args.alpha
             per = np.array(list(s["false_alarms_per_reducer"].values())) / (s["n_healthy"] / len(held))
             worst.append(float(per.max()))
@@ -169,12 +177,16 @@ def main(argv=None) -> int:
         out["partitions"][mode] = {
             "n": len(parts), "false_alarm_rate": nfa / nh, "false_alarm_q10_50_90": q.tolist(),
             "share_over_alpha": over / len(parts), "detection_rate": float(np.mean(det)),
-            "accuracy": float(np.mean(acc)), "worst_reducer_rate_mean": float(np.mean(worst))}
+            "accuracy": float(np.mean(acc)), "worst_reducer_rate_mean": float(np.mean(worst)),
+            "crack_free_accuracy": float(np.mean(crack_free)) if crack_free else None,
+            "under_wear_not_wear": told.tolist()}
         print(f"[{len(parts)} partitions, {n_test} held out] {mode:6s}: false alarms {pct(nfa / nh)} (pooled; per "
               f"partition 10/50/90 % {pct(q[0])} / {pct(q[1])} / {pct(q[2])}; over the stated "
               f"{100 * args.alpha:g} % in {100 * over / len(parts):.0f} % of partitions; worst held-out reducer's "
-              f"rate {pct(np.mean(worst))} on average), detection {pct(np.mean(det))}, accuracy {pct(np.mean(acc))}",
-              flush=True)
+              f"rate {pct(np.mean(worst))} on average), detection {pct(np.mean(det))}, accuracy {pct(np.mean(acc))}"
+              + (f", crack-free {pct(np.mean(crack_free))}" if crack_free else "")
+              + (f", broken tooth under wear not taken for wear alone {pct(told[0] / told[1])} ({told[0]} of "
+                 f"{told[1]}, pooled)" if told[1] else ""), flush=True)
     print(f"({time.perf_counter() - t0:.0f} s)")
     if args.json:
         args.json.write_text(json.dumps(out, indent=1))

@@ -33,7 +33,8 @@ and ``parallel_seam_error`` (relative L2 difference from that continuous run).  
 model as the motor-current library runs it: 45 deg/s at the output, 20 N m plus the 15 kg arm at 0.5 m (its
 load DOF; arm at 0 deg), 4 sub-steps, integrated at 48 kHz; ``simulate(signal="current", current_fs=1000)``
 against ``simulate(signal="vibration")`` of the same reducer and load.  The goal of the coupled model is
-<= 1.3x.  At both points the two runs alternate (best of ``--repeat`` each), so a load change on the shared
+<= 1.3x.  ``pin_wear_cost_ratio`` (and ``_cpu``): the reducer with its cycloid-pin stage worn 5 um deep
+(``[stage2] pin_wear_depth``) over the unworn one, same run.  At both points the two runs alternate (best of ``--repeat`` each), so a load change on the shared
 machine falls on both.
 
 Usage: ``python bench/sim_speed.py [--json] [--duration S] [--scipy-duration S] [--numpy-duration S]
@@ -60,6 +61,7 @@ from rvdiag.dynamics import ModelSettings, prepare, simulate  # noqa: E402
 from rvdiag.dynamics.linear import static_equilibrium  # noqa: E402
 from rvdiag.dynamics.profile import LoadProfile  # noqa: E402
 from rvdiag.dynamics.model import make_rhs  # noqa: E402
+from rvdiag.params import ReducerParams  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the NumPy oracle lives with the tests
 from oracles.reference_rhs import ReferenceRHS  # noqa: E402
 
@@ -115,6 +117,11 @@ def main() -> None:
     (awall, acpu), (bwall, bcpu) = _paired_timing(args.duration, args.repeat, mst, dict(mkw),
                                                   dict(mkw, signal="current", current_fs=1000.0))
 
+    # the cycloid-pin stage worn 5 um deep ([stage2] pin_wear_depth: a clearance table read once per pin and
+    # sample), the same operating point and settings, against the unworn reducer
+    worn = ReducerParams.default().replace(stage2={"pin_wear_depth": 5e-6})
+    (uwall, ucpu), (wwall, wcpu) = _paired_timing(args.duration, args.repeat, st, dict(kw), dict(kw, params=worn))
+
     model = prepare(input_speed_rpm=1000.0, mesh_source=args.mesh_source, settings=st)
     q0 = static_equilibrium(model, 0.0)
     y0 = np.concatenate([q0, np.zeros_like(q0)])
@@ -138,7 +145,8 @@ def main() -> None:
            "motor_cost_ratio_cpu": mcpu / cpu,
            "mcsa_vibration_sim_s_per_wall_s": args.duration / awall,
            "mcsa_current_sim_s_per_wall_s": args.duration / bwall,
-           "motor_cost_ratio_mcsa": bwall / awall, "motor_cost_ratio_mcsa_cpu": bcpu / acpu}
+           "motor_cost_ratio_mcsa": bwall / awall, "motor_cost_ratio_mcsa_cpu": bcpu / acpu,
+           "pin_wear_cost_ratio": wwall / uwall, "pin_wear_cost_ratio_cpu": wcpu / ucpu}
     if args.workers > 1:
         seg = args.segment or args.duration / args.workers
         pst = dataclasses.replace(st, segment_s=seg)
@@ -168,6 +176,8 @@ def main() -> None:
               f"vibration-only {args.duration / awall:.3f}, with the motor (signal='current', 1 kHz) "
               f"{args.duration / bwall:.3f} simulated s per wall s; cost {bwall / awall:.2f}x per simulated second "
               f"({bcpu / acpu:.2f}x in CPU time; goal <= 1.3x)")
+        print(f"with the cycloid-pin stage worn 5 um ([stage2] pin_wear_depth): cost {wwall / uwall:.2f}x the unworn "
+              f"reducer per simulated second ({wcpu / ucpu:.2f}x in CPU time)")
         print(f"per CPU second (this process; the machine may be shared): rvdiag {crate:.3f}, "
               f"scipy NumPy RHS {scrate:.5f} (ratio {crate / scrate:.0f}x), scipy compiled RHS {ccrate_c:.5f} "
               f"(ratio {crate / ccrate_c:.0f}x)")

@@ -94,6 +94,24 @@ def potential_gradient(model, t: float, q):
     return grad
 
 
+def assert_forces_are_minus_gradient(model, other, t: float, rng, rtol: float = 1e-6) -> None:
+    """At the static solution of ``model`` at ``t`` plus a 1e-8 m/rad jitter (velocities 0): M a of the compiled
+    kernels equals -:func:`potential_gradient` of the NumPy potential within ``rtol`` of its largest entry (the
+    central differences' rounding is 3e-7 to 1.1e-6 of it), and differs from ``other``'s (a model without the term
+    under test) by more than 1 %, so that the comparison can fail."""
+    import numpy as np
+
+    from rvdiag.dynamics import model as mdl
+    from rvdiag.dynamics.linear import static_equilibrium
+
+    q = static_equilibrium(model, t) + 1e-8 * rng.standard_normal(model.n_dof)
+    y = np.concatenate([q, np.zeros_like(q)])
+    Ma = mdl.make_rhs(model)(t, y)[model.n_dof:] * model.mass
+    Ma_other = mdl.make_rhs(other)(t, y)[model.n_dof:] * model.mass
+    assert np.max(np.abs(Ma - Ma_other)) > 1e-2 * np.max(np.abs(Ma))
+    np.testing.assert_allclose(Ma, -potential_gradient(model, t, q), rtol=0, atol=rtol * np.max(np.abs(Ma)))
+
+
 #: The relative spread (of the largest absolute value) that a simulation may show between two x86-64 CPUs.  numba
 #: compiles for the host CPU (vector width, FMA contraction), so the last bits of a stored array are those of the
 #: machine that wrote it.  Measured on the golden signals of tests/golden/before_manufacturing_errors.npz: 1.7e-13

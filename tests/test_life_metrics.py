@@ -322,6 +322,9 @@ def test_evaluate_life_gives_per_reducer_and_pooled_figures(life, capsys):
     t = lf["threshold"]
     assert set(t["per_state"]) == {"T3"} and t["per_state"]["T3"]["fate"] == "wear"
     assert t["per_state"]["T3"]["n_reducers"] == 3 and t["per_state"]["T3"]["index"] > t["reference_level"] > 0
+    # the population the remaining life draws from, and its median
+    assert len(t["per_state"]["T3"]["values"]) == 3
+    assert t["per_state"]["T3"]["index"] == pytest.approx(float(np.median(t["per_state"]["T3"]["values"])))
     assert "train split" in t["source"]
     json.dumps(res, allow_nan=False)
     # the CLI hands evaluate_life the records evaluate_monitor has already scored: the same figures as its own

@@ -212,3 +212,36 @@ def test_band_ratios_are_third_octaves_of_enough_lines_and_a_gain_moves_them_ali
     b = band_ratios(7.0 * rng.standard_normal((2, L)), B, FS)
     assert 7.0 / 2 < b["min"] <= b["median"] <= b["max"] < 7.0 * 2
     assert b["overall"] == pytest.approx(7.0, rel=0.05) and b["shape"] < 2.0
+
+
+def test_the_baselines_spectra_kept_between_records_give_the_same_checks(monkeypatch):
+    """A baseline opened once keeps what the checks read on its own windows (Baseline.spectra): the level and
+    mesh-line checks of many records with the cache equal those without it, and the baseline's spectrum is read once
+    per operating point."""
+    import rvdiag.monitoring.diagnosis as diagnosis
+
+    rng = np.random.default_rng(5)
+    base = _base([_machine(rng, L) for _ in range(4)])
+    base.meta = {"output_speed_deg_s": np.array([SPEED, SPEED, 2 * SPEED, 2 * SPEED]),
+                 "load_Nm": np.array([50.0, 50.0, 50.0, 50.0])}
+    calls = []
+    spectrum = diagnosis._mean_power_spectrum
+    monkeypatch.setattr(diagnosis, "_mean_power_spectrum", lambda X, fs: calls.append(len(X)) or spectrum(X, fs))
+    cache: dict = {}
+    records = [_machine(rng, 2 * L), 20 * _machine(rng, 2 * L), 9.81 * _machine(rng, 2 * L),
+               0.01 * rng.standard_normal(2 * L)] * 2
+    for i, x in enumerate(records):
+        v = {"output_speed_deg_s": SPEED if i < 4 else 2 * SPEED}
+        rec = _recognition_of(x)
+        args = (FS, v, L, 50.0)
+        plain = diagnosis.mesh_check_against_baseline(rec, x, base, *args)
+        kept = diagnosis.mesh_check_against_baseline(rec, x, base, *args, cache=cache)
+        assert repr(kept) == repr(plain)
+        rec = {"recognised": True, "reason": None, "checks": {}}
+        plain = level_check_against_baseline(rec, x, base, FS, L, v, 50.0)
+        kept = level_check_against_baseline(rec, x, base, FS, L, v, 50.0, cache=cache)
+        assert repr(kept) == repr(plain)
+    assert sorted(k[0] for k in cache) == ["power", "power", "rms"]  # two operating points
+    calls.clear()
+    level_check_against_baseline(rec, records[0], base, FS, L, {"output_speed_deg_s": SPEED}, 50.0, cache=cache)
+    assert calls == [2]  # the record's two windows alone

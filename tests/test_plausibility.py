@@ -105,6 +105,41 @@ def test_life_consistent_wear_changes_the_rms_little(point, life_wear):
     assert 0.8 <= ratio <= 2.0, ratio
 
 
+def _library_wear_draws() -> tuple[float, float]:
+    """The wear depths (m) the monitoring libraries draw: configs/monitoring.toml's T3 range (demo-monitoring.toml
+    draws the same; docs/library.md says which shipped configs keep other draws, and why)."""
+    from rvdiag.library import LibraryConfig
+
+    return LibraryConfig.load("monitoring").states["T3"]["wear_depth"].values
+
+
+def test_the_libraries_draw_wear_of_a_robots_life(life_wear):
+    """The monitoring libraries' wear draws span the sun's Archard depth over a robot's life (docs/model.md: 3.1 um after
+    20,000 h at 30 deg/s, 8.9 um after 30,000 h at 60 deg/s, k = 1e-18 m^2/N), not the 10-80 um of before."""
+    from rvdiag.gears.wear import DutyCycle, wear_depth_profile
+
+    lo, hi = _library_wear_draws()
+    heavy = wear_depth_profile(P0, 30000.0, DutyCycle(60.0, 0.5 * RATED, 0.5), 1e-18).max_depth
+    assert lo <= life_wear.depth < heavy <= hi
+    assert hi <= 1.1 * heavy and lo >= 0.9 * life_wear.depth
+
+
+@pytest.mark.parametrize("end", ["shallowest", "deepest"])
+def test_the_libraries_wear_draws_change_the_rms(point, end, request):
+    """The libraries' wear (the run-in shape, ``Wear(depth)``) at the ends of their draws: RMS within 0.8-2x
+    healthy.  Met at the shallowest draw (3 um: measured 1.10 / 1.04 / 1.17x at 30 deg/s rated, 60 deg/s rated,
+    45 deg/s 40 %, over these 0.5 s).  Not met at the deepest (9 um: 3.00 / 2.35 / 2.20x): a strict expected
+    failure, for the reason of ``test_wear_changes_the_rms_like_a_real_gearbox`` (the bound comes from gears whose
+    deflection is 10-20 um; here 9 um is about 10 deflections)."""
+    if end == "deepest":
+        request.applymarker(pytest.mark.xfail(strict=True, reason="9 um of run-in wear gives 2.2-3.0x the healthy "
+                                              "RMS (docs/model.md section 9)"))
+    speed, load, x = point
+    depth = _library_wear_draws()[0 if end == "shallowest" else 1]
+    ratio = _rms(_x("T3", speed, load, wear_depth=depth)) / _rms(x)
+    assert 0.8 <= ratio <= 2.0, ratio
+
+
 def test_no_contact_ever_pulls():
     """A tooth pair or a pin whose flanks separate fast pushes nothing and pulls nothing (Modelica ElastoBacklash:
     the contact force is zero when spring + damper <= 0).  At the static solution, with the sun turning back at

@@ -259,3 +259,21 @@ def test_threshold_draws_and_the_joints_own_scale():
     assert p1.rul.estimated and p3.rul.median_days == pytest.approx(p1.rul.median_days, rel=1e-9)
     p3_fixed = joint_prognosis(days, health_index=3.0 * hi, baseline_scores=3.0 * base, threshold=20.0, model="size")
     assert p3_fixed.rul.median_days < 0.8 * p1.rul.median_days
+
+
+def test_a_threshold_population_widens_the_interval_by_its_spread():
+    """A threshold given as a population (the index at failure of reducers run to it) is drawn from in the Monte
+    Carlo: the interval is wider than with its median alone, holds the median's when the population is one value
+    repeated, and follows the population's median; the draws are seeded."""
+    base, days, hi = _joint()
+    one = joint_prognosis(days, health_index=hi, baseline_scores=base, threshold=20.0, model="size")
+    same = joint_prognosis(days, health_index=hi, baseline_scores=base, threshold=[20.0] * 5, model="size")
+    assert one.rul.estimated and same.rul.p90_days == pytest.approx(one.rul.p90_days, rel=1e-12)
+    pop = [12.0, 15.0, 20.0, 26.0, 33.0]
+    wide = joint_prognosis(days, health_index=hi, baseline_scores=base, threshold=pop, model="size")
+    again = joint_prognosis(days, health_index=hi, baseline_scores=base, threshold=pop, model="size")
+    assert wide.rul.p90_days - wide.rul.p10_days > 1.5 * (one.rul.p90_days - one.rul.p10_days)
+    assert wide.rul.p10_days < one.rul.p10_days and wide.rul.p90_days > one.rul.p90_days
+    assert np.array_equal(wide.rul.samples_days, again.rul.samples_days)
+    with pytest.raises(ParameterError):
+        joint_prognosis(days, health_index=hi, baseline_scores=base, threshold=[20.0, float("nan")])

@@ -63,6 +63,17 @@ def test_reference_rhs_equals_compiled_rhs_with_large_manufacturing_errors():
     assert _max_rel_diff(m, seed=5) < 1e-9
 
 
+@pytest.mark.parametrize("pin_errors", [False, True], ids=["worn", "worn_pin_errors"])
+def test_reference_rhs_equals_compiled_rhs_with_a_worn_pin_stage(pin_errors):
+    """The cycloid-pin stage worn 10 um ([stage2] pin_wear_depth: the clearance table after the modification's,
+    docs/model.md section 3), alone and with the pins' own errors (whose values follow the table in P)."""
+    p = P0.replace(stage2={"pin_wear_depth": 10e-6},
+                   manufacturing={"pin_radius": 1e-6, "pin_position": 3e-6} if pin_errors else {})
+    m = prepare(p, output_speed_deg_s=45.0, load_Nm=100.0)
+    assert m.P[mdl.I_PINWEAR] != 0 and (m.P[mdl.I_PINERR] > m.P[mdl.I_PINWEAR]) == pin_errors
+    assert _max_rel_diff(m, seed=3) < 1e-9
+
+
 def test_reference_rhs_equals_compiled_rhs_other_settings():
     """1000 rpm, rated load, frozen excitation, no damping, no Coriolis, bilateral contacts."""
     m = prepare(P0, input_speed_rpm=1000.0)

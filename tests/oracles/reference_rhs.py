@@ -357,7 +357,11 @@ class ReferenceRHS:
         k1 = P[mdl.I_E] * P[mdl.I_ZP] / P[mdl.I_RP]
         eta = self.gamma[None, :] - B[:, None]
         S = np.sqrt(1.0 + k1 * k1 - 2.0 * k1 * np.cos(eta))
-        return P[mdl.I_DRRP] - (P[mdl.I_DRP] * (1.0 - k1 * np.cos(eta)) + P[mdl.I_CLOSE] * np.sin(eta)) / S
+        out = P[mdl.I_DRRP] - (P[mdl.I_DRP] * (1.0 - k1 * np.cos(eta)) + P[mdl.I_CLOSE] * np.sin(eta)) / S
+        if P[mdl.I_PINWEAR] != 0.0:  # the worn stage's clearance growth: its table over cos(eta), interpolated
+            w0, nw = int(P[mdl.I_PINWEAR]), int(P[mdl.I_NPINWEAR])
+            out = out + np.interp(np.cos(eta), np.linspace(-1.0, 1.0, nw), P[w0:w0 + nw])
+        return out
 
     def _pin_deflections(self, B, cb, sb, cB, sB, q, v):
         P = self.P

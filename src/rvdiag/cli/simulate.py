@@ -85,6 +85,10 @@ def register(app: typer.Typer) -> None:
         state: str = typer.Option("T1", "--state", help=f"Fault state: {states_help}."),
         severities: Optional[dict] = None,  # the ten fault-severity options (opt.fault_severity_options)
         params: Optional[Path] = opt.params(),
+        pin_wear_depth: Optional[float] = typer.Option(None, "--pin-wear-depth", help="Wear of the cycloid-pin "
+                                                       "stage, with any --state: the largest clearance growth along "
+                                                       "a pin's contact normal on each flank (mm, 0 to 0.1; Archard's "
+                                                       "shape; default: the parameter set's [stage2] pin_wear_depth)."),
         input_speed: Optional[float] = typer.Option(None, "--input-speed", help="Motor (sun) speed, rpm."),
         output_speed: Optional[float] = typer.Option(None, "--output-speed", help="Output (carrier) speed, deg/s."),
         load: Optional[float] = typer.Option(None, "--load", help="Output load torque, N m (default: rated torque)."),
@@ -154,6 +158,11 @@ def register(app: typer.Typer) -> None:
             raise ParameterError(f"--workers must be >= 1, got {workers}")
         snr_db = opt.resolve(snr_db, noise_snr, "--noise-snr")
         p = ReducerParams.load(params)
+        if pin_wear_depth is not None:
+            from rvdiag.gears.pin_wear import check_pin_wear_depth
+
+            depth = check_pin_wear_depth(pin_wear_depth * 1e-3, "--pin-wear-depth", scale=1e-3, unit="mm")
+            p = p.replace(stage2={"pin_wear_depth": depth})
         fs, current_fs = _rates(signal, fs, current_fs)
         _check_load(load, p)
         if segment is None:

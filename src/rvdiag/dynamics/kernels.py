@@ -79,6 +79,9 @@ P_FIELDS = (
     # PINMOD 1.0 when modified; DRRP, DRP the equidistant and offset modifications; CLOSE the disc rotation that
     # takes up the clearance on the loaded half, as a normal displacement at unit arm (m)
     "PINMOD", "DRRP", "DRP", "CLOSE",
+    # wear of the cycloid-pin stage (rvdiag.gears.pin_wear; docs/model.md section 3): PINWEAR the index in P where
+    # the clearance table over cos(eta) starts (0: none; PINMOD is then 1), NPINWEAR its length
+    "PINWEAR", "NPINWEAR",
     # the servo motor's electrical side (rvdiag.dynamics.motor_kernel; docs/model.md section 10), last
     *MOTOR_P_FIELDS,
 )
@@ -176,7 +179,8 @@ def pin_geometry(t, P, cosk, sink, geo, rot):
     ``geo[g, 0, k], geo[g, 1, k]`` is the unit normal from the pitch point C to pin k and
     ``geo[g, 2, k] = e Zc n_y`` the lever arm about the disc centre (struct-of-arrays so the contact
     loop vectorises); ``geo[g, 3, k]`` the initial clearance of a modified profile (written only when
-    ``P[I_PINMOD]`` is set; :func:`rvdiag.gears.cycloid.modification_clearance`); ``rot[j] = (cos b, sin b, cos B, sin B)``, ``b`` the eccentric angle of disc j in
+    ``P[I_PINMOD]`` is set; :func:`rvdiag.gears.cycloid.modification_clearance`), plus the worn stage's
+    clearance growth (``P[I_PINWEAR]``, :func:`rvdiag.gears.pin_wear.pin_wear_table`); ``rot[j] = (cos b, sin b, cos B, sin B)``, ``b`` the eccentric angle of disc j in
     the carrier frame and ``B = b + Omega t`` in the fixed frame.  The pin angles relative to the
     eccentric are ``eta_k = eta_0 + 2 pi k / Zp``: one sin/cos per disc, the rest by angle addition
     with the precomputed ``cosk, sink`` (measured: the same output as per-pin sin/cos, ~10x cheaper; bench/HISTORY.md).  When the discs' phase is a whole
@@ -259,6 +263,20 @@ def pin_geometry_cs(cb0, sb0, cw, sw, P, cosk, sink, geo, rot):
                 se = s0 * cosk[k] + c0 * sink[k]
                 inv_s = 1.0 / math.sqrt(1.0 + K1 * K1 - 2.0 * K1 * ce)
                 geo[j, 3, k] = drrp - (drp * (1.0 - K1 * ce) + close * se) * inv_s
+    # the worn stage's clearance growth, a table over cos(eta) (rvdiag.gears.pin_wear.pin_wear_table), linearly
+    # interpolated; in a loop of its own, so that an unworn stage runs the code before it
+    if P[I_PINWEAR] != 0.0:
+        w0 = int(P[I_PINWEAR])
+        half = 0.5 * (P[I_NPINWEAR] - 1.0)
+        last = int(P[I_NPINWEAR]) - 2
+        for j in range(ng):
+            c0 = rot[j, 2]
+            s0 = -rot[j, 3]
+            for k in range(nz):
+                x = (c0 * cosk[k] - s0 * sink[k] + 1.0) * half
+                i = min(max(int(x), 0), last)
+                f = x - i
+                geo[j, 3, k] += P[w0 + i] + f * (P[w0 + i + 1] - P[w0 + i])
 
 
 @numba.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")

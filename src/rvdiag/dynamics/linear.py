@@ -18,6 +18,7 @@ import scipy.linalg
 from rvdiag.dynamics import model as mdl
 from rvdiag.errors import SimulationError
 from rvdiag.gears.cycloid import modification_clearance
+from rvdiag.gears.pin_wear import table_function
 
 
 def _residual(model: mdl.Model, t: float, q: np.ndarray) -> np.ndarray:
@@ -59,7 +60,10 @@ def static_equilibrium(model: mdl.Model, t: float = 0.0, max_iter: int = 50, tol
     """Static deflection ``q`` with ``M a(t, q, v=0) = 0`` (time-varying terms frozen at ``t``).
 
     Newton's method on the piecewise-linear residual; converges when the contact states stop
-    changing.  Raises SimulationError when it does not.
+    changing.  Where the full steps keep switching the same contacts on and off (a disc carried across its
+    clearance, e.g. the load reversed on a worn cycloid stage), the iteration restarts with steps halved until the
+    residual falls (damped Newton with backtracking, Nocedal & Wright 2006, sec. 11.2); a system that converges
+    with full steps never reaches it.  Raises SimulationError when neither converges.
     """
     fm = model.frozen(t)
     scale = np.abs(fm.P[mdl.I_TLOAD]) + 1.0
@@ -70,6 +74,21 @@ def static_equilibrium(model: mdl.Model, t: float = 0.0, max_iter: int = 50, tol
             return q
         q = q + _solve(stiffness_matrix(fm, t, q), r)
         r = _residual(fm, t, q)
+    if np.max(np.abs(r)) <= tol * scale:
+        return q
+    q = bilateral_deflection(model, t)
+    r = _residual(fm, t, q)
+    for _ in range(4 * max_iter):
+        if np.max(np.abs(r)) <= tol * scale:
+            return q
+        dq = _solve(stiffness_matrix(fm, t, q), r)
+        norm, lam = np.linalg.norm(r), 1.0
+        while lam > 1e-6:
+            r_new = _residual(fm, t, q + lam * dq)
+            if np.linalg.norm(r_new) < norm:
+                break
+            lam *= 0.5
+        q, r = q + lam * dq, r_new
     if np.max(np.abs(r)) <= tol * scale:
         return q
     raise SimulationError("static equilibrium did not converge (contacts keep changing state)")
@@ -206,6 +225,9 @@ def potential_energy(model: mdl.Model, t: float, q: np.ndarray) -> float:
             sin_eta = (ehat[0] * pins[:, 1] - ehat[1] * pins[:, 0]) / Rp
             delta -= modification_clearance(cos_eta, sin_eta, e * Zp / Rp, P[mdl.I_DRRP], P[mdl.I_DRP],
                                             P[mdl.I_CLOSE])
+            if P[mdl.I_PINWEAR] != 0:  # the worn stage's clearance growth, a table over cos(eta)
+                w0 = int(P[mdl.I_PINWEAR])
+                delta -= table_function(P[w0:w0 + int(P[mdl.I_NPINWEAR])])(cos_eta)
         if bil == 0:
             delta = np.maximum(delta, 0.0)
         V += 0.5 * P[mdl.I_KPIN] * np.sum(delta**2)

@@ -21,6 +21,8 @@ from rvdiag.dynamics.mesh import MeshTable
 from rvdiag.dynamics.profile import G, LoadProfile, SpeedProfile
 from rvdiag.dynamics.settings import ModelSettings
 from rvdiag.errors import ParameterError
+from rvdiag.gears.cycloid import (  # noqa: F401 (re-exported: rvdiag.dynamics.model's names)
+    PIN_LOAD_FLOOR_FRACTION, PIN_STIFFNESS_ANGLES, pin_contact_stiffness)
 from rvdiag.params import ReducerParams, body_properties
 from rvdiag.validation import number, positive
 
@@ -31,42 +33,6 @@ TWO_PI = kn.TWO_PI
 #: the contact force then starts from zero as the flanks meet, instead of jumping by c * (approach rate), so a
 #: pair touching or leaving within a step costs RK4 much less accuracy (docs/model.md section 7)
 MESH_DAMPING_RAMP_M = 0.1e-6
-
-#: Pin stiffness is linearised at ``max(|T_L|, PIN_LOAD_FLOOR_FRACTION * rated torque)``: the Hertz
-#: tangent stiffness vanishes (logarithmically) at zero load, where a linearisation means nothing.
-PIN_LOAD_FLOOR_FRACTION = 0.01
-#: crank angles (over one pin pitch) averaged in :func:`pin_contact_stiffness`
-PIN_STIFFNESS_ANGLES = 8
-
-
-def pin_contact_stiffness(params: ReducerParams, load_Nm: float) -> float:
-    """Cycloid-pin contact stiffness (N/m) linearised at the operating load, one value for every pin.
-
-    The per-pin tangent stiffness is the Hertz line contact of the pin on the disc flank at its share
-    of the load (Johnson 1985, *Contact Mechanics*, sec. 5.6; load shared in proportion to the lever
-    arm, Blagojevic et al. 2011, J. Mech. Des. 133, eq. 11), as computed by
-    :func:`rvdiag.gears.cycloid.pin_contact`.  The torque one disc carries about its own centre is the
-    pin-wheel reaction ``T_L (1 - 1/i)`` (docs/model.md, sec. 5) times the arm ratio ``Zc / Zp``
-    (arms ``e Zc n_y`` about the disc, ``e Zp n_y`` about the pin wheel), shared by the ``D`` discs:
-    ``T_d = |T_L| (1 - 1/i) Zc / (Zp D)``.  The pins in contact act on the disc's rocking in parallel
-    through their arms, so the equivalent uniform stiffness is the arm-weighted mean
-    ``k = sum k_i l_i^2 / sum l_i^2`` (same disc torsional stiffness), averaged over
-    ``PIN_STIFFNESS_ANGLES`` crank angles across one pin pitch (it varies by < 0.5 %).  For the RV-20E
-    at rated torque (167 N m) this is 3.4e8 N/m, 2.3e8 at 1 N m: the Hertz stiffness of a loaded pin,
-    against the load-independent 1.78e9 of Yang & Sun's ``pi E b / (4 (1 - nu^2))``.
-    """
-    from rvdiag.gears.cycloid import pin_contact
-
-    s2 = params.stage2
-    load = max(abs(float(load_Nm)), PIN_LOAD_FLOOR_FRACTION * params.operation.rated_torque)
-    t_disc = load * (1.0 - 1.0 / params.ratio) * s2.cycloid_lobes / (s2.pins * s2.n_discs)
-    vals = []
-    for ang in np.arange(PIN_STIFFNESS_ANGLES) * (TWO_PI / s2.pins / PIN_STIFFNESS_ANGLES):
-        c = pin_contact(s2, params.material, float(ang), t_disc)
-        l2 = np.where(c.in_contact, c.arm_m, 0.0) ** 2
-        vals.append(float(np.sum(c.stiffness_N_per_m * l2) / np.sum(l2)))
-    return float(np.mean(vals))
-
 
 #: a table node is an event where the stiffness's second difference exceeds this fraction of its mean
 #: (single/double tooth contact changes: ~0.55; elsewhere below 4e-5 for every fault state) ...
@@ -145,21 +111,31 @@ def _mean_load(profile: SpeedProfile, load: LoadProfile, T0: float, Omega: float
     return float(np.mean(_load_over_record(profile, load, T0, Omega, duration_s)))
 
 
-def _pack_profile_modification(P: np.ndarray, s2, mean_load_Nm: float) -> None:
-    """The cycloid discs' equidistant and offset profile modifications (docs/model.md section 3): each pin's
-    initial clearance ``geo[g, 3, k]`` (:func:`rvdiag.dynamics.kernels.pin_geometry_cs`), with the disc's rotation
-    that takes it up on the half of the pins the mean load presses (``sense``: the arm ``l_k`` of those pins is
-    negative under a positive output torque)."""
+def _pack_profile_modification(P: np.ndarray, params: ReducerParams, mean_load_Nm: float) -> np.ndarray:
+    """The cycloid discs' equidistant and offset profile modifications and the stage's wear (docs/model.md
+    section 3): each pin's initial clearance ``geo[g, 3, k]`` (:func:`rvdiag.dynamics.kernels.pin_geometry_cs`),
+    with the disc's rotation that takes it up on the half of the pins the mean load presses (``sense``: the arm
+    ``l_k`` of those pins is negative under a positive output torque).  The wear's clearance table
+    (:func:`rvdiag.gears.pin_wear.pin_wear_table`) is appended to ``P`` (``P[I_PINWEAR]`` its start); returns
+    ``P``."""
     from rvdiag.gears.cycloid import closing_offset
+    from rvdiag.gears.pin_wear import pin_wear_table, stage_wear_depth, table_function
 
-    drrp, drp = s2.equidistant_modification, s2.offset_modification
-    if drrp == 0.0 and drp == 0.0:
-        return
+    s2 = params.stage2
+    drrp, drp, worn = s2.equidistant_modification, s2.offset_modification, stage_wear_depth(params) > 0.0
+    if drrp == 0.0 and drp == 0.0 and not worn:
+        return P
     k1 = s2.eccentricity * s2.pins / s2.pin_circle_radius
     sense = -1 if mean_load_Nm >= 0.0 else 1
     P[kn.I_PINMOD] = 1.0
     P[kn.I_DRRP], P[kn.I_DRP] = drrp, drp
-    P[kn.I_CLOSE] = closing_offset(k1, drrp, drp, sense)
+    if not worn:
+        P[kn.I_CLOSE] = closing_offset(k1, drrp, drp, sense)
+        return P
+    table = pin_wear_table(params)
+    P[kn.I_CLOSE] = closing_offset(k1, drrp, drp, sense, extra=table_function(table))
+    P[kn.I_PINWEAR], P[kn.I_NPINWEAR] = float(P.size), float(table.size)
+    return np.concatenate([P, table])
 
 
 def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: float, load_Nm: float,
@@ -311,7 +287,7 @@ def pack_model_arrays(params: ReducerParams, mesh: MeshTable, sun_speed_hz: floa
     P[kn.I_SENSX], P[kn.I_SENSY] = sp
     P[kn.I_NCH] = len(st.sensor_directions)
     P[kn.I_DISPLIM] = st.max_displacement_m
-    _pack_profile_modification(P, s2, _mean_load(profile, load, load_Nm, Omega, duration_s))
+    P = _pack_profile_modification(P, params, _mean_load(profile, load, load_Nm, Omega, duration_s))
     P[kn.I_ROTLIM] = st.max_rotation_rad
 
     psi = TWO_PI * np.arange(N) / N

@@ -42,7 +42,9 @@ paper.]  The measured lost motion of an RV reducer in a 1,550 h endurance test (
 it for this stage: after the first 600 h the lost motion grew 0.0024 arcsec/h in all; this stage's Archard wear on
 both flanks, at rated torque and 15 rpm output (the usual endurance-test duty; the paper's duty was not at hand),
 would alone grow it by 0.0059 arcsec/h per 1e-17 m^2/N (``research/wear_archard.py``), so k <= ~4e-18 m^2/N, and less
-where the cycloid stage and the bearings take their share.  The default is therefore the span's lower end,
+where the cycloid stage and the bearings take their share: with the cycloid stage's Archard wear
+(:mod:`rvdiag.gears.pin_wear`, which makes 95 % of that growth) the test gives k = 6.3e-19 m^2/N at that duty
+(``research/pin_wear.py``).  The default is therefore the span's lower end,
 1e-18 m^2/N (well-lubricated mild wear); the depth is proportional to k (outside the run-in's load sharing), so
 any other k scales it.
 
@@ -197,10 +199,9 @@ def wear_depth_profile(params, hours: float, duty: DutyCycle, k_wear: float = DE
     return wear_depth_history(params, [hours], duty, k_wear, run_in=run_in, points=points)[0]
 
 
-def wear_depth_history(params, hours, duty: DutyCycle, k_wear: float = DEFAULT_WEAR_COEFFICIENT, *,
-                       run_in: bool = True, points: int = _POINTS) -> list[WearDepthProfile]:
-    """:func:`wear_depth_profile` at each of the increasing ``hours`` (a sequence) of one steady duty, from one
-    integration (the growth law of a life history: the profile at a record's time in service)."""
+def history_arguments(hours, duty: DutyCycle, k_wear: float) -> list:
+    """``hours`` as a list, once checked with ``duty`` and ``k_wear`` as a wear history's arguments: finite numbers
+    >= 0, the hours not decreasing, a :class:`DutyCycle` (one-line :class:`~rvdiag.errors.ParameterError` else)."""
     hours = list(hours)
     for value in hours + [k_wear]:
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
@@ -210,6 +211,14 @@ def wear_depth_history(params, hours, duty: DutyCycle, k_wear: float = DEFAULT_W
         raise ParameterError("hours must not decrease")
     if not isinstance(duty, DutyCycle):
         raise ParameterError(f"duty must be a DutyCycle, got {type(duty).__name__}")
+    return hours
+
+
+def wear_depth_history(params, hours, duty: DutyCycle, k_wear: float = DEFAULT_WEAR_COEFFICIENT, *,
+                       run_in: bool = True, points: int = _POINTS) -> list[WearDepthProfile]:
+    """:func:`wear_depth_profile` at each of the increasing ``hours`` (a sequence) of one steady duty, from one
+    integration (the growth law of a life history: the profile at a record's time in service)."""
+    hours = history_arguments(hours, duty, k_wear)
     pair = GearPair.sun_planet(params)
     path, pb = pair.path_of_contact, pair.base_pitch
     s = np.linspace(0.0, path, int(points))

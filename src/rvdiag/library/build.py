@@ -98,9 +98,12 @@ def make_plan(cfg: LibraryConfig) -> list[Unit]:
             density = None  # after the sensor: drawn only by configs with a density
             if cfg.noise_density_ug_per_rthz is not None:
                 density = float(cfg.noise_density_ug_per_rthz.draw(rng))
+            # after the density: drawn only by configs with [randomise] pin_wear_depth
+            pin_wear = None if cfg.pin_wear_depth is None else float(cfg.pin_wear_depth.draw(rng))
             specimen = draw_specimen(specimen_seed(seeds[u]), cfg.iso1328_grade) if cfg.specimen else {}
             units.append(Unit(u, state, k, seeds[u], severity, speed, load, snr, scales, split,
-                              cfg.rows_per_simulation(state), mounting, colour, profile, sensor, specimen, density))
+                              cfg.rows_per_simulation(state), mounting, colour, profile, sensor, specimen, density,
+                              pin_wear_depth=pin_wear))
             u += 1
     return units
 

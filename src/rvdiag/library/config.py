@@ -136,7 +136,7 @@ _SECTION_KEYS = {
                   "noise_density_ug_per_rthz"},
     "randomise": {"stiffness_pct", "damping_pct", "path_resonance_hz", "path_damping_ratio", "housing_added_mass",
                   "noise_colour_exponent", "sensor_position_deg", "sensor_direction_deg", "specimen",
-                  "iso1328_grade"},
+                  "iso1328_grade", "pin_wear_depth"},
     "profile": {"trapezoid_fraction", "scurve_fraction", "accel_deg_s2", "jerk_deg_s3", "arm_mass_kg",
                 "arm_length_m", "arm_angle_deg"},
     "split": {"train_per_state", "test_per_state", "assign",
@@ -597,6 +597,9 @@ class LibraryConfig:
     #: ``[randomise] iso1328_grade``: the tolerance class drawn per specimen (whole numbers), ``None`` = the
     #: parameter file's
     iso1328_grade: Sweep | None = None
+    #: ``[randomise] pin_wear_depth``: the cycloid-pin stage's wear drawn per simulation (m, ``[stage2]
+    #: pin_wear_depth``, :mod:`rvdiag.gears.pin_wear`), ``None`` = the parameter file's
+    pin_wear_depth: Sweep | None = None
     #: ``[operation] noise_mode`` (:data:`NOISE_MODES`); ``None``: not given, which is "record"
     noise_mode: str | None = None
     #: ``[operation] noise_density_ug_per_rthz``: a "floor" given as the sensor's noise density instead of an SNR
@@ -837,6 +840,17 @@ class LibraryConfig:
                 raise ConfigError(f"{w} iso1328_grade: whole ISO 1328 classes in [0, 11], got {grade.to_toml()!r}")
             if not specimen:
                 raise ConfigError(f"{w} iso1328_grade: drawn per specimen; add specimen = true")
+        pin_wear = None
+        if "pin_wear_depth" in rnd:
+            from rvdiag.params.schema import MAX_PIN_WEAR_DEPTH
+
+            pin_wear = Sweep.parse(rnd["pin_wear_depth"], f"{w} pin_wear_depth")
+            if not (0.0 <= pin_wear.lo and pin_wear.hi <= MAX_PIN_WEAR_DEPTH):
+                raise ConfigError(f"{w} pin_wear_depth: the cycloid-pin stage's wear (m) must lie in [0, "
+                                  f"{MAX_PIN_WEAR_DEPTH:g}], got {pin_wear.to_toml()!r}")
+            if "baseline" in data or "history" in data:
+                raise ConfigError(f"{w} pin_wear_depth: drawn per simulation, which a paired or life-history "
+                                  "library does not take (its reducer keeps one stage over its records)")
 
         # --- profile
         profile = None
@@ -959,7 +973,7 @@ class LibraryConfig:
             segment_length=segment_length, hop=hop, states=states, speed_key=speed_key, speed=speed,
             load_Nm=load, noise_snr_db=noise, stiffness_pct=pct["stiffness_pct"], damping_pct=pct["damping_pct"],
             path=path, noise_colour_exponent=colour, profile=profile, sensor=sensor, specimen=specimen,
-            iso1328_grade=grade, noise_mode=noise_mode, noise_density_ug_per_rthz=density, simulator=simulator,
+            iso1328_grade=grade, pin_wear_depth=pin_wear, noise_mode=noise_mode, noise_density_ug_per_rthz=density, simulator=simulator,
             params=params, channel=channel, model=model, source=source, **kw,
         )
 
@@ -1023,6 +1037,8 @@ class LibraryConfig:
             out["specimen"] = True
         if self.iso1328_grade is not None:
             out["iso1328_grade"] = self.iso1328_grade.to_toml()
+        if self.pin_wear_depth is not None:  # only when drawn: older configs keep their hash
+            out["pin_wear_depth"] = self.pin_wear_depth.to_toml()
         return out
 
     def replace(self, **changes: Any) -> "LibraryConfig":

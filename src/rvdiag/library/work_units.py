@@ -86,6 +86,8 @@ class Unit:
     #: a life-history library (``[history]``, :mod:`rvdiag.library.life`): the record's truth, ``life.*`` column ->
     #: value (:data:`rvdiag.library.life.LIFE_COLUMNS`), its ``life.sensor_fault`` applied to the record; else empty
     life: Mapping[str, Any] = field(default_factory=dict)
+    #: ``[randomise] pin_wear_depth`` drawn for this unit (m, ``[stage2] pin_wear_depth``), else ``None``
+    pin_wear_depth: float | None = None
 
     def sensor_geometry(self, radius_m: float) -> tuple[tuple[float, float] | None, tuple[float, float]]:
         """``(sensor point (x, y) in m or None for the model's default, unit sensing direction (dx, dy))`` of the
@@ -162,6 +164,8 @@ class Job:
     paired_columns: bool = False
     #: a life-history library: record the ``life.*`` truth columns and apply the records' sensor faults
     life_columns: bool = False
+    #: the config draws the cycloid-pin stage's wear: record ``pin_wear_depth``
+    pin_wear_column: bool = False
     #: the client's rvdiag release and physics revision: a worker running other code refuses the unit
     #: (``None``: not checked)
     rvdiag_version: str | None = None
@@ -180,6 +184,7 @@ class Job:
             physics_revision=_physics_revision(), noise_mode=cfg.noise_mode,
             noise_reference=cfg.noise_reference() if cfg.noise_floor else None, specimen_columns=cfg.specimen,
             paired_columns=cfg.paired, life_columns=cfg.history is not None,
+            pin_wear_column=cfg.pin_wear_depth is not None,
         )
 
 
@@ -304,6 +309,8 @@ def unit_params(unit: Unit, job: Job, varied: bool = True) -> Any:
     if unit.mounting:
         params = params.replace(mounting=dict(unit.mounting))
     params = apply_specimen(params, unit.specimen)
+    if unit.pin_wear_depth is not None:
+        params = params.replace(stage2={"pin_wear_depth": unit.pin_wear_depth})
     if varied and unit.variation:
         params = apply_variation(params, unit.variation)
     return params
@@ -379,10 +386,12 @@ def twin_key(unit: Unit, job: Job) -> str:
     config that randomises nothing share one key: one reducer, one noise floor, simulated once per process."""
     import json
 
-    return json.dumps([job.simulator, job.params, sorted(unit.scales.items()), sorted(unit.mounting.items()),
-                       sorted(unit.specimen.items()), sorted(unit.sensor.items()), job.channel, dict(job.model),
-                       job.noise_reference, job.speed_key, job.fs, job.transient_s, job.duration_s],
-                      sort_keys=True, default=str)
+    key = [job.simulator, job.params, sorted(unit.scales.items()), sorted(unit.mounting.items()),
+           sorted(unit.specimen.items()), sorted(unit.sensor.items()), job.channel, dict(job.model),
+           job.noise_reference, job.speed_key, job.fs, job.transient_s, job.duration_s]
+    if unit.pin_wear_depth is not None:  # the twin is the same reducer, its stage worn as drawn
+        key.append(unit.pin_wear_depth)
+    return json.dumps(key, sort_keys=True, default=str)
 
 
 def twin_power(unit: Unit, job: Job, result: Any = None) -> float:
@@ -496,6 +505,8 @@ def finish_unit(unit: Unit, job: Job, result: Any, t0: float, twin: Any = None) 
         grade = unit.specimen.get("iso1328_grade", dict(job.params.get("modification") or {}).get("iso1328_grade"))
         meta["error_seed"] = [unit.specimen["error_seed"]] * rows
         meta["iso1328_grade"] = [grade] * rows
+    if job.pin_wear_column:
+        meta["pin_wear_depth"] = [unit.pin_wear_depth] * rows
     if job.paired_columns:
         meta["reducer"] = [unit.reducer] * rows
         meta["role"] = [unit.role] * rows

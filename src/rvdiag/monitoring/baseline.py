@@ -59,6 +59,8 @@ class Baseline:
     operating_points : the distinct ``{"output_speed_deg_s", "load_Nm"}`` of the records
     fs : the sampling rate in Hz
     samples : the records (:class:`rvdiag.datasets.store.Samples`), the metadata ``reducer`` dropped
+    spectra : what the recognition checks read on the baseline's own windows, kept for its later records
+        (:func:`rvdiag.monitoring.diagnosis.baseline_spectrum`): a baseline's records do not change once opened
     """
 
     path: Path
@@ -66,6 +68,7 @@ class Baseline:
     operating_points: list[dict]
     fs: float
     samples: Any = field(repr=False, default=None)
+    spectra: dict = field(repr=False, default_factory=dict, compare=False)
 
     def to_dict(self) -> dict:
         """The baseline's description, JSON-ready."""

@@ -163,8 +163,9 @@ def monitor_record(model, rec, base: Baseline, *, output_speed: float | None = N
         {"recognised": False, "reason": flat, "checks": {}}
     bs = base.samples
     rec_ok = mesh_check_against_baseline(rec_ok, x, bs, float(rec.fs), speed, L, load,
-                                        model.card.get("baseline"))
-    rec_ok = level_check_against_baseline(rec_ok, x, bs, float(rec.fs), L, speed, load, model.card.get("baseline"))
+                                        model.card.get("baseline"), cache=base.spectra)
+    rec_ok = level_check_against_baseline(rec_ok, x, bs, float(rec.fs), L, speed, load, model.card.get("baseline"),
+                                          cache=base.spectra)
     res.recognised, res.reason, res.checks = rec_ok["recognised"], rec_ok["reason"], rec_ok["checks"]
     res.operating_point = {"output_speed_deg_s": speed.get("output_speed_deg_s"),
                            "speed_source": speed.get("detail") or speed.get("error"), "load_Nm": load}
@@ -206,18 +207,34 @@ def _mean_power_spectrum(X: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarr
     return f, np.mean([np.square(amplitude_spectrum(w, fs)[1]) for w in X], axis=0)
 
 
-def _mesh_lines_mean(X: np.ndarray, fs: float, speed: float) -> dict:
+def baseline_spectrum(base, rows: np.ndarray, fs: float, cache: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_mean_power_spectrum` of the baseline windows ``rows`` of ``base`` (a Samples), kept in ``cache``
+    (:attr:`rvdiag.monitoring.baseline.Baseline.spectra`: a baseline opened once, reused for each of its records)
+    under the rows and ``fs``, so that a joint's records read its operating point's baseline spectrum once.
+    Without ``cache``, computed each time; either way the same numbers."""
+    rows = np.asarray(rows, dtype=np.int64)
+    key = ("power", float(fs), np.asarray(base.X).shape, rows.tobytes())
+    if cache is not None and key in cache:
+        return cache[key]
+    out = _mean_power_spectrum(np.asarray(base.X, dtype=np.float64)[rows], fs)
+    if cache is not None:
+        cache[key] = out
+    return out
+
+
+def _mesh_lines_mean(X: np.ndarray, fs: float, speed: float, spectrum: tuple | None = None) -> dict:
     """The two mesh lines (:func:`rvdiag.features.mesh_lines.mesh_lines`) read on the mean power spectrum of the
     windows ``X`` (rows of equal length; Welch 1967, the averaged periodogram): ``{name: {"hz", "height_db",
     "amplitude", "floor"}, "present": [names]}``.  Averaging the windows' power steadies the floor and the line
-    (one window's bins scatter by about 5.6 dB, a chi-square of 2 degrees of freedom) that one window reads."""
+    (one window's bins scatter by about 5.6 dB, a chi-square of 2 degrees of freedom) that one window reads.
+    ``spectrum``: that of ``X`` already read (:func:`baseline_spectrum`), with ``X`` only for its length."""
     from rvdiag.features.mesh_lines import LINE_DB
     from rvdiag.kinematics import characteristic_frequencies
     from rvdiag.motor.lines import line_height
     from rvdiag.params import ReducerParams
 
-    X = np.atleast_2d(np.asarray(X, dtype=np.float64))
-    amp = np.sqrt(_mean_power_spectrum(X, fs)[1])
+    X = np.atleast_2d(np.asarray(X))
+    amp = np.sqrt((spectrum if spectrum is not None else _mean_power_spectrum(X, fs))[1])
     df = fs / X.shape[1]
     cf = characteristic_frequencies(ReducerParams.default(), output_speed_deg_s=float(speed))
     out: dict = {"present": []}
@@ -247,7 +264,8 @@ def _baseline_rows(base, speed: float, load: float | None, tolerances: dict | No
 
 
 def mesh_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float, speed: dict, L: int,
-                                load: float | None = None, tolerances: dict | None = None) -> dict:
+                                load: float | None = None, tolerances: dict | None = None,
+                                cache: dict | None = None) -> dict:
     """The mesh-line check of :func:`rvdiag.workflows.records.recognition`, judged against the machine's own baseline.
 
     A record without the reducer's mesh lines is "not recognised" only when the baseline shows a line that the
@@ -256,6 +274,7 @@ def mesh_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float, speed
     (:func:`_baseline_rows`; ``tolerances`` the card's ``baseline`` table).  Where the baseline
     shows no line either (a quiet mesh behind a noisy path or a sensor floor), the lines say nothing about this
     machine and the record goes on to its health index (``checks["mesh_lines"]["baseline"]`` says so).
+    ``cache``: the baseline's spectra kept between records (:func:`baseline_spectrum`).
 
     The record is "not recognised" when it has *lost* a line the baseline shows: the line is missing from the
     record's reading and not masked.  A missing line is *masked*, not lost, when the record's amplitude at the
@@ -272,7 +291,7 @@ def mesh_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float, speed
     v = float(speed["output_speed_deg_s"])
     near = _baseline_rows(base, v, load, tolerances)
     k = max(x.size // L, 1)
-    in_base = _mesh_lines_mean(np.asarray(base.X, dtype=np.float64)[near], fs, v)
+    in_base = _mesh_lines_mean(np.asarray(base.X)[near[:1]], fs, v, spectrum=baseline_spectrum(base, near, fs, cache))
     in_record = _mesh_lines_mean(x[: k * L].reshape(k, L), fs, v)
     lost, masked = [], []
     for name in in_base["present"]:
@@ -334,7 +353,11 @@ def band_ratios(X: np.ndarray, B: np.ndarray, fs: float) -> dict:
     baseline has little, another machine's spectrum rather than this one's.
     """
     f, px = _mean_power_spectrum(X, fs)
-    pb = _mean_power_spectrum(B, fs)[1]
+    return _band_ratios_of(f, px, _mean_power_spectrum(B, fs)[1], fs)
+
+
+def _band_ratios_of(f: np.ndarray, px: np.ndarray, pb: np.ndarray, fs: float) -> dict:
+    """:func:`band_ratios` on the mean power spectra ``px`` (the record's) and ``pb`` (the baseline's) at ``f``."""
     n = np.arange(math.floor(10 * math.log10(max(f[1], 1e-12) / 1000.0)), math.ceil(10 * math.log10(fs / 2000.0)) + 1)
     hz, bx, bb = [], [], []
     for m in 1000.0 * 10.0 ** (n / 10.0):
@@ -357,7 +380,7 @@ def band_ratios(X: np.ndarray, B: np.ndarray, fs: float) -> dict:
 
 def level_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float | None = None, L: int | None = None,
                                  speed: dict | None = None, load: float | None = None,
-                                 tolerances: dict | None = None) -> dict:
+                                 tolerances: dict | None = None, cache: dict | None = None) -> dict:
     """Is the record's level this machine's as the baseline records it?  "Not recognised" means that the record
     does not look like the reducer through the baseline's measuring chain (a disconnected sensor, another sensor,
     gain or unit, another machine), never that it is too faulty: a machine far louder than its baseline that keeps
@@ -380,14 +403,20 @@ def level_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float | Non
       (``shape``): energy where the machine's baseline has little, another machine or sensor.
 
     A loud record that passes is recognised as the machine, louder (``checks["level"]["louder"]``).  Without ``fs``,
-    ``L`` or a band of enough lines, the RMS alone decides: a loud record is not recognised either.
+    ``L`` or a band of enough lines, the RMS alone decides: a loud record is not recognised either.  ``cache``: the
+    baseline's RMS range and spectra kept between records (:func:`baseline_spectrum`).
     """
     if not rec["recognised"]:
         return rec
     rms = float(np.sqrt(np.mean(np.square(x))))
-    BX = np.asarray(base.X, dtype=np.float64)
-    b = np.sqrt(np.mean(np.square(BX), axis=1))
-    lo, hi = float(b.min()), float(b.max())
+    key = ("rms", np.asarray(base.X).shape)
+    if cache is None or key not in cache:
+        b = np.sqrt(np.mean(np.square(np.asarray(base.X, dtype=np.float64)), axis=1))
+        lo, hi = float(b.min()), float(b.max())
+        if cache is not None:
+            cache[key] = (lo, hi)
+    else:
+        lo, hi = cache[key]
     level = {"rms": rms, "baseline_rms": [lo, hi], "factor": LEVEL_FACTOR, "gain_factor": GAIN_FACTOR,
              "spread_factor": SPREAD_FACTOR, "shape_factor": SHAPE_FACTOR}
     checks = {**rec.get("checks", {}), "level": level}
@@ -402,7 +431,7 @@ def level_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float | Non
     loud = lo > 0 and rms > hi * LEVEL_FACTOR
     bands = None
     if fs and L and x.size >= L:
-        near = np.arange(BX.shape[0])
+        near = np.arange(np.asarray(base.X).shape[0])
         v = (speed or {}).get("output_speed_deg_s")
         if v is not None:
             try:
@@ -410,7 +439,8 @@ def level_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float | Non
             except ParameterError:  # no baseline at its operating point: the record's scoring says so
                 pass
         k = x.size // L
-        bands = band_ratios(x[: k * L].reshape(k, L), BX[near], float(fs))
+        f, px = _mean_power_spectrum(x[: k * L].reshape(k, L), float(fs))
+        bands = _band_ratios_of(f, px, baseline_spectrum(base, near, float(fs), cache)[1], float(fs))
         level["bands"] = {key: bands[key] for key in ("min", "median", "max", "overall", "shape", "quietest_hz",
                                                       "loudest_hz")}
     if bands is None or bands["min"] is None:
@@ -437,4 +467,5 @@ def level_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float | Non
 
 
 __all__ = ["BAND_MIN_LINES", "GAIN_FACTOR", "LEVEL_FACTOR", "MASK_DB", "SHAPE_FACTOR", "SPREAD_FACTOR", "MonitorResult",
-           "band_ratios", "level_check_against_baseline", "mesh_check_against_baseline", "monitor_record"]
+           "band_ratios", "baseline_spectrum", "level_check_against_baseline", "mesh_check_against_baseline",
+           "monitor_record"]

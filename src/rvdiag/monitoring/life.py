@@ -16,9 +16,12 @@ most probable state; the history is then scored as the fleet watches a joint (:m
   drawn sensor fault).
 
 The failure threshold on the index (:func:`learn_threshold`) is learned from the ``train`` split's reducers of the
-same store: for each fault state, the median over the training reducers of that fate whose history reaches its
-failure time of the index of their last recognised record before ``life.failure_days``; ``*`` (any other state the
-monitor names) is the median over all of them.  Its reference level is the median index of the training reducers'
+same store: for each fault state, the index of their last recognised record before ``life.failure_days`` of each
+training reducer of that fate whose history reaches its failure time; ``*`` (any other state the monitor names)
+pools all of them.  The index at failure varies between reducers (each has its own sensitivity to the fault: on
+configs/demo-life.toml the standard deviation of its log is about 0.3, a factor 1.35), so the remaining life draws the
+threshold from that population (:func:`rvdiag.prognostics.joint_prognosis`), not from its median alone; the output
+gives the median (``index``) and the values.  Its reference level is the median index of the training reducers'
 records before their onset, so that :func:`rvdiag.prognostics.joint_prognosis` scales the threshold to each joint's
 own healthy level.  Both are in the output (``threshold``).
 """
@@ -126,7 +129,8 @@ def _float(x) -> float:
 def learn_threshold(rec: dict) -> dict:
     """The failure threshold on the index and its reference level from the training reducers' records ``rec``
     (module docstring).  Returns ``{"per_state": {state: {"fate", "index", "n_reducers"}}, "*": {...},
-    "reference_level", "source"}``; ``index`` None where no training reducer of that fate reaches failure."""
+    "reference_level", "source"}``, each state with ``index`` (the median), ``values`` and ``n_reducers``; ``index``
+    None where no training reducer of that fate reaches failure."""
     at_failure: dict[str, list[float]] = {}
     healthy: list[float] = []
     for _, rows in _by_reducer(rec):
@@ -141,22 +145,25 @@ def learn_threshold(rec: dict) -> dict:
         before = np.flatnonzero(ok & (days < failure))
         if before.size:
             at_failure.setdefault(fate, []).append(float(hi[before[-1]]))
-    per_state = {fault_state(f): {"fate": f, "index": float(np.median(v)), "n_reducers": len(v)}
+    per_state = {fault_state(f): {"fate": f, "index": float(np.median(v)), "n_reducers": len(v), "values": v}
                  for f, v in sorted(at_failure.items())}
     pooled = [x for v in at_failure.values() for x in v]
     return {"per_state": per_state,
-            "*": {"index": float(np.median(pooled)) if pooled else None, "n_reducers": len(pooled)},
+            "*": {"index": float(np.median(pooled)) if pooled else None, "n_reducers": len(pooled),
+                  "values": pooled},
             "reference_level": float(np.median(healthy)) if healthy else None,
-            "source": "the train split's reducers of this store: per fault state, the median over the reducers of "
-                      "that fate whose history reaches its failure time of the health index of their last "
-                      "recognised record before life.failure_days ('*': over all fates, for any other state the "
-                      "monitor names); reference_level: the median index of their records before onset"}
+            "source": "the train split's reducers of this store: per fault state, the health index of the last "
+                      "recognised record before life.failure_days of each reducer of that fate whose history reaches "
+                      "its failure time (values; index: their median; '*': over all fates, for any other state the "
+                      "monitor names); the remaining life draws the threshold from the values; reference_level: the "
+                      "median index of their records before onset"}
 
 
 def _threshold_map(t: dict) -> dict | None:
-    out = {s: v["index"] for s, v in t["per_state"].items()}
-    if t["*"]["index"] is not None:
-        out["*"] = t["*"]["index"]
+    """State -> the training reducers' indices at failure (the population the remaining life draws from)."""
+    out = {s: tuple(v["values"]) for s, v in t["per_state"].items()}
+    if t["*"]["values"]:
+        out["*"] = tuple(t["*"]["values"])
     return out or None
 
 
@@ -214,7 +221,7 @@ def evaluate_life(loaded, store, data, split: str = "test", *, seed: int = 0, sc
         raise StoreError(f"the split {split!r} of {data} holds no monitored records")
     rec = _records(m, test, base, fs, fs, tol, where, scored)
     train_split = "train" if split != "train" else None
-    threshold = {"per_state": {}, "*": {"index": None, "n_reducers": 0}, "reference_level": None,
+    threshold = {"per_state": {}, "*": {"index": None, "n_reducers": 0, "values": []}, "reference_level": None,
                  "source": "no train split to learn it from: the remaining life is not estimated"}
     if train_split and train_split in store.splits():
         tr = _monitored(store, train_split, data)

@@ -106,6 +106,10 @@ class Stage2:
     cycloid_face_width: float = _positive()
     equidistant_modification: float = _any()
     offset_modification: float = _any()
+    #: wear of the discs' flanks and the pins: the largest clearance growth along a contact normal on each flank
+    #: (m), shaped by Archard's law at the rated torque (:mod:`rvdiag.gears.pin_wear`); unstated (None, the default)
+    #: is a new stage, and is left out of the parameters' dict, so that the hash of every earlier store stays
+    pin_wear_depth: float | None = _nonnegative(default=None)
 
     @property
     def short_amplitude_coefficient(self) -> float:
@@ -370,6 +374,9 @@ OPTIONAL_SECTIONS = ("modification", "drive", "mounting", "motor", "manufacturin
 #: largest ``[manufacturing]`` length tolerance (m) and crank phase tolerance (arcmin) accepted: beyond them the
 #: small-displacement model (errors of the order of the elastic deflections) no longer describes the reducer
 MAX_MANUFACTURING_TOLERANCE_M = 1.0e-4
+#: the deepest ``[stage2] pin_wear_depth`` (m) accepted: ten times the default modification's 7 um radial clearance,
+#: 2.8 arcmin of added lost motion on the RV-20E (the catalogue's limit is 1 arcmin in all)
+MAX_PIN_WEAR_DEPTH = 1.0e-4
 MAX_CRANK_PHASE_ARCMIN = 30.0
 
 
@@ -574,6 +581,9 @@ def _check_consistency(p: ReducerParams, source: str) -> None:
         if abs(getattr(s2, key)) > MAX_MANUFACTURING_TOLERANCE_M:
             raise ConfigError(f"{source}: [stage2] {key} must be at most {MAX_MANUFACTURING_TOLERANCE_M:g} m in "
                               f"size (a precision reducer's modification is microns), got {getattr(s2, key)}")
+    if s2.pin_wear_depth is not None and s2.pin_wear_depth > MAX_PIN_WEAR_DEPTH:
+        raise ConfigError(f"{source}: [stage2] pin_wear_depth must be at most {MAX_PIN_WEAR_DEPTH:g} m (ten times the "
+                          f"stage's radial clearance), got {s2.pin_wear_depth}")
     if not 0.0 <= s2.disc_phase_deg < 360.0:
         raise ConfigError(f"{source}: [stage2] disc_phase_deg must lie in [0, 360), got {s2.disc_phase_deg}")
     if p.bodies.crank_shaft_radius >= 0.5 * s1.module * s1.planet_teeth - (

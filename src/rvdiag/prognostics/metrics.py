@@ -99,9 +99,10 @@ class LifeHistory:
     baseline_scores : sequence of float
         The commissioning records' scores (the first of the detector's ranking pool); empty: the joint's first
         records fill it, as in the fleet.
-    threshold : float, mapping or None
-        The health index at the failure threshold; a mapping picks it by the monitor's state at the prediction
-        (``predicted_state``), with key ``"*"`` for any other; None: the remaining life is not estimated.
+    threshold : float, sequence of float, mapping or None
+        The health index at the failure threshold, or its population (:func:`rvdiag.prognostics.joint_prognosis`
+        draws from it); a mapping picks it by the monitor's state at the prediction (``predicted_state``), with key
+        ``"*"`` for any other; None: the remaining life is not estimated.
     reference_level : float, optional
         The median healthy index of the population the threshold was learned on
         (:func:`rvdiag.prognostics.joint_prognosis`: the threshold is scaled to the joint's own level).
@@ -126,7 +127,7 @@ class LifeHistory:
     failure_days: float | None = None
     state: str | None = None
     baseline_scores: Sequence[float] = ()
-    threshold: float | Mapping[str, float] | None = None
+    threshold: float | Sequence[float] | Mapping[str, float | Sequence[float]] | None = None
     reference_level: float | None = None
     predicted_state: Sequence[str] | None = None
     sensor_fault: Sequence[bool] | None = None
@@ -151,11 +152,16 @@ class LifeHistory:
                               n_left_out=int((~keep).sum()))
         return self._kept["days"], self._kept["score"], self._kept["predicted"]
 
-    def threshold_for(self, state: str | None) -> float | None:
-        if self.threshold is None or isinstance(self.threshold, (int, float, np.floating)):
-            return None if self.threshold is None else float(self.threshold)
-        t = self.threshold.get(state, self.threshold.get("*"))
-        return None if t is None or not math.isfinite(float(t)) else float(t)
+    def threshold_for(self, state: str | None):
+        """The threshold for the monitor's ``state``: a float, a population of floats (a tuple), or None."""
+        t = self.threshold
+        if isinstance(t, Mapping):
+            t = t.get(state, t.get("*"))
+        if t is None:
+            return None
+        v = np.asarray(t, dtype=float).ravel()
+        v = v[np.isfinite(v)]
+        return None if v.size == 0 else (float(v[0]) if v.size == 1 and np.ndim(t) == 0 else tuple(v.tolist()))
 
 
 def _finite_or_none(x) -> float | None:

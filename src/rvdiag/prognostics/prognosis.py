@@ -22,6 +22,9 @@ from rvdiag.validation import positive
 #: horizons (days after the last record) at which ``p_before`` is given by default
 DEFAULT_HORIZONS_DAYS = (30.0, 90.0, 365.0)
 
+#: Monte Carlo draws of the remaining life (and of the threshold, when it is given as a population)
+N_DRAWS = 4000
+
 #: the remaining-life model for the monitor's fault state (rvdiag.library.states): Paris' law for a root crack,
 #: the implied size's linear law (Archard wear) otherwise; a state with a broken tooth has failed already
 MODEL_FOR_STATE = {"T3": "size", "T4": "paris", "T7": "size", "T8": "size"}
@@ -112,6 +115,18 @@ class Prognosis:
                 "detector": self.detector}
 
 
+def _threshold_draws(threshold, seed: int):
+    """One threshold (a float), or ``N_DRAWS`` seeded draws with replacement from a population of them; None."""
+    if threshold is None:
+        return None
+    t = np.asarray(threshold, dtype=float).ravel()
+    if t.size == 0 or not np.all(np.isfinite(t)):
+        raise ParameterError("threshold must be finite numbers")
+    if t.size == 1:
+        return float(t[0])
+    return np.random.default_rng([seed, 2]).choice(t, size=N_DRAWS, replace=True)
+
+
 def joint_prognosis(times, scores=None, p_values=None, health_index=None, baseline_scores=(), threshold=None, *,
                     delta: float = DEFAULT_DELTA, model: str | None = None, fault_state: str | None = None,
                     before=None,
@@ -137,8 +152,12 @@ def joint_prognosis(times, scores=None, p_values=None, health_index=None, baseli
         gives those records no index: pass ``[]`` and the joint's first records fill the bag (its "learning"
         records), or pass those first records here and the rest as ``times`` / ``health_index``.  Without
         commissioning scores the joint's records before the onset stand for its healthy index.
-    threshold : float, optional
-        The health index at the failure threshold; None: the remaining life is not estimated.
+    threshold : float, sequence of float, optional
+        The health index at the failure threshold; None: the remaining life is not estimated.  A sequence is the
+        threshold's spread over a population (e.g. the index at the failure time of each reducer of a library run
+        to failure, :func:`rvdiag.monitoring.life.learn_threshold`): the Monte Carlo draws the threshold from it
+        (with replacement, seeded), so that the interval carries how much the index at failure varies between
+        reducers, not only the trend's uncertainty.
     delta : float
         Lifetime false-alarm probability of the change detector (1 % per joint-life by default).
     before : sequence, optional
@@ -210,11 +229,11 @@ def joint_prognosis(times, scores=None, p_values=None, health_index=None, baseli
         horizons = {str(b if not clock.dated else _as_datetime(b).isoformat()): clock.to_day(b) - last
                     if clock.dated else float(b) for b in before}
 
-    thr = threshold
-    if threshold is not None and reference_level is not None and len(healthy):
+    thr = _threshold_draws(threshold, seed)
+    if thr is not None and reference_level is not None and len(healthy):
         positive(reference_level, "reference_level")
-        boot = np.random.default_rng(seed + 1).choice(healthy, size=(4000, len(healthy)), replace=True)
-        thr = float(threshold) * np.median(boot, axis=1) / float(reference_level)
+        boot = np.random.default_rng(seed + 1).choice(healthy, size=(N_DRAWS, len(healthy)), replace=True)
+        thr = thr * np.median(boot, axis=1) / float(reference_level)
 
     failed = fault_state in FAILED_STATES
     model = model if model is not None else (model_for_state(fault_state) or "size")
@@ -229,6 +248,7 @@ def joint_prognosis(times, scores=None, p_values=None, health_index=None, baseli
             return RulEstimate(False, "no health index given", model, last)
         return estimate_rul(clock.days[onset:], hi[onset:], threshold=thr, healthy_level=healthy_level,
                             model=model, as_of_day=last, confidence=confidence, min_records=min_records, seed=seed,
+                            n_samples=N_DRAWS,
                             paris_margin=float(np.max(healthy) - healthy_level) if len(healthy) else 0.0)
 
     return Prognosis(onset_time=clock.label(clock.days[onset]) if onset is not None else None,

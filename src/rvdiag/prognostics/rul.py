@@ -20,7 +20,9 @@ median, 10 % and 90 % quantiles, and P(t_f <= a date).
 The fault size the index implies (``model="size"``): the index is a squared Mahalanobis distance, which grows with
 the square of a mean shift of the features, and a small fault shifts them in proportion to its size, so
 z = sqrt(HI - phi) is proportional to the fault size; its linear trend is Archard wear's (a constant wear rate under
-a steady duty), fitted as above with z in place of y.  (The exponential model's log(HI - phi) is 2 log z, so it is
+a steady duty), fitted as above with z in place of y.  On simulated lives of the dynamic model the index grows about
+linearly in the wear depth instead (HI - phi ~ depth^1.08, research/rul_threshold_spread.py), so z bends over as
+the flank wears and the model's extrapolation comes early.  (The exponential model's log(HI - phi) is 2 log z, so it is
 the same model for the index and for the size.)
 
 A root crack by Paris' law (``model="paris"``): with m = 3 (:mod:`rvdiag.gears.crack_growth`) a^(1 - m/2) = a^(-1/2)
