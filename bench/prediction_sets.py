@@ -81,7 +81,8 @@ def score(model_dir: Path, store_path: Path, P_cal=None, P_test=None) -> dict:
         P_cal = _probabilities(model_dir, store_path, cal_rows) if cal_rows.size else np.zeros((0, len(classes)))
     P_test = _probabilities(model_dir, store_path, test_rows) if P_test is None else P_test
     recal = None if not cal_rows.size else PredictionSets.calibrate(
-        P_cal, labels[cal_rows], classes, stored.coverage, groups=np.asarray(store.meta["unit"])[cal_rows])
+        P_cal, labels[cal_rows], classes, stored.coverage, groups=np.asarray(store.meta["unit"])[cal_rows],
+        rule=stored.rule)
     y = labels[test_rows]
     pred = np.asarray(classes)[P_test.argmax(axis=1)]
     m = classification_metrics(y, pred, labels=classes)
@@ -131,7 +132,9 @@ def generic(model_dir: Path, store_path: Path) -> dict:
     store = SampleStore.open(store_path)
     cal_rows, _ = _rows(store, read_card(model_dir))
     y_cal = np.asarray(store.label_names).astype(str)[cal_rows]
-    recal = PredictionSets.calibrate(z["cal"], y_cal, stored.classes, stored.coverage) if cal_rows.size else stored
+    recal = PredictionSets.calibrate(z["cal"], y_cal, stored.classes, stored.coverage,
+                                     groups=np.asarray(store.meta["unit"])[cal_rows], rule=stored.rule) \
+        if cal_rows.size else stored
     inside_generic = recal.contains(z["test"])
     diffs = [np.abs(here["_P_test"] - z["test"]).max()] + ([np.abs(here["_P_cal"] - z["cal"]).max()]
                                                              if cal_rows.size else [])

@@ -12,8 +12,8 @@ from scipy.stats import binom
 
 from rvdiag.errors import ModelFileError, ParameterError
 from rvdiag.models.card import read_card, write_card
-from rvdiag.models.conformal import (PredictionSets, conformal_rank, describe_set, from_card, lac_scores,
-                                     set_metrics, split_by_group, stated_coverages)
+from rvdiag.models.conformal import (PredictionSets, conformal_rank, conformal_threshold, describe_set, from_card,
+                                     lac_scores, reducer_threshold, set_metrics, split_by_group, stated_coverages)
 
 CLASSES = ["T1", "T2", "T4"]
 MEANS = np.array([[0.0, 0.0], [1.2, 0.0], [0.4, 0.3]])  # T4 overlaps T1: the hard pair
@@ -158,6 +158,59 @@ def test_calibration_on_held_out_reducers_covers_new_reducers_and_on_training_re
     assert got_seen["coverage"] < got_held["coverage"] - 0.05, (got_seen, got_held)
 
 
+def test_a_new_reducer_is_covered_by_the_reducer_rule_and_not_by_the_window_rule():
+    """Known answer: K = 12 reducers of N = 20 windows, each reducer's windows sharing its score (a reducer effect,
+    continuous, exchangeable across reducers).  A new reducer's window is covered iff its effect is at most the
+    threshold's reducer of rank r among the K, probability r / (K + 1).  Window-pooled: rank ceil((N K + 1) 0.9) =
+    217 of the windows, the 11th reducer, 11/13 = 0.846 < 0.9; hierarchical (Lee, Barber & Willett 2023): rank
+    ceil(N (K + 1) 0.9) = 234, the 12th reducer, 12/13 = 0.923 >= 0.9.  Through PredictionSets over 3000 seeds."""
+    K, N, seeds = 12, 20, 3000
+    classes = ["T1", "T2"]
+    cover = {"T1": 0.95, "T2": 0.9}
+    hits = {"windows": 0, "reducers": 0}
+    g = np.repeat(np.arange(K), N)
+    y = np.full(K * N, "T2")
+    for seed in range(seeds):
+        rng = np.random.default_rng([38, seed])
+        effect = rng.uniform(size=K + 1)
+        s = np.repeat(effect[:K], N)
+        P = np.column_stack([s, 1.0 - s])  # LAC score of T2: 1 - p_T2 = s
+        new = np.array([[effect[K], 1.0 - effect[K]]])
+        for rule in hits:
+            ps = PredictionSets.calibrate(P, y, classes, cover, groups=g, rule=rule)
+            hits[rule] += bool(ps.contains(new, nonempty=False)[0, 1])
+    exact = {"windows": 11 / 13, "reducers": 12 / 13}
+    for rule, h in hits.items():
+        lo, hi = _band(exact[rule], seeds)
+        assert lo <= h / seeds <= hi, (rule, h / seeds, exact[rule])
+    assert exact["windows"] < 0.9 <= exact["reducers"]
+
+
+def test_reducer_threshold_is_the_weighted_quantile_with_its_mass_at_infinity():
+    """Against the definition, by enumeration: the smallest calibration score t with sum over scores <= t of
+    1 / ((K + 1) N_k) >= 1 - alpha, else inf; reducers of unequal sizes; and with equal sizes the rank
+    ceil(N (K + 1)(1 - alpha))."""
+    rng = np.random.default_rng(2)
+    for _ in range(50):
+        K = int(rng.integers(3, 30))
+        sizes = rng.integers(1, 9, size=K)
+        g = np.repeat(np.arange(K), sizes)
+        s = rng.normal(size=g.size)
+        alpha = float(rng.uniform(0.02, 0.3))
+        w = 1.0 / ((K + 1) * sizes[g])
+        ok = [t for t in np.sort(s) if w[s <= t].sum() >= 1 - alpha - 1e-12]
+        assert reducer_threshold(s, g, alpha) == (ok[0] if ok else math.inf)
+    g = np.repeat(np.arange(9), 4)
+    s = rng.normal(size=36)
+    assert reducer_threshold(s, g, 0.1) == np.sort(s)[math.ceil(4 * 10 * 0.9) - 1]
+    assert reducer_threshold(s, np.repeat(np.arange(8), [5, 5, 5, 5, 4, 4, 4, 4]), 0.1) == math.inf  # 8 < 9
+    assert conformal_threshold(s, 0.1) < math.inf  # 36 windows would have sufficed for the window rule
+    with pytest.raises(ParameterError):
+        PredictionSets.calibrate(np.full((2, 2), 0.5), ["T1", "T2"], ["T1", "T2"], rule="reducers")
+    with pytest.raises(ParameterError):
+        PredictionSets.calibrate(np.full((2, 2), 0.5), ["T1", "T2"], ["T1", "T2"], groups=[0, 1], rule="x")
+
+
 def test_split_by_group_holds_out_whole_groups_of_each_class_reproducibly():
     y = np.repeat(["T1", "T2", "T3"], [60, 60, 5])
     g = np.concatenate([np.repeat(np.arange(10), 6), np.repeat(np.arange(10), 6), np.zeros(5, int)])
@@ -210,6 +263,10 @@ def test_card_round_trip(tmp_path):
     assert back == ps and math.isinf(back.thresholds["T1"])
     assert json.loads((tmp_path / "card.json").read_text())["prediction_sets"]["thresholds"]["T1"] is None
     assert from_card({"classes": CLASSES}) is None  # a model trained before: no calibration, no failure
+    hier = PredictionSets.calibrate(P, y, CLASSES, groups=np.arange(y.size), rule="reducers")
+    assert PredictionSets.from_card(hier.to_card()) == hier and hier.to_card()["rule"] == "reducers"
+    old = {k: v for k, v in ps.to_card().items() if k != "rule"}  # a card written before the rule was stored
+    assert PredictionSets.from_card(old).rule == "windows"
     with pytest.raises(ModelFileError):
         from_card({"classes": ["T1", "T2"], "prediction_sets": ps.to_card()})
     with pytest.raises(ModelFileError):
