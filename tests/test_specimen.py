@@ -172,7 +172,7 @@ def test_update_specimen_recovers_a_simulated_pattern(tmp_path, capsys):
     """One 1 s record of a specimen (error_seed 901, never used elsewhere) with run-to-run variation and 23-bit
     encoders; 5 iterations without drawn variation: the pattern within 35 % of its RMS (measured 0.22: the fit is
     cut short; docs/twin.md has the full runs), the written params.toml carrying it and reproducing the record's TE
-    lines better than the base.  About 40 s on an idle core (280 s at load 16)."""
+    lines better than the base.  32 s on an idle core (180-280 s at load 16)."""
     from rvdiag.library.paired import draw_variation
     from rvdiag.updating.observability import nominal_tooth_errors
 
