@@ -57,6 +57,7 @@ from rvdiag.errors import RvdiagError
 from rvdiag.library.paired import draw_variation
 from rvdiag.params import ReducerParams
 from rvdiag.updating import observability as ob
+from rvdiag.updating.specimen import levenberg_marquardt, te_covariance
 
 CASES = ("oracle", "nominal", "joint", "oracle_refresh", "nominal_refresh", "oracle_nuisance", "nominal_nuisance")
 
@@ -77,14 +78,10 @@ def setup(op: ob.OperatingPoint, draws: int):
 
 
 def covariance(G: ob.Jacobian, D, noise: ob.NoiseModel, records: int) -> np.ndarray:
-    """The TE lines' covariance of the mean of ``records`` records of 1 s each."""
-    Gt = G.columns["te"]
-    C = Gt @ np.diag([p.prior_sd ** 2 for p in G.parameters]) @ Gt.T
-    if D is not None:
-        Dc = D["te"] - D["te"].mean(axis=0)
-        C += Dc.T @ Dc / max(Dc.shape[0] - 1, 1)
-    C += np.eye(C.shape[0]) * noise.line_variance("te", 1.0, G.vibration_power)
-    return C / records
+    """The TE lines' covariance of the mean of ``records`` records of 1 s each
+    (:func:`rvdiag.updating.specimen.te_covariance`)."""
+    return te_covariance(G.columns["te"], [p.prior_sd ** 2 for p in G.parameters],
+                         None if D is None else D["te"], noise.line_variance("te", 1.0, G.vibration_power)) / records
 
 
 def measure(spec: ReducerParams, pars, f_true: dict, truth: np.ndarray, op, noise, seed: int, n: int,
@@ -107,15 +104,14 @@ def measure(spec: ReducerParams, pars, f_true: dict, truth: np.ndarray, op, nois
 
 
 def identify(spec, pars, J, Ci, y, case: str, f_true: dict, op, trust: float, iterations: int, truth, start=None):
-    """Levenberg-Marquardt with the chord Jacobian ``J`` from the teeth ``start`` (default zero) and nominal
-    factors; returns the teeth (m), the factors, the history and the count of simulations."""
+    """Levenberg-Marquardt (:func:`rvdiag.updating.specimen.levenberg_marquardt`) with the chord Jacobian ``J`` from
+    the teeth ``start`` (default zero) and nominal factors; returns the teeth (m), the factors, the history and the count of simulations."""
     teeth = [j for j, p in enumerate(pars) if p.kind == "tooth"]
     facs = [j for j, p in enumerate(pars) if p.kind == "factor"]
     nuis = [j for j, p in enumerate(pars) if p.group == "run-to-run"]
     est = teeth + (facs if case == "joint" else []) + (nuis if case.endswith("_nuisance") else [])
     L, _ = ob.prior_square_root([pars[j] for j in est], ob.sun_tooth_prior(spec))
     Jl = J.columns["te"][:, est] @ L                             # per unit of z
-    A = Jl.T @ Ci @ Jl
     m = L.shape[1]
 
     def predict(z):
@@ -126,50 +122,29 @@ def identify(spec, pars, J, Ci, y, case: str, f_true: dict, op, trust: float, it
                 fac[pars[j]] = th[k]
         return ob.observe(spec, op, ob.Perturbation(fac), th[:len(teeth)])["te"], th
 
-    def cost(r, z):
-        return float(r @ Ci @ r + z @ z)
-
+    Wt = np.linalg.cholesky(Ci).T                               # r^T Ci r = ||Wt r||^2
     z = np.zeros(m)
     if start is not None:
         th0 = np.zeros(len(est))
         th0[:len(teeth)] = start
         z = np.linalg.lstsq(L, th0, rcond=None)[0]
-    yp, th = predict(z)
-    r = y - yp
-    c = cost(r, z)
-    lam, sims = 1e-3, 1
-    hist = [float(np.sqrt(np.mean((th[:len(teeth)] - truth) ** 2)))]
-    for _ in range(iterations):
-        g = Jl.T @ Ci @ r - z
-        while True:
-            dz = np.linalg.solve(A + np.eye(m) + lam * np.diag(np.diag(A) + 1.0), g)
-            if case == "joint" and trust > 0:                   # the factors' step within the trust region
-                dth = L @ dz
-                big = np.max(np.abs(dth[len(teeth):])) / trust
-                dz = dz / max(big, 1.0)
-            sims += 1
-            try:
-                yn, thn = predict(z + dz)
-            except RvdiagError:                                  # e.g. a stiffness below zero: refused
-                cn = np.inf
-            else:
-                rn = y - yn
-                cn = cost(rn, z + dz)
-            if cn < c:
-                break
-            lam *= 10.0
-            if lam > 1e6:
-                break
-        if cn >= c:
-            break
-        rel = (c - cn) / c
-        z, r, c, th = z + dz, rn, cn, thn
-        lam = max(lam / 10.0, 1e-6)
-        hist.append(float(np.sqrt(np.mean((th[:len(teeth)] - truth) ** 2))))
-        if rel < 1e-5:
-            break
+
+    def residual(zz):
+        return Wt @ (y - predict(zz)[0])
+
+    def step(zz, dz):                                           # joint: the factors' step within the trust region
+        if case == "joint" and trust > 0:
+            dth = L @ dz
+            dz = dz / max(np.max(np.abs(dth[len(teeth):])) / trust, 1.0)
+        return dz
+
+    hist = [float(np.sqrt(np.mean(((L @ z)[:len(teeth)] - truth) ** 2)))]
+    lm = levenberg_marquardt(residual, Wt @ Jl, z, iterations, step=step,
+                             on_iteration=lambda it, zz, c: hist.append(
+                                 float(np.sqrt(np.mean(((L @ zz)[:len(teeth)] - truth) ** 2)))))
+    th = L @ lm.z
     facs_est = th[len(teeth):len(teeth) + len(facs)] if case == "joint" else None
-    return th[:len(teeth)], facs_est, hist, sims
+    return th[:len(teeth)], facs_est, hist, lm.evaluations
 
 
 def crb(J, G, D, pars, spec, records: int, case: str) -> float:

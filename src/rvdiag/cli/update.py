@@ -1,15 +1,17 @@
-"""``rvdiag update``: tune the assumed model parameters to a measured healthy record, write the updated TOML."""
+"""``rvdiag update``: tune the assumed model parameters to a measured healthy record, write the updated TOML; with
+``--specimen``, identify a joint's own sun tooth errors from its commissioning records' transmission error and
+write its parameter set and their uncertainty to a folder (:mod:`rvdiag.updating.specimen`, docs/twin.md)."""
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Optional
+from typing import List, Optional
 
 import typer
 
 from rvdiag.cli import _options as opt
-from rvdiag.errors import ConfigError, ParameterError
+from rvdiag.errors import ConfigError, DataFileError, ParameterError
 from rvdiag.validation import finite_number
 
 
@@ -23,14 +25,34 @@ def register(app: typer.Typer) -> None:
 
     @app.command("update")
     def update_cmd(
-        measured_file: Path = typer.Argument(..., help="Measured healthy record (CSV, MAT, NPY/NPZ, WAV, TDMS)."),
+        measured_files: List[Path] = typer.Argument(..., metavar="FILE", help="Measured healthy record (CSV, MAT, "
+                                                    "NPY/NPZ, WAV, TDMS); with --specimen, the joint's commissioning "
+                                                    "records (one or more)."),
+        specimen: bool = typer.Option(False, "--specimen", help="Identify the joint's own sun tooth errors from the "
+                                      "transmission error between its input (--angle-channel) and output "
+                                      "(--output-angle-channel) encoders in the records, at --load; write "
+                                      "DIR/params.toml, DIR/uncertainty.toml and DIR/specimen.json to --out DIR."),
         channel: Optional[str] = opt.channel(),
         fs: Optional[float] = opt.fs("Sampling rate, Hz (default: the one the file states)."),
-        output_speed: float = typer.Option(..., "--output-speed", help="Output (carrier) speed of the record, deg/s."),
-        load: float = typer.Option(..., "--load", help="Output load torque of the record, N m."),
-        params: Optional[Path] = opt.params("Base parameter TOML (default: built-in RV-20E)."),
-        out: Path = opt.out("Updated parameter TOML to write."),
-        overwrite: bool = opt.overwrite("Overwrite an existing --out file."),
+        output_speed: Optional[float] = typer.Option(None, "--output-speed", help="Output (carrier) speed of the "
+                                                     "record, deg/s (with --specimen the output encoder gives it)."),
+        load: float = typer.Option(..., "--load", help="Output load torque of the record(s), N m."),
+        params: Optional[Path] = opt.params("Base parameter TOML (default: built-in RV-20E); with --specimen, the "
+                                            "global update's."),
+        out: Path = opt.out("Updated parameter TOML to write; with --specimen, the folder to write."),
+        angle_channel: Optional[str] = typer.Option(None, "--angle-channel", metavar="RE", help="--specimen: regex "
+                                                    "of the input shaft's (motor encoder's) angle channel, rad."),
+        output_angle_channel: Optional[str] = typer.Option(None, "--output-angle-channel", metavar="RE",
+                                                           help="--specimen: regex of the output encoder's angle "
+                                                           "channel, rad."),
+        iterations: int = typer.Option(15, "--iterations", help="--specimen: Levenberg-Marquardt iterations at "
+                                       "most (one simulation per operating point each)."),
+        draws: int = typer.Option(8, "--draws", help="--specimen: run-to-run records drawn into each record's "
+                                  "noise covariance (one simulation per operating point each)."),
+        te_noise: Optional[float] = typer.Option(None, "--te-noise", help="--specimen: the output encoder's white "
+                                                 "noise per sample, arcsec rms (default: 23-bit quantisation, "
+                                                 "0.045 arcsec)."),
+        overwrite: bool = opt.overwrite("Overwrite an existing --out file (with --specimen, the files it writes there)."),
         force: bool = opt.deprecated("--force", flag=True),
         objective: str = typer.Option("logspec", "--objective", help="logspec (PCC of log power spectra, default), "
                                       "envelope (PCC of envelope spectra) or time (PCC of the records; only for "
@@ -51,13 +73,30 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Tune stiffnesses, damping and mounting of the model so that its healthy signal matches a measured one
         (Pearson correlation of log spectra by default); write the base parameters with the updated values,
-        each commented."""
+        each commented.  With --specimen, identify the joint's own sun tooth errors from its commissioning
+        records' transmission error instead (docs/twin.md)."""
         from rvdiag.io import read_signal
         from rvdiag.params import ReducerParams
         from rvdiag.updating import OBJECTIVES, update_parameters
         from rvdiag.updating.annotate import annotated_toml, base_text
 
         overwrite = opt.resolve(overwrite, force, "--force", default=False)
+        if specimen:
+            _update_specimen(measured_files, params=params, out=out, overwrite=overwrite, fs=fs, load=load,
+                             output_speed=output_speed, angle_channel=angle_channel,
+                             output_angle_channel=output_angle_channel, iterations=iterations, draws=draws,
+                             te_noise=te_noise, as_json=as_json, quiet=quiet)
+            return
+        given = [o for o, v in (("--angle-channel", angle_channel), ("--output-angle-channel", output_angle_channel),
+                                ("--te-noise", te_noise)) if v is not None]
+        if given:
+            raise ParameterError(f"{given[0]} applies to --specimen")
+        if len(measured_files) != 1:
+            raise ParameterError(f"the global update reads one record, got {len(measured_files)}; several "
+                                 "commissioning records are for --specimen")
+        measured_file = measured_files[0]
+        if output_speed is None:
+            raise ParameterError("give --output-speed, the record's output speed in deg/s")
         if objective not in OBJECTIVES:
             raise ParameterError(f"--objective must be one of {', '.join(OBJECTIVES)}, got {objective!r}")
         if direction not in ("x", "y"):
@@ -150,6 +189,121 @@ def register(app: typer.Typer) -> None:
             else:
                 typer.echo(f"  {name:24s} {b:12.5g}    (unchanged)")
         typer.echo(f"wrote {out}" + (f" and {plot}" if plot is not None else ""))
+
+
+#: what ``--specimen`` writes into its ``--out`` folder
+SPECIMEN_FILES = ("params.toml", "uncertainty.toml", "specimen.json")
+
+
+def _update_specimen(files: list[Path], *, params, out: Path, overwrite: bool, fs, load: float, output_speed,
+                     angle_channel, output_angle_channel, iterations: int, draws: int, te_noise, as_json: bool,
+                     quiet: bool) -> None:
+    """``rvdiag update --specimen``: read each record's two encoder angles, identify the sun's tooth errors
+    (:func:`rvdiag.updating.specimen.identify_specimen`), write ``SPECIMEN_FILES`` into ``out``."""
+    import math
+
+    import tomli_w
+
+    from rvdiag.io import read_signal
+    from rvdiag.params import ReducerParams
+    from rvdiag.updating.annotate import annotated_toml, base_text
+    from rvdiag.updating.specimen import SpecimenSettings, identify_specimen, te_record
+
+    if angle_channel is None:
+        raise ParameterError("--specimen needs --angle-channel, the input shaft's (motor encoder's) angle channel")
+    if output_angle_channel is None:
+        raise ParameterError("--specimen needs --output-angle-channel, the output encoder's angle channel: the "
+                             "tooth errors are identified from the transmission error between the two encoders "
+                             "(identification from the housing vibration alone is not built)")
+    if fs is not None:
+        finite_number(fs, "--fs", 0, strict=True, noun="a number")
+    finite_number(load, "--load", 0, noun="a number")
+    if output_speed is not None:
+        raise ParameterError("--specimen takes each record's speed from its output encoder; leave out --output-speed")
+    if iterations < 0 or draws < 0:
+        raise ParameterError(f"--iterations and --draws must be >= 0, got {iterations} and {draws}")
+    settings = SpecimenSettings(iterations=iterations, draws=draws)
+    if te_noise is not None:
+        finite_number(te_noise, "--te-noise", 0, strict=True, noun="a number")
+        settings = SpecimenSettings(iterations=iterations, draws=draws, te_noise_rad=math.radians(te_noise / 3600))
+    if out.suffix.lower() == ".toml":
+        raise ParameterError(f"with --specimen, --out names a folder (it gets {', '.join(SPECIMEN_FILES)}), "
+                             f"got {out}")
+    if out.exists() and not out.is_dir():
+        raise ParameterError(f"--out {out} exists and is not a folder")
+    if not out.parent.exists():
+        raise ParameterError(f"--out's parent folder does not exist: {out.parent}")
+    there = [n for n in SPECIMEN_FILES if (out / n).exists()]
+    if there and not overwrite:
+        raise ConfigError(f"{out / there[0]} exists; use --overwrite to replace it")
+    if params is not None and out.resolve() == params.resolve().parent and "params.toml" == params.name:
+        raise ParameterError(f"--out {out} holds the base parameter file; write the specimen to another folder")
+
+    base = ReducerParams.load(params)
+    text = base_text(base, params)
+    records = []
+    for f in files:
+        sig_in = read_signal(f, angle_channel, fs)
+        try:
+            sig_out = read_signal(f, output_angle_channel, fs)
+        except DataFileError as exc:
+            if "no channel matches" not in str(exc):
+                raise
+            raise DataFileError(f"{f}: no output encoder angle channel matches {output_angle_channel!r}: the "
+                                "tooth errors are identified from the transmission error between the input and "
+                                "output encoders (identification from the housing vibration alone is not "
+                                "built)") from None
+        if sig_in.fs is None:
+            raise ParameterError(f"{f} states no sampling rate; give --fs")
+        if sig_in.channel == sig_out.channel:
+            raise ParameterError(f"{f}: --angle-channel and --output-angle-channel pick the same channel "
+                                 f"{sig_in.channel!r}")
+        records.append(te_record(sig_in.data, sig_out.data, sig_in.fs, base, load_Nm=load, name=str(f),
+                                 settings=settings))
+
+    if quiet:
+        result = identify_specimen(base, records, settings)
+    else:
+        def progress(msg: str) -> None:
+            typer.echo(f"specimen: {msg}", err=True)
+
+        result = identify_specimen(base, records, settings, progress=progress)
+
+    out.mkdir(exist_ok=True)
+    names = ", ".join(Path(r["name"]).name for r in result.records)
+    comment = (f"identified by rvdiag update --specimen from {names} (posterior sd in uncertainty.toml): was {{was}}")
+    after = result.params(base)
+    d = result.to_dict()
+    unc = {"identified": {"what": d["identified"], "sun_tooth_errors_um": after.modification.sun_tooth_errors_um,
+                          "posterior_sd_um": d["posterior_sd_um"], "scaled_sd_um": d["scaled_sd_um"],
+                          "birge_ratio": d["birge_ratio"], "pitch_deviation_sd_um": d["pitch_deviation_sd_um"],
+                          "prior_sd_um": d["prior_sd_um"], "posterior_cov_um2": d["posterior_cov_um2"]},
+           "not_identified": {"what": d["not_identified"]},
+           "fit": {k: d[k] for k in ("chi2_start", "chi2", "n_lines", "residual_rms_rad", "data_rms_rad",
+                                     "iterations", "converged", "cost_history", "simulations", "seconds")},
+           "settings": d["settings"],
+           "records": d["records"],
+           "base": {"params": str(params) if params is not None else "built-in"}}
+    try:
+        (out / "params.toml").write_text(annotated_toml(base, after, text, comment), encoding="utf-8")
+        (out / "uncertainty.toml").write_text(tomli_w.dumps(unc), encoding="utf-8")
+        (out / "specimen.json").write_text(json.dumps(d, indent=1), encoding="utf-8")
+    except OSError as exc:
+        raise ParameterError(f"cannot write into --out {out}: {exc}") from None
+    if not result.converged:
+        typer.echo(f"warning: the fit had not converged after {result.iterations} iterations (its cost still fell); "
+                   "raise --iterations", err=True)
+    if as_json:
+        typer.echo(json.dumps({**d, "out": str(out)}, indent=2))
+        return
+    typer.echo(f"sun tooth errors identified from {len(result.records)} record(s): chi-square {d['chi2_start']:.4g} -> "
+               f"{d['chi2']:.4g} over {d['n_lines']} line parts, {result.iterations} iterations, "
+               f"{result.simulations} simulations, {result.seconds:.0f} s")
+    for j, (e, s_) in enumerate(zip(d["sun_tooth_errors_um"], d["posterior_sd_um"])):
+        typer.echo(f"  sun tooth {j:2d}  {e:+8.4f} um  +- {s_:.4f} um (scaled by the residual: "
+                   f"+- {s_ * result.birge_ratio:.4f})")
+    typer.echo("not identified: " + "; ".join(d["not_identified"]))
+    typer.echo(f"wrote {', '.join(str(out / n) for n in SPECIMEN_FILES)}")
 
 
 def _told_apart(before: float, after: float, digits: int) -> tuple[str, str]:

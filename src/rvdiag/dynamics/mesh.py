@@ -283,7 +283,8 @@ def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_c
 
     ``tooth_errors_m`` (one per sun tooth, m along the line of action), when given, replaces the sun teeth's
     position errors drawn from ``[modification] error_seed`` (the profile slope deviation of the grade stays): a
-    specimen's measured or identified pattern, or a perturbed one (a sensitivity study).
+    specimen's measured or identified pattern, or a perturbed one (a sensitivity study).  Without it, the
+    pattern of ``[modification] sun_tooth_errors_um`` replaces the drawn one where the parameter file states it.
     """
     pair = GearPair.sun_planet(params)
     z1 = params.stage1.sun_teeth
@@ -310,6 +311,8 @@ def mesh_table_from_gears(params: ReducerParams, fault: Any = None, points_per_c
         tol = iso1328_tolerances(params.stage1.module, params.stage1.module * z1, md.iso1328_grade)
         sep = sep + profile_slope_separation(roll, L, tol)
         teeth = tooth_position_errors(z1, tol, md.error_seed)
+    if tooth_errors_m is None and md.sun_tooth_errors_um is not None:   # a specimen's own pattern
+        tooth_errors_m = np.asarray(md.sun_tooth_errors_um, dtype=float) * 1e-6
     if tooth_errors_m is not None:
         teeth = np.asarray(tooth_errors_m, dtype=float).ravel()
         if teeth.size != z1 or not np.all(np.isfinite(teeth)):

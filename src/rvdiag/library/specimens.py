@@ -63,9 +63,15 @@ def draw_specimen(seed: int, iso1328_grade: Any = None) -> dict[str, int]:
 
 def apply_specimen(params: Any, specimen: Mapping[str, int]) -> Any:
     """``params`` (:class:`rvdiag.params.ReducerParams`) with the specimen's ``error_seed`` (and ``iso1328_grade``,
-    when drawn) in ``[modification]``; unchanged for an empty specimen."""
+    when drawn) in ``[modification]``, and without a stated ``sun_tooth_errors_um`` (the drawn specimen's own
+    pattern replaces it); unchanged for an empty specimen."""
     changes = {k: int(v) for k, v in specimen.items() if k in ("error_seed", "iso1328_grade")}
-    return params.replace(modification=changes) if changes else params
+    if not changes:
+        return params
+    data = params.to_dict()
+    data["modification"].pop("sun_tooth_errors_um", None)      # a stated pattern is one specimen's: the draw's
+    data["modification"].update(changes)
+    return type(params).from_dict(data, source=params.source)
 
 
 def override_message(params: Any, iso1328_grade: Any = None) -> str | None:
@@ -77,6 +83,8 @@ def override_message(params: Any, iso1328_grade: Any = None) -> str | None:
     lost = []
     if md.error_seed != default.error_seed:
         lost.append(f"error_seed = {md.error_seed}")
+    if md.sun_tooth_errors_um is not None:
+        lost.append("sun_tooth_errors_um")
     if iso1328_grade is not None and md.iso1328_grade != default.iso1328_grade:
         lost.append(f"iso1328_grade = {md.iso1328_grade}")
     if not lost:

@@ -201,6 +201,11 @@ class Modification:
     corner_contact_coefficient`; default 1 mm, which spans the whole gap between two pairs of a slot, so that a
     pair lagging by any realistic amount meets the next tooth's corner); 0 ends every pair's contact at the
     path's ends (the model before 2026-11-25).
+
+    ``sun_tooth_errors_um`` (one value per sun tooth, um along the line of action; not stated: none), when stated,
+    replaces the sun teeth's position errors drawn from ``error_seed``: a specimen's measured or identified
+    pattern (``rvdiag update --specimen``, :mod:`rvdiag.updating.specimen`).  The profile slope deviation of
+    ``iso1328_grade`` stays; the planet table's errors (``[manufacturing]``) are still drawn from ``error_seed``.
     """
 
     tip_relief_sun: float = _nonnegative(default=1.0e-6)
@@ -213,6 +218,7 @@ class Modification:
     iso1328_grade: int = _nonnegative(default=5)
     error_seed: int = _nonnegative(default=0)
     extended_contact_separation: float = _nonnegative(default=1.0e-3)
+    sun_tooth_errors_um: tuple[float, ...] | None = _checked("numbers", default=None)
 
 
 @dataclass(frozen=True)
@@ -487,6 +493,10 @@ def _build_section(section_cls: type, values: Any, where: str) -> Any:
 
 
 def _check_value(value: Any, f: dataclasses.Field, where: str) -> Any:
+    if f.metadata.get("check") == "numbers":
+        if not isinstance(value, (list, tuple)) or not value:
+            raise ConfigError(f"{where}: expected a list of numbers, got {value!r}")
+        return tuple(number(v, f"{where}[{i}]", error=ConfigError) for i, v in enumerate(value))
     if f.type in (int, "int"):
         value = whole_number(value, where, error=ConfigError)
     else:
@@ -537,6 +547,14 @@ def _check_consistency(p: ReducerParams, source: str) -> None:
                           f"got {md.relief_exponent}")
     if md.iso1328_grade > 11:
         raise ConfigError(f"{source}: [modification] iso1328_grade must be 0 (perfect) or 1..11, got {md.iso1328_grade}")
+    if md.sun_tooth_errors_um is not None:
+        if len(md.sun_tooth_errors_um) != s1.sun_teeth:
+            raise ConfigError(f"{source}: [modification] sun_tooth_errors_um must hold one value per sun tooth "
+                              f"({s1.sun_teeth}), got {len(md.sun_tooth_errors_um)}")
+        if max(abs(v) for v in md.sun_tooth_errors_um) * 1e-6 > MAX_MANUFACTURING_TOLERANCE_M:
+            raise ConfigError(f"{source}: [modification] sun_tooth_errors_um must be at most "
+                              f"{MAX_MANUFACTURING_TOLERANCE_M * 1e6:g} um in size (a precision gear's pitch errors "
+                              "are microns)")
     mf = p.manufacturing
     if mf.planet_runout_grade > 11:
         raise ConfigError(f"{source}: [manufacturing] planet_runout_grade must be 0 (none) or 1..11, "

@@ -5,7 +5,9 @@
 - :mod:`rvdiag.updating.tuner`: the seeded global + local search (:func:`update_parameters`);
 - :mod:`rvdiag.updating.annotate`: the updated parameter file, every changed value commented.
 - :mod:`rvdiag.updating.observability`: which of a reducer's own parameters (sun tooth errors, runouts, path,
-  stiffnesses) a commissioning record can identify: the whitened Jacobian's singular values (docs/twin.md).
+  stiffnesses) a commissioning record can identify: the whitened Jacobian's singular values (docs/twin.md);
+- :mod:`rvdiag.updating.specimen`: one joint's own sun tooth errors identified from its commissioning records'
+  transmission error between two encoders (``rvdiag update --specimen``, docs/twin.md).
 """
 
 from __future__ import annotations

@@ -22,7 +22,9 @@ _SECTION = re.compile(r"^\s*\[\s*([A-Za-z0-9_]+)\s*\]\s*(#.*)?$")
 
 
 def _value_text(value) -> str:
-    """TOML text of one scalar value."""
+    """TOML text of one value, a list of scalars on one line."""
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_value_text(v) for v in value) + "]"
     return tomli_w.dumps({"v": value}).split("=", 1)[1].strip()
 
 

@@ -323,11 +323,14 @@ def _split(pert: Perturbation, base: ReducerParams, teeth0: np.ndarray):
 
 
 def nominal_tooth_errors(params: ReducerParams) -> np.ndarray:
-    """The sun teeth's position errors (m) the simulator draws for ``params`` (zeros at grade 0)."""
+    """The sun teeth's position errors (m) the simulator uses for ``params``: ``[modification]
+    sun_tooth_errors_um`` where stated, else the drawn ones (zeros at grade 0)."""
     from rvdiag.gears.modification import iso1328_tolerances, tooth_position_errors
 
     z = params.stage1.sun_teeth
     md = params.modification
+    if md.sun_tooth_errors_um is not None:
+        return np.asarray(md.sun_tooth_errors_um, dtype=float) * 1e-6
     if md.iso1328_grade <= 0:
         return np.zeros(z)
     tol = iso1328_tolerances(params.stage1.module, params.stage1.module * z, md.iso1328_grade)
