@@ -1,5 +1,5 @@
-"""Identify one reducer's own sun tooth errors from its commissioning records' transmission error (issue 36, step 2;
-docs/twin.md, "A specimen's tooth errors: ``rvdiag update --specimen``").
+"""Identify one reducer's own sun tooth errors from its commissioning records' transmission error (docs/twin.md,
+"A specimen's tooth errors: ``rvdiag update --specimen``").
 
 What a record gives (:func:`te_record`): the input shaft's (motor encoder's) angle ``theta_in`` and the output
 encoder's ``theta_out`` (rad) at the same instants.  Their transmission error ``TE = theta_in / i - theta_out``
