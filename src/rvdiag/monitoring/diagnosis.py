@@ -222,20 +222,19 @@ def baseline_spectrum(base, rows: np.ndarray, fs: float, cache: dict | None = No
     return out
 
 
-def _mesh_lines_mean(X: np.ndarray, fs: float, speed: float, spectrum: tuple | None = None) -> dict:
-    """The two mesh lines (:func:`rvdiag.features.mesh_lines.mesh_lines`) read on the mean power spectrum of the
-    windows ``X`` (rows of equal length; Welch 1967, the averaged periodogram): ``{name: {"hz", "height_db",
-    "amplitude", "floor"}, "present": [names]}``.  Averaging the windows' power steadies the floor and the line
-    (one window's bins scatter by about 5.6 dB, a chi-square of 2 degrees of freedom) that one window reads.
-    ``spectrum``: that of ``X`` already read (:func:`baseline_spectrum`), with ``X`` only for its length."""
+def _mesh_lines_mean(spectrum: tuple, fs: float, n: int, speed: float) -> dict:
+    """The two mesh lines (:func:`rvdiag.features.mesh_lines.mesh_lines`) read on ``spectrum``, the mean power
+    spectrum ``(f, p)`` of windows of ``n`` points (:func:`_mean_power_spectrum`, or :func:`baseline_spectrum`;
+    Welch 1967, the averaged periodogram): ``{name: {"hz", "height_db", "amplitude", "floor"}, "present":
+    [names]}``.  Averaging the windows' power steadies the floor and the line (one window's bins scatter by about
+    5.6 dB, a chi-square of 2 degrees of freedom) that one window reads."""
     from rvdiag.features.mesh_lines import LINE_DB
     from rvdiag.kinematics import characteristic_frequencies
     from rvdiag.motor.lines import line_height
     from rvdiag.params import ReducerParams
 
-    X = np.atleast_2d(np.asarray(X))
-    amp = np.sqrt((spectrum if spectrum is not None else _mean_power_spectrum(X, fs))[1])
-    df = fs / X.shape[1]
+    amp = np.sqrt(spectrum[1])
+    df = fs / n
     cf = characteristic_frequencies(ReducerParams.default(), output_speed_deg_s=float(speed))
     out: dict = {"present": []}
     for name, hz in (("stage1", cf.fsp), ("stage2", cf.fcs)):
@@ -291,8 +290,8 @@ def mesh_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float, speed
     v = float(speed["output_speed_deg_s"])
     near = _baseline_rows(base, v, load, tolerances)
     k = max(x.size // L, 1)
-    in_base = _mesh_lines_mean(np.asarray(base.X)[near[:1]], fs, v, spectrum=baseline_spectrum(base, near, fs, cache))
-    in_record = _mesh_lines_mean(x[: k * L].reshape(k, L), fs, v)
+    in_base = _mesh_lines_mean(baseline_spectrum(base, near, fs, cache), fs, np.shape(base.X)[1], v)
+    in_record = _mesh_lines_mean(_mean_power_spectrum(x[: k * L].reshape(k, L), fs), fs, L, v)
     lost, masked = [], []
     for name in in_base["present"]:
         if name in in_record["present"]:
