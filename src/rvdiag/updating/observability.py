@@ -472,6 +472,15 @@ def jacobian(base: ReducerParams, op: OperatingPoint, parameters: Sequence[Param
     return Jacobian(list(parameters), cols, {s: nom[s] for s in sigs}, lin, nom["_vibration_power"])
 
 
+def variation_perturbation(factors: Mapping[str, float], pct: Mapping[str, float] | None = None,
+                           without: tuple[str, ...] = ()) -> Perturbation:
+    """The perturbation of one record's run-to-run factors ``factors`` (:func:`rvdiag.library.paired.draw_variation`'s
+    ``{key: factor}``): each factor's excess over 1 on its parameter of :func:`run_to_run_parameters` (``pct``), the
+    keys in ``without`` left out."""
+    keys = {p.name.replace(" ", "_"): p for p in run_to_run_parameters(pct)}
+    return Perturbation({keys[k]: v - 1.0 for k, v in factors.items() if k not in without})
+
+
 def run_to_run_draws(base: ReducerParams, op: OperatingPoint, draws: int, seed: int = 0,
                      pct: Mapping[str, float] | None = None, teeth0=None) -> dict[str, np.ndarray]:
     """``draws`` noise-free records of ``base``, each with its own run-to-run variation drawn by
@@ -480,13 +489,10 @@ def run_to_run_draws(base: ReducerParams, op: OperatingPoint, draws: int, seed: 
     from rvdiag.library.paired import draw_variation
 
     rng = np.random.default_rng(seed)
-    keys = {p.name.replace(" ", "_"): p for p in run_to_run_parameters(pct)}
     teeth0 = nominal_tooth_errors(base) if teeth0 is None else teeth0
     out: dict[str, list] = {s: [] for s in OBSERVATIONS}
     for _ in range(int(draws)):
-        f = draw_variation(rng, pct)
-        pert = Perturbation({keys[k]: v - 1.0 for k, v in f.items()})
-        y = observe(base, op, pert, teeth0)
+        y = observe(base, op, variation_perturbation(draw_variation(rng, pct), pct), teeth0)
         for s in OBSERVATIONS:
             out[s].append(y[s])
     return {s: np.array(v) for s, v in out.items()}
@@ -663,5 +669,5 @@ def _bounded_sum(A: np.ndarray, inv_w: np.ndarray) -> np.ndarray:
 __all__ = ["Jacobian", "KINDS", "NoiseModel", "OBSERVATIONS", "Observability", "OperatingPoint", "Parameter",
            "Perturbation", "analyse", "fisher_information", "jacobian", "nominal_tooth_errors", "observe",
            "observations", "planet_phase_sum", "prior_square_root", "reducer_parameters", "run_to_run_draws",
-           "run_to_run_parameters",
+           "run_to_run_parameters", "variation_perturbation",
            "simulate_states", "sun_synchronous_lines", "sun_tooth_prior", "torsional_orders"]

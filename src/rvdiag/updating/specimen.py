@@ -161,8 +161,13 @@ class TERecord:
 
     def truncated(self, max_order: int) -> np.ndarray:
         """``[Re X_1..X_K, Im X_1..X_K]`` for ``K = max_order``."""
-        h = self.lines.size // 2
-        return np.concatenate([self.lines[:max_order], self.lines[h: h + max_order]])
+        return _first_orders(self.lines, max_order)
+
+
+def _first_orders(lines: np.ndarray, max_order: int) -> np.ndarray:
+    """``[Re X_1..X_K, Im X_1..X_K]`` of stacked lines ``[Re..., Im...]`` (:func:`te_lines`), ``K = max_order``."""
+    h = lines.size // 2
+    return np.concatenate([lines[:max_order], lines[h: h + max_order]])
 
 
 def te_record(input_angle, output_angle, fs: float, params: ReducerParams, *, load_Nm: float, name: str = "",
@@ -222,26 +227,38 @@ def te_covariance(G: np.ndarray, var_u, D: np.ndarray | None, white_var: float) 
     return C + np.eye(C.shape[0]) * float(white_var)
 
 
+def _simulated_angles(params: ReducerParams, output_speed_deg_s: float, load_Nm: float, fs_rec: float,
+                      revolutions: int, teeth, pert: ob.Perturbation, duration_s: float | None = None):
+    """The input and output encoder angles (rad) of the model simulated over ``revolutions`` sun revolutions after
+    its run-in, with the tooth pattern ``teeth`` and ``pert``, at a multiple ``k`` of the rate ``fs_rec`` high
+    enough for the integrator (``MODEL_MIN_FS``), then sampled at ``fs_rec``; their first ``duration_s`` (all by
+    default).  Returns ``(a_in, a_out, ratio)``."""
+    k = max(1, math.ceil(MODEL_MIN_FS / fs_rec - 1e-9))
+    fs = k * fs_rec
+    op = ob.OperatingPoint(output_speed_deg_s=output_speed_deg_s, load_Nm=load_Nm, revolutions=revolutions, fs=fs,
+                           substeps=max(1, math.ceil(4 * 48000.0 / fs - 1e-9)))
+    p, t, planet, fac, _ = ob._split(pert, params, np.asarray(teeth, dtype=float))
+    st = ob.simulate_states(p, op, teeth=t, planet=planet, load=fac["load"], speed=fac["speed"])
+    n0 = st["n_pre"]
+    n = st["q_m"].size - n0
+    if duration_s is not None:
+        n = min(n, int(round(duration_s * k * fs_rec)))
+    tt = np.arange(n) / fs
+    a_in = 2.0 * np.pi * st["motor_hz"] * tt + st["q_m"][n0: n0 + n]
+    a_out = 2.0 * np.pi * st["motor_hz"] / st["ratio"] * tt + st["q_H"][n0: n0 + n]
+    return a_in[::k], a_out[::k], st["ratio"]
+
+
 def _model_lines(params: ReducerParams, pm_speed: float, load: float, fs_rec: float, max_order: int,
                  settings: SpecimenSettings, teeth, pert: ob.Perturbation | None = None) -> np.ndarray:
     """The model's TE lines (:func:`te_lines` of the simulated angles sampled at ``fs_rec``)."""
-    k = max(1, math.ceil(MODEL_MIN_FS / fs_rec - 1e-9))
-    fs = k * fs_rec
-    substeps = max(1, math.ceil(4 * 48000.0 / fs - 1e-9))
     period = averaging_period(params)
     revs = -(-settings.revolutions // period) * period
-    op = ob.OperatingPoint(output_speed_deg_s=pm_speed, load_Nm=load, revolutions=revs + 1, fs=fs,
-                           substeps=substeps)
-    p, t, planet, fac, _ = ob._split(pert or ob.Perturbation(), params, np.asarray(teeth, dtype=float))
-    st = ob.simulate_states(p, op, teeth=t, planet=planet, load=fac["load"], speed=fac["speed"])
-    n0 = st["n_pre"]
-    tt = np.arange(st["q_m"].size - n0) / fs
-    a_in = 2.0 * np.pi * st["motor_hz"] * tt + st["q_m"][n0:]
-    a_out = 2.0 * np.pi * st["motor_hz"] / st["ratio"] * tt + st["q_H"][n0:]
-    lines, _ = te_lines(a_in[::k], a_out[::k], fs_rec, st["ratio"], samples_per_rev=settings.samples_per_rev,
+    a_in, a_out, ratio = _simulated_angles(params, pm_speed, load, fs_rec, revs + 1, teeth,
+                                           pert or ob.Perturbation())
+    lines, _ = te_lines(a_in, a_out, fs_rec, ratio, samples_per_rev=settings.samples_per_rev,
                         period=period, revolutions=revs, name="the model's record")
-    h = lines.size // 2
-    return np.concatenate([lines[:max_order], lines[h: h + max_order]])
+    return _first_orders(lines, max_order)
 
 
 def linearise(params: ReducerParams, output_speed_deg_s: float, load_Nm: float, fs: float,
@@ -287,11 +304,8 @@ def linearise(params: ReducerParams, output_speed_deg_s: float, load_Nm: float, 
     D = None
     if st.draws:
         rng = np.random.default_rng(st.draw_seed)
-        keys = {p.name.replace(" ", "_"): p for p in ob.run_to_run_parameters()}
-        rows = []
-        for _ in range(st.draws):
-            f = draw_variation(rng)
-            rows.append(lines(teeth0, ob.Perturbation({keys[k]: v - 1.0 for k, v in f.items() if k != "gain"})))
+        rows = [lines(teeth0, ob.variation_perturbation(draw_variation(rng), without=("gain",)))
+                for _ in range(st.draws)]
         D = np.array(rows)
         if progress is not None:
             progress(f"{st.draws} run-to-run draws ({time.perf_counter() - t0:.0f} s)")
@@ -305,21 +319,11 @@ def simulated_record(params: ReducerParams, output_speed_deg_s: float, load_Nm: 
     run-in, the run-to-run factors ``variation`` (:func:`rvdiag.library.paired.draw_variation`'s keys; none by
     default) applied, both angles quantised to ``encoder_bits`` with a random offset of the code grid drawn from
     ``rng`` (0: ideal).  For tests and the measurement of docs/twin.md."""
-    keys = {p.name.replace(" ", "_"): p for p in ob.run_to_run_parameters()}
-    pert = ob.Perturbation({keys[k]: v - 1.0 for k, v in (variation or {}).items() if k != "gain"})
-    k = max(1, math.ceil(MODEL_MIN_FS / fs - 1e-9))
     f_rel = ob.OperatingPoint(output_speed_deg_s=output_speed_deg_s).sun_hz(params)
-    op = ob.OperatingPoint(output_speed_deg_s=output_speed_deg_s, load_Nm=load_Nm,
-                           revolutions=max(1, math.ceil(duration_s * f_rel)), fs=k * fs,
-                           substeps=max(1, math.ceil(4 * 48000.0 / (k * fs) - 1e-9)))
-    p, teeth, planet, fac, _ = ob._split(pert, params, ob.nominal_tooth_errors(params))
-    st = ob.simulate_states(p, op, teeth=teeth, planet=planet, load=fac["load"], speed=fac["speed"])
-    n0 = st["n_pre"]
-    n = min(st["q_m"].size - n0, int(round(duration_s * k * fs)))
-    tt = np.arange(n) / (k * fs)
-    a_in = 2.0 * np.pi * st["motor_hz"] * tt + st["q_m"][n0: n0 + n]
-    a_out = 2.0 * np.pi * st["motor_hz"] / st["ratio"] * tt + st["q_H"][n0: n0 + n]
-    a_in, a_out = a_in[::k], a_out[::k]
+    a_in, a_out, _ = _simulated_angles(params, output_speed_deg_s, load_Nm, fs, max(1, math.ceil(duration_s * f_rel)),
+                                       ob.nominal_tooth_errors(params),
+                                       ob.variation_perturbation(variation or {}, without=("gain",)),
+                                       duration_s=duration_s)
     if encoder_bits:
         q = 2.0 * np.pi / 2.0 ** int(encoder_bits)
         rng = rng or np.random.default_rng(0)
