@@ -52,7 +52,8 @@ def register(app: typer.Typer) -> None:
         te_noise: Optional[float] = typer.Option(None, "--te-noise", help="--specimen: the output encoder's white "
                                                  "noise per sample, arcsec rms (default: 23-bit quantisation, "
                                                  "0.045 arcsec)."),
-        overwrite: bool = opt.overwrite("Overwrite an existing --out file (with --specimen, the files it writes there)."),
+        overwrite: bool = opt.overwrite("Overwrite an existing --out file (with --specimen, the files it writes "
+                                        "there)."),
         force: bool = opt.deprecated("--force", flag=True),
         objective: str = typer.Option("logspec", "--objective", help="logspec (PCC of log power spectra, default), "
                                       "envelope (PCC of envelope spectra) or time (PCC of the records; only for "
@@ -204,6 +205,7 @@ def _update_specimen(files: list[Path], *, params, out: Path, overwrite: bool, f
 
     import tomli_w
 
+    from rvdiag.atomic import atomic_write
     from rvdiag.io import read_signal
     from rvdiag.params import ReducerParams
     from rvdiag.updating.annotate import annotated_toml, base_text
@@ -222,10 +224,10 @@ def _update_specimen(files: list[Path], *, params, out: Path, overwrite: bool, f
         raise ParameterError("--specimen takes each record's speed from its output encoder; leave out --output-speed")
     if iterations < 0 or draws < 0:
         raise ParameterError(f"--iterations and --draws must be >= 0, got {iterations} and {draws}")
-    settings = SpecimenSettings(iterations=iterations, draws=draws)
     if te_noise is not None:
         finite_number(te_noise, "--te-noise", 0, strict=True, noun="a number")
-        settings = SpecimenSettings(iterations=iterations, draws=draws, te_noise_rad=math.radians(te_noise / 3600))
+    settings = SpecimenSettings(iterations=iterations, draws=draws, **(
+        {} if te_noise is None else {"te_noise_rad": math.radians(te_noise / 3600)}))
     if out.suffix.lower() == ".toml":
         raise ParameterError(f"with --specimen, --out names a folder (it gets {', '.join(SPECIMEN_FILES)}), "
                              f"got {out}")
@@ -261,13 +263,8 @@ def _update_specimen(files: list[Path], *, params, out: Path, overwrite: bool, f
         records.append(te_record(sig_in.data, sig_out.data, sig_in.fs, base, load_Nm=load, name=str(f),
                                  settings=settings))
 
-    if quiet:
-        result = identify_specimen(base, records, settings)
-    else:
-        def progress(msg: str) -> None:
-            typer.echo(f"specimen: {msg}", err=True)
-
-        result = identify_specimen(base, records, settings, progress=progress)
+    result = identify_specimen(base, records, settings,
+                               progress=None if quiet else (lambda msg: typer.echo(f"specimen: {msg}", err=True)))
 
     out.mkdir(exist_ok=True)
     names = ", ".join(Path(r["name"]).name for r in result.records)
@@ -285,9 +282,9 @@ def _update_specimen(files: list[Path], *, params, out: Path, overwrite: bool, f
            "records": d["records"],
            "base": {"params": str(params) if params is not None else "built-in"}}
     try:
-        (out / "params.toml").write_text(annotated_toml(base, after, text, comment), encoding="utf-8")
-        (out / "uncertainty.toml").write_text(tomli_w.dumps(unc), encoding="utf-8")
-        (out / "specimen.json").write_text(json.dumps(d, indent=1), encoding="utf-8")
+        atomic_write(out / "params.toml", annotated_toml(base, after, text, comment))
+        atomic_write(out / "uncertainty.toml", tomli_w.dumps(unc))
+        atomic_write(out / "specimen.json", json.dumps(d, indent=1))
     except OSError as exc:
         raise ParameterError(f"cannot write into --out {out}: {exc}") from None
     if not result.converged:
