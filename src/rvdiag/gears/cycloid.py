@@ -213,6 +213,14 @@ PIN_LOAD_FLOOR_FRACTION = 0.01
 PIN_STIFFNESS_ANGLES = 8
 
 
+def disc_torque(params, load_Nm: float) -> float:
+    """The torque (N m) one disc carries about its own centre at the output torque ``load_Nm``: the pin-wheel
+    reaction ``|T_L| (1 - 1/i)`` times the arm ratio ``Zc / Zp``, shared by the ``D`` discs
+    (:func:`pin_contact_stiffness`)."""
+    s2 = params.stage2
+    return abs(float(load_Nm)) * (1.0 - 1.0 / params.ratio) * s2.cycloid_lobes / (s2.pins * s2.n_discs)
+
+
 def pin_contact_stiffness(params, load_Nm: float) -> float:
     """Cycloid-pin contact stiffness (N/m) linearised at the operating load, one value for every pin.
 
@@ -231,7 +239,7 @@ def pin_contact_stiffness(params, load_Nm: float) -> float:
     """
     s2 = params.stage2
     load = max(abs(float(load_Nm)), PIN_LOAD_FLOOR_FRACTION * params.operation.rated_torque)
-    t_disc = load * (1.0 - 1.0 / params.ratio) * s2.cycloid_lobes / (s2.pins * s2.n_discs)
+    t_disc = disc_torque(params, load)
     vals = []
     for ang in np.arange(PIN_STIFFNESS_ANGLES) * (2.0 * math.pi / s2.pins / PIN_STIFFNESS_ANGLES):
         c = pin_contact(s2, params.material, float(ang), t_disc)

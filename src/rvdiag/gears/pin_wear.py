@@ -66,7 +66,7 @@ from functools import lru_cache
 import numpy as np
 
 from rvdiag.errors import ParameterError
-from rvdiag.gears.cycloid import (closing_offset, modification_clearance, pin_contact_stiffness,
+from rvdiag.gears.cycloid import (closing_offset, disc_torque, modification_clearance, pin_contact_stiffness,
                                   theoretical_curvature_radius)
 from rvdiag.gears.wear import DEFAULT_WEAR_COEFFICIENT, DutyCycle, history_arguments
 from rvdiag.params.schema import MAX_PIN_WEAR_DEPTH
@@ -150,12 +150,6 @@ def lost_motion(params, table: np.ndarray | None = None) -> float:
     return (c[0] - c[1]) / (s2.eccentricity * s2.cycloid_lobes)
 
 
-def _disc_torque(params, load_Nm: float) -> float:
-    """The torque (N m) one disc carries about its centre at output torque ``load_Nm``."""
-    s2 = params.stage2
-    return abs(float(load_Nm)) * (1.0 - 1.0 / params.ratio) * s2.cycloid_lobes / (s2.pins * s2.n_discs)
-
-
 class _Stage:
     """The phase grid of one flank and everything on it that does not change as the stage wears."""
 
@@ -185,7 +179,7 @@ class _Stage:
         e_star = mat.youngs_modulus / (2.0 * (1.0 - mat.poisson_ratio ** 2))
         self.hertz = 4.0 * (1.0 / (1.0 / self.r + 1.0 / (rho0 - self.r))) / (math.pi * e_star)  # a^2 per N/m
         self.k_pin = pin_contact_stiffness(params, load_Nm)
-        self.torque = _disc_torque(params, load_Nm) / self.e_zc  # sum F_k a_k
+        self.torque = disc_torque(params, load_Nm) / self.e_zc  # sum F_k a_k
         top = self.r * math.asin(k1)
         self.pin_arc = np.arange(-20e-6, top + 20e-6, _PIN_GRID)
 
