@@ -527,7 +527,8 @@ class Fleet:
             rl = replace(old, failure_index=None if value is None else float(value)).check()
             j.rules = rl.to_dict()
             ep = self._epochs(s, j.id)
-            text = f"failure index {_fmt_index(old.failure_index)} -> {_fmt_index(rl.failure_index)}" + (f": {note}" if note else "")
+            text = (f"failure index {_fmt_index(old.failure_index)} -> {_fmt_index(rl.failure_index)}"
+                    + (f": {note}" if note else ""))
             s.add(db.Event(joint_id=j.id, kind="failure-index", time=t, by=_who(by), note=text,
                            epoch_id=ep[-1].id if ep else None))
         return {"joint": joint, "kind": "failure-index", "time": _iso(t), "by": _who(by), "note": text,

@@ -973,7 +973,8 @@ class LibraryConfig:
             segment_length=segment_length, hop=hop, states=states, speed_key=speed_key, speed=speed,
             load_Nm=load, noise_snr_db=noise, stiffness_pct=pct["stiffness_pct"], damping_pct=pct["damping_pct"],
             path=path, noise_colour_exponent=colour, profile=profile, sensor=sensor, specimen=specimen,
-            iso1328_grade=grade, pin_wear_depth=pin_wear, noise_mode=noise_mode, noise_density_ug_per_rthz=density, simulator=simulator,
+            iso1328_grade=grade, pin_wear_depth=pin_wear, noise_mode=noise_mode, noise_density_ug_per_rthz=density,
+            simulator=simulator,
             params=params, channel=channel, model=model, source=source, **kw,
         )
 

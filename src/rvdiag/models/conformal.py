@@ -253,8 +253,8 @@ class PredictionSets:
             m = y == c
             thresholds[c] = (reducer_threshold(s[m], g[m], 1.0 - coverage[c]) if rule == "reducers"
                              else conformal_threshold(s[m], 1.0 - coverage[c]))
-            counts[c] = int(np.sum(y == c))
-            n_groups[c] = None if g is None else int(np.unique(g[y == c]).size)
+            counts[c] = int(np.sum(m))
+            n_groups[c] = None if g is None else int(np.unique(g[m]).size)
         return cls(classes, {c: coverage[c] for c in classes}, thresholds, counts, n_groups, dict(source or {}), rule)
 
     def contains(self, proba, nonempty: bool = True) -> np.ndarray:
