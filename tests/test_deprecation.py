@@ -5,13 +5,12 @@ import ast
 import importlib
 import pickle
 import re
-import subprocess
 import sys
 import warnings
 from pathlib import Path
 
 import pytest
-from test_import_layers import LAYERS
+from test_import_layers import imported_names, python_files
 
 from rvdiag.registry import MOVED_TYPES, TRUSTED_TYPES
 
@@ -158,49 +157,34 @@ def test_an_object_pickled_under_the_old_path_unpickles_to_the_new_class(old, ne
 def test_a_model_file_that_names_a_moved_type_loads_the_new_type(old, new, tmp_path):
     """A ``model.skops`` that names a type by its module's old path (as models saved before the move do) loads
     through :data:`rvdiag.registry.MOVED_TYPES`, without the deprecated alias: the old name is not trusted."""
-    import io
-    import zipfile
-
     import skops.io as sio
+    from conftest import as_saved_before_a_move
 
     from rvdiag.models.pipelines import load_classical, save_classical
 
     old_module, new_module = old.rsplit(".", 1)[0], new.rsplit(".", 1)[0]
     cls = getattr(importlib.import_module(new_module), new.rsplit(".", 1)[1])
     save_classical(cls(), tmp_path / "m", {"classes": ["T1", "T2"], "input_length": 1})
-    f = tmp_path / "m" / "model.skops"
-    src, out = zipfile.ZipFile(io.BytesIO(f.read_bytes())), io.BytesIO()
-    with zipfile.ZipFile(out, "w") as dst:  # the file as the class's old home wrote it
-        for info in src.infolist():
-            body = src.read(info)
-            if info.filename == "schema.json":
-                body = body.replace(f'"{new_module}"'.encode(), f'"{old_module}"'.encode())
-            dst.writestr(info, body)
-    f.write_bytes(out.getvalue())
-    assert old in sio.get_untrusted_types(data=f.read_bytes()) and old not in TRUSTED_TYPES and new in TRUSTED_TYPES
+    as_saved_before_a_move(tmp_path / "m", new_module, old_module)
+    data = (tmp_path / "m" / "model.skops").read_bytes()
+    assert old in sio.get_untrusted_types(data=data) and old not in TRUSTED_TYPES and new in TRUSTED_TYPES
     with warnings.catch_warnings(record=True) as rec:
         warnings.simplefilter("always")
         assert type(load_classical(tmp_path / "m")) is cls
     assert not _own(rec, old_module)
 
 
-def test_an_old_path_imports_nothing_of_a_higher_layer():
-    """The new module is imported at the first name looked up, not with the old path: importing the old paths,
-    lowest layer first, loads no rvdiag package above the old path's own layer (``rvdiag.features.cnn`` no
-    ``rvdiag.models``, ``rvdiag.models.monitoring`` no ``rvdiag.monitoring``), so the aliases keep the layering
-    of tests/test_import_layers.py."""
-    order = sorted(OLD_PATHS, key=lambda old: LAYERS[old.split(".")[1]])
-    code = ("import importlib, sys, warnings\nwarnings.simplefilter('ignore')\n"
-            f"for old in {order!r}:\n"
-            "    importlib.import_module(old)\n"
-            "    print(old, sorted({m.split('.')[1] for m in sys.modules if m.startswith('rvdiag.')}))\n")
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert r.returncode == 0, r.stderr
-    lines = r.stdout.split("\n")[:-1]
-    assert len(lines) == len(order)
-    for line in lines:
-        old, loaded = line.split(" ", 1)
-        assert max(LAYERS[u] for u in ast.literal_eval(loaded)) <= LAYERS[old.split(".")[1]], line
+@pytest.mark.parametrize("old, new, name, _", MOVED)
+def test_importing_an_old_path_does_not_import_the_new_module(old, new, name, _, first_import, monkeypatch):
+    """The new module is imported at the first name looked up, not with the old path.  The old path's file imports
+    only :mod:`rvdiag.deprecation` (layer 0; see the test below), so importing ``rvdiag.features.cnn`` loads
+    nothing of the models layer, nor ``rvdiag.models.monitoring`` anything of the monitoring layer: the aliases
+    keep the layering of tests/test_import_layers.py."""
+    monkeypatch.setitem(sys.modules, new, None)  # any import of the new module fails from here on
+    with pytest.warns(DeprecationWarning, match=re.escape(new)):
+        mod = importlib.import_module(old)
+    with pytest.raises(ImportError, match=re.escape(new)):
+        getattr(mod, name)
 
 
 def _calls_moved_module(path):
@@ -216,24 +200,13 @@ def test_each_old_path_is_a_thin_alias_and_every_alias_is_tested():
     for old, new, _, _ in MOVED:
         body = ast.parse((SRC.parent / (old.replace(".", "/") + ".py")).read_text()).body
         assert [type(n) for n in body] == [ast.Expr, ast.ImportFrom, ast.Assign]
+        assert ast.unparse(body[1]) == "from rvdiag.deprecation import moved_module"
         assert ast.unparse(body[2]) == f"__getattr__, __dir__ = moved_module(__name__, {new!r})"
 
 
 def test_nothing_but_this_test_imports_an_old_path():
-    root = SRC.parents[1]
-    bad = []
-    for folder in ("src", "bench", "research", "tests", "examples"):
-        for f in sorted((root / folder).rglob("*.py")):
-            text = f.read_text()
-            if f == Path(__file__).resolve() or not any(f"{parent}.{child}" in text or f"{parent} import" in text
-                                                        for parent, child in (o.rsplit(".", 1) for o in OLD_PATHS)):
-                continue
-            for node in ast.walk(ast.parse(text, filename=str(f))):
-                names = []
-                if isinstance(node, ast.Import):
-                    names = [a.name for a in node.names]
-                elif isinstance(node, ast.ImportFrom) and node.module:
-                    names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
-                bad += [f"{f.relative_to(root)}:{node.lineno}: {n}" for n in names
-                        if any(n == old or n.startswith(old + ".") for old in OLD_PATHS)]
+    here = Path(__file__).resolve()
+    parents = "|".join(sorted({re.escape(old.rsplit(".", 1)[0]) for old in OLD_PATHS}))
+    bad = [f"{where}: {name}" for f in python_files(parents) if f != here for where, name in imported_names(f)
+           if any(name == old or name.startswith(old + ".") for old in OLD_PATHS)]
     assert not bad, "\n".join(bad)
