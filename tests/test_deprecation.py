@@ -153,6 +153,14 @@ def test_an_object_pickled_under_the_old_path_unpickles_to_the_new_class(old, ne
     assert instance is None or type(instance) is obj
 
 
+def test_each_type_a_model_file_holds_from_a_moved_module_is_mapped_from_its_old_path():
+    """A saved model may name a trusted type of a moved module by the module's old path (it was saved before the
+    move): :data:`rvdiag.registry.MOVED_TYPES` maps each such old name to the type now."""
+    expected = {old + t[len(new):]: t for old, new, _, _ in MOVED for t in TRUSTED_TYPES if t.startswith(new + ".")}
+    assert expected == {k: v for k, v in MOVED_TYPES.items() if k.rsplit(".", 1)[0] in OLD_PATHS}
+    assert "rvdiag.features.cnn.CNNFeatures" in expected  # the feature set "cnn" of classical pipelines
+
+
 @pytest.mark.parametrize("old, new", sorted(MOVED_TYPES.items()))
 def test_a_model_file_that_names_a_moved_type_loads_the_new_type(old, new, tmp_path):
     """A ``model.skops`` that names a type by its module's old path (as models saved before the move do) loads
