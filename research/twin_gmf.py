@@ -73,6 +73,7 @@ OPS = [(45.0, 90.0), (30.0, 50.0), (60.0, 130.0)]
 CRACK = {"crack_depth": 1.8e-3, "crack_angle_deg": 45.0}
 SETTINGS = ModelSettings(transient_s=0.2, substeps=4)
 MODELS = ["oracle", "twin", "true teeth", "twin x3", "global only", "twin, nominal global", "nominal"]
+MARGINAL = ["twin, planets marginalised", "true teeth, planets marginalised"]
 
 
 def draw_specimen(rng, base: ReducerParams) -> tuple[ReducerParams, dict]:
@@ -137,6 +138,46 @@ def prepare(a) -> None:
         if not os.path.exists(path):
             save(path, reference(base, o, 2000 + o, a.draws))
             print(f"nominal op {o} done", flush=True)
+
+
+def marginal_reference(p: ReducerParams, op: int, seed: int, tables: int, per_table: int) -> dict:
+    """A reference over ``tables`` planet tables the twin does not know (``error_seed`` 1..tables, its sun teeth
+    kept: ``p`` states them): the mean of their templates, and ``per_table`` run-to-run draws of each, centred on
+    their table's own mean (the baseline removes each joint's own static signal; what is left is how the variation
+    acts under each table), scaled by ``sqrt((K - 1) / (K - tables))`` so that the filter's ``K - 1`` divisor gives
+    the pooled within-table covariance.  ``tables * (per_table + 2)`` simulations."""
+    t = time.perf_counter()
+    templates, draws = [], []
+    for j in range(tables):
+        pj = p.replace(modification={"error_seed": 1 + j})
+        ref = reference(pj, op, seed + 100 * (j + 1), per_table)
+        templates.append(ref["template"].astype(float))
+        H = ref["draws"].astype(float)
+        draws.append(H - H.mean(axis=0))
+    K = tables * per_table
+    H = np.concatenate(draws) * np.sqrt((K - 1) / (K - tables))
+    # interleave the tables so that the first and the second half of the draws each hold every table
+    order = np.argsort(np.tile(np.arange(per_table), tables), kind="stable")
+    return {"template": np.mean(templates, axis=0).astype(np.float32), "draws": H[order].astype(np.float32),
+            "seconds": time.perf_counter() - t}
+
+
+def run_marginal(r: int, ss, a) -> None:
+    """Add the models ``twin, planets marginalised`` and ``true teeth, planets marginalised`` to reducer ``r``'s file."""
+    path = os.path.join(a.out, f"r{r}.pkl")
+    rec = load(path)
+    base = ReducerParams.default()
+    spec, _ = draw_specimen(np.random.default_rng(ss), base)
+    t0 = time.perf_counter()
+    for name, teeth in (("twin, planets marginalised", rec["ident"]), ("true teeth, planets marginalised",
+                                                                       rec["truth"])):
+        if name in rec["refs"]:
+            continue
+        p = spec.replace(modification={"sun_tooth_errors_um": [float(v) * 1e6 for v in teeth]})
+        rec["refs"][name] = [marginal_reference(p, o, 7000 + 10 * r + o, a.tables, a.per_table)
+                             for o in range(len(OPS))]
+        save(path, rec)
+    print(f"reducer {r}: marginal references done ({time.perf_counter() - t0:.0f} s)", flush=True)
 
 
 def run_reducer(r: int, ss, a) -> None:
@@ -210,24 +251,32 @@ def model_threshold(g: GeneralisedMatchedFilter, fresh: np.ndarray, noise_var: f
 
 def evaluate(a) -> dict:
     from scipy.stats import spearmanr
+    from scipy.stats import t as student
     from sklearn.metrics import roc_auc_score
 
     nominal = [load(os.path.join(a.out, f"nominal_op{o}.pkl")) for o in range(len(OPS))]
     reducers = sorted(int(f[1:-4]) for f in os.listdir(a.out) if f.startswith("r") and f.endswith(".pkl")
                       and "_" not in f)
     extra = 10 ** (a.extra_db / 10) - 1.0
-    rows = {m: [] for m in MODELS}            # (reducer, state, op, depth, statistic)
-    defl = {m: {} for m in MODELS}
+    models: list = []
+    rows: dict = {}            # model -> (reducer, state, op, depth, statistic, ...)
+    defl: dict = {}
     ident = {}
+    noise_ratio: dict = {}
     for r in reducers:
         rec = load(os.path.join(a.out, f"r{r}.pkl"))
+        if not models:
+            models = MODELS + [m for m in MARGINAL if m in rec["refs"]]
+            rows, defl = {m: [] for m in models}, {m: {} for m in models}
+        elif any(m not in rec["refs"] for m in models if m != "nominal"):
+            raise SystemExit(f"reducer {r} lacks some of the models {models}: run --marginal for it")
         ident[r] = rec["ident_error"]
-        sig2 = rec["sigma"] ** 2 * (1 + extra)
+        sig2 = sig_true = rec["sigma"] ** 2 * (1 + extra)
         meta = rec["meta"]
         n = nominal[0]["template"].size
         Y = []
         for i, m in enumerate(meta):
-            x = rec["X"][i].astype(float) + np.sqrt(sig2) * np.random.default_rng([r, i, 7]).standard_normal(
+            x = rec["X"][i].astype(float) + np.sqrt(sig_true) * np.random.default_rng([r, i, 7]).standard_normal(
                 rec["X"].shape[1])
             Y.append(x)
         for o in range(len(OPS)):
@@ -237,8 +286,13 @@ def evaluate(a) -> dict:
             base_rows = [j for j, i in enumerate(idx) if meta[i]["role"] == "baseline"]
             mon_rows = [j for j, i in enumerate(idx) if meta[i]["role"] == "monitored"]
             mu = Yo[base_rows].mean(axis=0)
-            for name in MODELS:
+            for name in models:
                 ref = nominal[o] if name == "nominal" else rec["refs"][name][o]
+                if a.estimate_noise:        # the floor from the records: their spread less the draws'
+                    sig2 = max(float(np.mean(np.var(Yo[base_rows], axis=0, ddof=1)))
+                               - float(np.mean(np.var(ref["draws"].astype(float), axis=0, ddof=1))),
+                               1e-6 * float(np.mean(Yo[base_rows] ** 2)))
+                    noise_ratio.setdefault(name, []).append(sig2 / (rec["sigma"] ** 2 * (1 + extra)))
                 H = ref["draws"][: a.use_draws or None].astype(float)
                 g = GeneralisedMatchedFilter(ref["template"].astype(float), H, sig2, len(base_rows)).fit()
                 t = g.statistic(Yo[mon_rows], mu)
@@ -259,9 +313,10 @@ def evaluate(a) -> dict:
     print(f"floor {20 - a.extra_db:.0f} dB; draws {a.use_draws or 'all'}; {len(reducers)} reducers; identification error / pattern RMS: "
           + ", ".join(f"{ident[r]:.3f}" for r in reducers))
     print("\n| model | AUC T4 | detection at 1 % / 5 % | false alarms at 1 % / 5 % | Spearman(depth) | median d | "
-          "model threshold: detection at 1 % / 5 % | its false alarms |")
-    print("|---|---|---|---|---|---|---|---|")
-    for name in MODELS:
+          "model threshold: detection at 1 % / 5 % | its false alarms | learning threshold: detection | its false "
+          "alarms |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for name in models:
         arr = rows[name]
         red = np.array([x[0] for x in arr])
         st = np.array([x[1] for x in arr])
@@ -282,6 +337,24 @@ def evaluate(a) -> dict:
         mth = {al: np.array([x[6 if al == 0.01 else 7] for x in arr]) for al in (0.01, 0.05)}
         mdet = {al: float(np.mean(vh[c] > mth[al][c])) for al in mth}
         mfa = {al: float(np.mean(vh[h] > mth[al][h])) for al in mth}
+        # the joint's own threshold: its first --learning healthy monitored records of each operating point (a
+        # learning period) give the mean and spread of its statistic, a Student-t prediction bound; tested on the rest
+        opn = np.array([x[2] for x in arr])
+        ldet, lfa = {0.01: [0, 0], 0.05: [0, 0]}, {0.01: [0, 0], 0.05: [0, 0]}
+        for r in reducers:
+            learn = np.zeros(len(arr), bool)
+            for o in range(len(OPS)):
+                learn[np.flatnonzero((red == r) & h & (opn == o))[: a.learning]] = True
+            lv = v[learn]
+            for al in (0.01, 0.05):
+                thr = lv.mean() + student.ppf(1 - al, lv.size - 1) * np.sqrt(1 + 1 / lv.size) * lv.std(ddof=1)
+                hr, cr = (red == r) & h & ~learn, (red == r) & c
+                ldet[al][0] += int(np.sum(v[cr] > thr))
+                ldet[al][1] += int(cr.sum())
+                lfa[al][0] += int(np.sum(v[hr] > thr))
+                lfa[al][1] += int(hr.sum())
+        ldet = {al: x[0] / x[1] for al, x in ldet.items()}
+        lfa = {al: x[0] / x[1] for al, x in lfa.items()}
         rho, pv = spearmanr(depth[c], v[c])
         per_red = {}
         for r in reducers:
@@ -292,11 +365,19 @@ def evaluate(a) -> dict:
                                "false_alarm_1": fa[0.01], "false_alarm_5": fa[0.05], "spearman_depth": float(rho),
                                "spearman_p": float(pv), "median_deflection": med_d, "auc_per_reducer": per_red,
                                "n_healthy": int(h.sum()), "n_cracked": int(c.sum()),
+                               "learning_threshold": {"detection_1": ldet[0.01], "detection_5": ldet[0.05],
+                                                      "false_alarm_1": lfa[0.01], "false_alarm_5": lfa[0.05],
+                                                      "records_per_point": a.learning},
                                "model_threshold": {"detection_1": mdet[0.01], "detection_5": mdet[0.05],
                                                    "false_alarm_1": mfa[0.01], "false_alarm_5": mfa[0.05]}}
         print(f"| {name} | {auc:.3f} | {det[0.01]:.0%} / {det[0.05]:.0%} | {fa[0.01]:.1%} / {fa[0.05]:.1%} | "
               f"{rho:+.2f} (p {pv:.2g}) | {med_d:.1f} | {mdet[0.01]:.0%} / {mdet[0.05]:.0%} | "
-              f"{mfa[0.01]:.1%} / {mfa[0.05]:.1%} |")
+              f"{mfa[0.01]:.1%} / {mfa[0.05]:.1%} | {ldet[0.01]:.0%} / {ldet[0.05]:.0%} | "
+              f"{lfa[0.01]:.1%} / {lfa[0.05]:.1%} |")
+    if noise_ratio:
+        out["noise_ratio"] = {k: [float(np.min(v)), float(np.median(v)), float(np.max(v))] for k, v in noise_ratio.items()}
+        print("\nestimated / true noise variance (min, median, max): " + "; ".join(
+            f"{k} {v[0]:.2f} {v[1]:.2f} {v[2]:.2f}" for k, v in out["noise_ratio"].items()))
     print("\nper reducer: identification error, AUC twin / true teeth / twin x3 / oracle")
     for r in reducers:
         print(f"  r{r}: {ident[r]:.3f}  " + " / ".join(f"{out['models'][m]['auc_per_reducer'][r]:.3f}"
@@ -317,6 +398,15 @@ def main() -> None:
     ap.add_argument("--use-draws", type=int, default=0, help="with --evaluate: the first this many draws (0: all)")
     ap.add_argument("--floor-db", type=float, default=20.0)
     ap.add_argument("--extra-db", type=float, default=0.0)
+    ap.add_argument("--learning", type=int, default=4,
+                    help="with --evaluate: healthy records per operating point in each joint's learning period")
+    ap.add_argument("--estimate-noise", action="store_true",
+                    help="with --evaluate: the floor estimated from the commissioning records (their spread less the "
+                         "draws'), not the true one")
+    ap.add_argument("--marginal", action="store_true",
+                    help="add the models whose draws span --tables planet tables the twin does not know")
+    ap.add_argument("--tables", type=int, default=8)
+    ap.add_argument("--per-table", type=int, default=4)
     ap.add_argument("--prepare", action="store_true")
     ap.add_argument("--evaluate", action="store_true")
     ap.add_argument("--json", default="", help="with --evaluate: write the figures here")
@@ -331,6 +421,10 @@ def main() -> None:
                 json.dump(out, fh, indent=1, default=str)
         return
     for r, ss in enumerate(np.random.SeedSequence(a.seed).spawn(a.reducers)):
+        if a.marginal:
+            if (a.only is None or r in a.only) and os.path.exists(os.path.join(a.out, f"r{r}.pkl")):
+                run_marginal(r, ss, a)
+            continue
         if (a.only is None or r in a.only) and not os.path.exists(os.path.join(a.out, f"r{r}.pkl")):
             run_reducer(r, ss, a)
 
