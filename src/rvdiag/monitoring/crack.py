@@ -20,10 +20,12 @@ A monitored record is judged (:class:`CrackDetector`) by the statistic the study
 
 Assumptions, stated wherever the detector is described:
 
-- every record (commissioning and monitored) starts at the angle of the joint at which the simulated records start:
-  the model's zero angle (the encoders' zero, in which the sun teeth were identified) turned on for the run-in
-  ``transient_s`` at the record's speed.  A robot repeating one motion starts each record at the same joint angle;
-  no lag is searched (:func:`rvdiag.features.gmf.on_angle_axis`).
+- every record (commissioning and monitored) starts at the joint angle at which the simulated records start: the
+  model's zero, where the input and output angles are both zero (the run-in is simulated before it).  That is the
+  frame in which ``rvdiag update --specimen`` identified the sun teeth from the encoders' angles (the sun at a
+  whole revolution relative to the carrier).  A robot repeating one motion starts each record at the same joint
+  angle; no lag is searched (:func:`rvdiag.features.gmf.on_angle_axis`), and the records are not cut at the
+  encoders' zero.
 - the joint's run-to-run variation is the one the model draws (:data:`~rvdiag.evaluation.separability.
   RUN_TO_RUN_DEFAULT`); the threshold comes from the model's own draws, not from the joint's healthy records.
 - the noise floor is white: the baseline records vary by the run-to-run variation plus the floor, the draws by the
@@ -63,8 +65,8 @@ MANIFEST = "manifest.json"
 FORMAT = "rvdiag crack reference 1"
 
 ASSUMPTIONS = (
-    "every record starts at the joint angle at which the simulated records start (the model's zero angle, in "
-    "which the sun teeth were identified, turned on for the run-in at the record's speed); no lag is searched",
+    "every record starts at the joint angle at which the simulated records start: where the input and output "
+    "encoders both read zero, the frame in which the sun teeth were identified; no lag is searched",
     "the joint's run-to-run variation is the one the model draws (load 3 %, speed 1 %, temperature 2 %, mesh "
     "damping 10 %, gain 3 %); the alarm threshold comes from the model's own draws, not from healthy records of "
     "the joint",
@@ -232,8 +234,10 @@ def on_reference_axis(x, fs: float, output_speed_deg_s: float, reference: CrackR
     if x.ndim != 1:
         raise ParameterError(f"{name}: the crack detector takes one channel, got an array of shape {x.shape}")
     if not (fs and math.isfinite(fs) and math.isclose(float(fs), reference.fs, rel_tol=1e-9)):
-        raise ParameterError(f"{name} is sampled at {fs} Hz; the crack reference at "
-                             f"{reference.output_speed_deg_s:.4g} deg/s {reference.load_Nm:g} N m at {reference.fs:g} Hz")
+        raise ParameterError(f"{name} is sampled at {fs:g} Hz, the crack reference at "
+                             f"{reference.output_speed_deg_s:.4g} deg/s {reference.load_Nm:g} N m at "
+                             f"{reference.fs:g} Hz" if isinstance(fs, (int, float)) else
+                             f"{name} states no sampling rate (give --fs)")
     v = float(output_speed_deg_s)
     if not (math.isfinite(v) and v > 0):
         raise ParameterError(f"{name}: the output speed must be a positive number, got {output_speed_deg_s!r}")
@@ -373,7 +377,7 @@ class CrackResult:
     def line(self) -> str:
         """One line for people: the index, the threshold and whether it alarms."""
         return (f"crack detector (twin): index {self.index:.3g}, threshold {self.threshold:.3g} at "
-                f"{100 * self.alpha:g} % false alarms: {'ALARM' if self.alarm else 'no alarm'}")
+                f"{100 * self.alpha:g} % false alarms: {'alarm' if self.alarm else 'no alarm'}")
 
 
 class CrackDetector:
