@@ -110,28 +110,34 @@ def _records(speeds_loads, n=24000, fs=48000.0):
             for i, (v, L) in enumerate(speeds_loads)]
 
 
-def test_commissioning_is_resumable_and_refuses_other_parameters(tmp_path, monkeypatch):
-    """Two operating points; the simulation replaced by random arrays (the real one is tested below).  An interrupted
-    run keeps its finished point; the next run simulates only the other; a third simulates nothing; another
-    parameter set is refused without overwrite."""
-    calls = []
+def fake_simulation(calls: list, fail: list | None = None):
+    """A stand-in for :func:`rvdiag.monitoring.crack.simulate_reference`: random arrays of the right size and
+    settings; each call is appended to ``calls``; the second raises KeyboardInterrupt while ``fail[0]``."""
+    from rvdiag.evaluation.separability import RUN_TO_RUN_DEFAULT
 
     def fake(params, v, L, fs, duration_s, draws, seed, **kw):
         calls.append((round(v, 3), L))
-        if len(calls) == 2 and fail[0]:
+        if fail is not None and len(calls) == 2 and fail[0]:
             raise KeyboardInterrupt
         ref = synthetic_reference(n=int((duration_s * fs - 3) * 0.99), K=draws, speed=v, load=L, fs=fs, seed=seed,
                                   digest=ck.params_digest(params))
         ref.duration_s = duration_s
         ref.simulation = {"transient_s": kw["transient_s"], "substeps": kw["substeps"],
-                          "ranges": {"load": 0.03, "speed": 0.01, "temperature": 0.02, "damping": 0.1, "gain": 0.03},
-                          "channel": 0}
+                          "ranges": dict(RUN_TO_RUN_DEFAULT), "channel": 0}
         return ref
 
+    return fake
+
+
+def test_commissioning_is_resumable_and_refuses_other_parameters(tmp_path, monkeypatch):
+    """Two operating points; the simulation replaced by random arrays (the real one is tested below).  An interrupted
+    run keeps its finished point; the next run simulates only the other; a third simulates nothing; another
+    parameter set is refused without overwrite."""
+    calls, fail = [], [True]
+    fake = fake_simulation(calls, fail)
     monkeypatch.setattr(ck, "simulate_reference", fake)
     p = ReducerParams.default()
     recs = _records([(45.0, 90.0), (45.3, 90.0), (30.0, 50.0), (30.1, 50.0)])
-    fail = [True]
     with pytest.raises(KeyboardInterrupt):
         ck.commission_crack_references(tmp_path, p, recs, draws=6, duration_s=0.25)
     assert (tmp_path / "crack" / "op0.npz").exists() and not (tmp_path / "crack" / "op1.npz").exists()
@@ -223,3 +229,65 @@ def test_a_cracked_record_scores_above_healthy_ones_of_the_same_twin(tmp_path):
     assert cracked.index > max(h.index for h in healthy), [s.index for s in scores]
     assert cracked.p_value < min(h.p_value for h in healthy)
     assert all(s.threshold == healthy[0].threshold and s.deflection > 0 for s in scores)
+
+
+# --------------------------------------------------------------------------- update --specimen --channel
+def _fake_identification(monkeypatch):
+    """``identify_specimen`` replaced by a zero pattern (the identification is tested in tests/test_specimen.py)."""
+    from rvdiag.updating import specimen as sp
+
+    def fake(params, records, settings=None, **kw):
+        z = np.zeros(params.stage1.sun_teeth)
+        return sp.SpecimenResult(z, z + 1e-7, np.eye(z.size) * 1e-14, z + 1e-7, z + 1e-6,
+                                 [{"name": r.name, "output_speed_deg_s": r.output_speed_deg_s} for r in records],
+                                 1.0, 1.0, 10, 1e-7, 1e-6, 0, 0, 0.0, settings or sp.SpecimenSettings())
+
+    monkeypatch.setattr(sp, "identify_specimen", fake)
+
+
+def _commissioning_files(d, n=4000, fs=8000.0):
+    """Two CSV records of 0.5 s at 8 kHz: both encoders turning at 45 deg/s at the RV-20E's ratio, and a vibration
+    channel ``acc`` at the same rate."""
+    ratio = ReducerParams.default().ratio
+    t = np.arange(n) / fs
+    a_out = np.radians(45.0) * t
+    files = []
+    for k in range(2):
+        acc = np.random.default_rng(k).standard_normal(n)
+        path = d / f"rec{k}.csv"
+        np.savetxt(path, np.column_stack([t, ratio * a_out, a_out, acc]), delimiter=",",
+                   header="time_s,theta_in,theta_out,acc", comments="", fmt="%.17g")
+        files.append(path)
+    return files
+
+
+def test_update_specimen_commissions_the_crack_references_from_the_vibration_channel(tmp_path, monkeypatch, capsys):
+    from conftest import run_cli
+
+    _fake_identification(monkeypatch)
+    calls = []
+    monkeypatch.setattr(ck, "simulate_reference", fake_simulation(calls))
+    files = _commissioning_files(tmp_path)
+    out = tmp_path / "twin"
+    argv = ["update", "--specimen", *files, "--angle-channel", "theta_in", "--output-angle-channel", "theta_out",
+            "--load", "90", "--out", out, "-q"]
+    code, stdout, err = run_cli(argv + ["--channel", "acc", "--crack-draws", "4"], capsys)
+    assert code == 0, err
+    assert calls == [(45.0, 90.0)]
+    assert "crack reference op0.npz at 45 deg/s 90 N m, 2 baseline record(s), 0.499 s: simulated: 6 simulations" in stdout
+    man = json.loads((out / "crack" / "manifest.json").read_text())
+    assert man["complete"] and man["draws"] == 4 and man["ops"][0]["records"] == [str(f) for f in files]
+    ref = ck.CrackReference.load(out / "crack" / "op0.npz")
+    assert ref.params_digest == ck.params_digest(ReducerParams.load(out / "params.toml")) and ref.n_baseline == 2
+    # again, with --overwrite (the identification is repeated): the reference is kept, not simulated
+    code, stdout, err = run_cli(argv + ["--channel", "acc", "--crack-draws", "4", "--overwrite"], capsys)
+    assert code == 0 and len(calls) == 1 and "kept (simulated before" in stdout, err
+    # without --channel: a note, no references; the encoder's channel as --channel: one error line
+    code, stdout, err = run_cli(argv[:-3] + ["--out", tmp_path / "t2", "-q"], capsys)
+    assert code == 0 and "note: without --channel the crack detector's references" in err
+    assert not (tmp_path / "t2" / "crack").exists()
+    code, _, err = run_cli(argv[:-3] + ["--out", tmp_path / "t3", "-q", "--channel", "theta_in"], capsys)
+    assert code == 2 and err.count("\n") == 1 and "picks the encoder channel 'theta_in'" in err
+    code, _, err = run_cli(argv[:-3] + ["--out", tmp_path / "t4", "-q", "--channel", "acc", "--crack-draws", "3"],
+                           capsys)
+    assert code == 2 and "--crack-draws must be >= 4" in err
