@@ -291,3 +291,41 @@ def test_update_specimen_commissions_the_crack_references_from_the_vibration_cha
     code, _, err = run_cli(argv[:-3] + ["--out", tmp_path / "t4", "-q", "--channel", "acc", "--crack-draws", "3"],
                            capsys)
     assert code == 2 and "--crack-draws must be >= 4" in err
+
+
+# --------------------------------------------------------------------------- evaluate: the records of a store
+def test_evaluate_crack_joins_each_record_and_counts_its_alarms(tmp_path):
+    """Records of two windows (``start`` 0 and 250, the second row first for one of them) on a twin of random
+    arrays: healthy ones are its baseline mean plus a little noise, cracked ones add 3 times the template."""
+    from rvdiag.datasets.store import Samples
+
+    crack = tmp_path / "crack"
+    crack.mkdir()
+    ref = synthetic_reference(n=400, K=8, noise_var=0.01)
+    ref.save(crack / "op0.npz")
+    (crack / "manifest.json").write_text(json.dumps({"complete": True, "alpha": 0.01, "ops": [{"file": "op0.npz"}]}))
+    twin = ck.load_twin(tmp_path)
+    rng = np.random.default_rng(5)
+    X, y, unit, start = [], [], [], []
+    for u, state in enumerate(["T1", "T1", "T1", "T4", "T4", "T2"]):
+        x = np.r_[ref.baseline_mean, np.zeros(100)] + 0.01 * rng.standard_normal(500)
+        if state != "T1":
+            x[:400] += 3 * ref.template
+        rows = [(x[:250], 0), (x[250:], 250)]
+        for w, s0 in (rows[::-1] if u == 1 else rows):
+            X.append(w)
+            y.append(state)
+            unit.append(u)
+            start.append(s0)
+    n = len(y)
+    meta = {"unit": np.array(unit), "start": np.array(start), "output_speed_deg_s": np.full(n, 45.2),
+            "load": np.full(n, 91.0)}
+    s = Samples(X=np.array(X, dtype=np.float32), y=np.array(y), meta=meta, index=np.arange(n))
+    res = ck.evaluate_crack(twin, s, 48000.0)
+    assert res["crack_detection"] == 1.0 and res["crack_false_alarm_rate"] == 0.0 and res["crack_alpha"] == 0.01
+    assert res["crack_n_records"] == {"T1": 3, "T4": 2, "T2": 1} and len(res["crack_records"]) == 6
+    # the same record's index as judged whole
+    x1 = np.r_[s.X[3], s.X[2]].astype(float)
+    assert res["crack_records"][1]["index"] == pytest.approx(twin.judge(x1, 48000.0, 45.2, 91.0).index, rel=1e-12)
+    with pytest.raises(ParameterError, match="cannot be joined"):
+        ck.whole_records(s.X, {"unit": meta["unit"]}, hop=125)

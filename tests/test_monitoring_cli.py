@@ -340,8 +340,8 @@ def test_diagnose_with_a_twin_adds_the_crack_detector(paired, model, twin, tmp_p
 @pytest.mark.parametrize("speed, load, folder, message", [
     (30, 50, "missing", "does not exist"),
     (30, 50, "empty", "holds no crack references"),
-    (60, 50, None, "no crack reference at 60 deg/s 50 N m (within 2.5 % of speed, at the same load); it has 30 "
-                   "deg/s 50 N m, 30 deg/s 130 N m"),
+    (60, 50, None, "no crack reference at 60 deg/s 50 N m (within 2.5 % of speed and 3 % of load); it has "
+                   "30 deg/s 50 N m, 30 deg/s 130 N m"),
     (30, 130, None, "holds 1 s; the crack reference at 30 deg/s needs 2.5 s"),
 ])
 def test_diagnose_with_a_twin_refuses_bad_input_in_one_line(paired, model, twin, tmp_path, capsys, speed, load,
@@ -355,6 +355,25 @@ def test_diagnose_with_a_twin_refuses_bad_input_in_one_line(paired, model, twin,
                               "--load", load, "--twin", where], capsys)
     assert code == 2 and err.startswith("error:") and err.count("\n") == 1, err
     assert message in err
+
+
+def test_evaluate_with_a_twin_adds_the_crack_figures(paired, model, tmp_path, capsys):
+    """The paired store's monitored records (T1-T3, no crack) against one machine's baseline, with a twin of random
+    references at its four operating points: the crack detector's false-alarm rate on T1, no detection figure."""
+    twin = twin_folder(tmp_path / "twin4", [(v, ld, 3000) for v, ld in OPS])
+    base = baseline_store(paired, tmp_path / "base.zarr")
+    argv = ["evaluate", model, paired["store"], "--split", "test", "--baseline", base, "--twin", twin]
+    code, out, err = run_cli(argv + ["--json"], capsys)
+    assert code == 0, err
+    r = json.loads(out)
+    n_t1 = STATES["T1"] * (N_REDUCERS - TRAIN_REDUCERS)
+    assert r["crack_detection"] is None and r["crack_n_records"]["T1"] == n_t1 and r["crack_alpha"] == 0.01
+    assert r["crack_false_alarm_rate"] == sum(c["alarm"] for c in r["crack_records"] if c["label"] == "T1") / n_t1
+    assert "health_index" not in r and "false_alarm_rate" in r
+    code, out, err = run_cli(argv, capsys)
+    assert code == 0 and "crack detector (twin), alarm at 1 % false alarms: detection no records (T4)" in out, err
+    code, out, err = run_cli(argv[:-2] + ["--twin", tmp_path / "none"], capsys)
+    assert code == 2 and err.count("\n") == 1 and "does not exist" in err
 
 
 # ---------------------------------------------------------------------------------------------------- end to end

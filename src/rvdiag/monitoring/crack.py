@@ -57,6 +57,9 @@ STEP_RATE = 192000.0
 #: records within this share of an operating point's speed (and at its load) belong to it, as the sun teeth's
 #: identification groups them (:class:`rvdiag.updating.specimen.SpecimenSettings`)
 SPEED_TOLERANCE = 0.025
+#: a monitored record within this share of a reference's load is judged with it: the load's run-to-run variation
+#: that the draws cover (:data:`rvdiag.evaluation.separability.RUN_TO_RUN_DEFAULT`)
+LOAD_TOLERANCE = 0.03
 #: the noise variance is at least this share of the baseline records' mean power (60 dB below)
 NOISE_FLOOR_SHARE = 1e-6
 #: what the folder ``DIR/crack`` holds besides the references
@@ -558,17 +561,23 @@ class CrackTwin:
                          for d in self.detectors)
 
     def detector(self, output_speed_deg_s: float, load_Nm: float) -> CrackDetector:
-        """The detector of the operating point within :data:`SPEED_TOLERANCE` of ``output_speed_deg_s`` at the load
-        ``load_Nm`` (the nearest speed if several); one :class:`~rvdiag.errors.ParameterError` line naming the
-        commissioned points otherwise."""
+        """The detector of the operating point within :data:`SPEED_TOLERANCE` of ``output_speed_deg_s`` and
+        :data:`LOAD_TOLERANCE` of ``load_Nm`` (the nearest if several, by the larger of the two distances in units
+        of their tolerances); one :class:`~rvdiag.errors.ParameterError` line naming the commissioned points
+        otherwise."""
         v, L = float(output_speed_deg_s), float(load_Nm)
-        near = [d for d in self.detectors if math.isclose(d.reference.load_Nm, L, rel_tol=1e-6, abs_tol=1e-9)
-                and abs(v - d.reference.output_speed_deg_s) <= SPEED_TOLERANCE * d.reference.output_speed_deg_s]
-        if not near:
+
+        def distance(d: CrackDetector) -> float:
+            r = d.reference
+            return max(abs(v - r.output_speed_deg_s) / (SPEED_TOLERANCE * r.output_speed_deg_s),
+                       abs(L - r.load_Nm) / max(LOAD_TOLERANCE * abs(r.load_Nm), 1e-9))
+
+        best = min(self.detectors, key=distance)
+        if not distance(best) <= 1:
             raise ParameterError(f"the twin in {self.folder} has no crack reference at {v:.4g} deg/s {L:g} N m "
-                                 f"(within {100 * SPEED_TOLERANCE:g} % of speed, at the same load); it has "
-                                 f"{self.points()}")
-        return min(near, key=lambda d: abs(v - d.reference.output_speed_deg_s))
+                                 f"(within {100 * SPEED_TOLERANCE:g} % of speed and {100 * LOAD_TOLERANCE:g} % of "
+                                 f"load); it has {self.points()}")
+        return best
 
     def judge(self, x, fs: float, output_speed_deg_s: float, load_Nm: float, name: str = "the record") -> CrackResult:
         """Judge one whole record with the detector of its operating point."""
@@ -606,7 +615,82 @@ def load_twin(folder, alpha: float | None = None) -> CrackTwin:
     return CrackTwin(folder, dets, manifest)
 
 
+# --------------------------------------------------------------------------- a store of a joint's records
+def whole_records(X: np.ndarray, meta: Mapping[str, Any], hop: int | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each record (metadata ``unit``) of windows ``X`` (n, L) as one signal from its first sample: ``(rows, x)``.
+
+    With a ``start`` column (``rvdiag dataset from-files``), the windows starting at 0, L, 2L, ... are joined while
+    they follow on; without one the record's windows are joined in row order, as a library writes them when its
+    ``hop`` is the window's length (``hop``, from the store's config; another hop is refused).  A record without a
+    window at its first sample is refused."""
+    X = np.asarray(X)
+    L = X.shape[1]
+    units = np.asarray(meta["unit"])
+    starts = meta.get("start")
+    if starts is None and hop is not None and int(hop) != L:
+        raise ParameterError(f"the store's windows overlap or leave gaps (hop {hop}, window {L}) and carry no "
+                             "start: its records cannot be joined whole for the crack detector")
+    out = []
+    _, first = np.unique(units, return_index=True)
+    for u in units[np.sort(first)]:
+        rows = np.flatnonzero(units == u)
+        if starts is not None:
+            at = {int(starts[i]): i for i in rows}
+            if 0 not in at:
+                raise ParameterError(f"record {u} of the store has no window at its first sample")
+            keep, pos = [], 0
+            while pos in at:
+                keep.append(at[pos])
+                pos += L
+            rows = np.array(keep)
+        out.append((rows, X[rows].astype(float).ravel()))
+    return out
+
+
+def evaluate_crack(twin: CrackTwin, samples, fs: float, *, healthy: str = "T1", cracked: str = "T4",
+                   hop: int | None = None) -> dict:
+    """The crack detector of ``twin`` over the records of ``samples`` (:class:`rvdiag.datasets.store.Samples` of
+    one joint, at ``fs``; each record whole: :func:`whole_records`), each at its metadata's speed and load.
+
+    Returns ``crack_detection`` (the share of ``cracked`` records alarmed; None without any),
+    ``crack_false_alarm_rate`` (the share of ``healthy`` records alarmed; None without any), the rate they were
+    alarmed at (``crack_alpha``), the share alarmed and the count of every state, and each record's index."""
+    from rvdiag.monitoring.pairing import OPERATING_COLUMNS, with_load_column
+
+    meta = with_load_column(samples.meta)
+    missing = [c for c in OPERATING_COLUMNS if c not in meta]
+    if missing:
+        raise ParameterError(f"the crack detector needs each record's {' and '.join(missing)} (store metadata)")
+    per_state: dict[str, list[bool]] = {}
+    records = []
+    for rows, x in whole_records(samples.X, meta, hop):
+        labels = set(np.asarray(samples.y)[rows].astype(str))
+        if len(labels) != 1:
+            raise ParameterError(f"record {meta['unit'][rows[0]]} carries several labels: {sorted(labels)}")
+        label = labels.pop()
+        v, ld = float(meta[OPERATING_COLUMNS[0]][rows[0]]), float(meta[OPERATING_COLUMNS[1]][rows[0]])
+        res = twin.judge(x, fs, v, ld, name=f"record {meta['unit'][rows[0]]}")
+        per_state.setdefault(label, []).append(res.alarm)
+        records.append({"unit": meta["unit"][rows[0]].item(), "label": label, "index": res.index,
+                        "alarm": res.alarm})
+    share = {k: float(np.mean(v)) for k, v in per_state.items()}
+    return {"crack_detection": share.get(cracked), "crack_false_alarm_rate": share.get(healthy),
+            "crack_alpha": twin.detectors[0].alpha,
+            "crack_alarm_rate_per_state": share, "crack_n_records": {k: len(v) for k, v in per_state.items()},
+            "crack_records": records}
+
+
+def evaluate_crack_on_store(twin: CrackTwin, store, split: str = "all", where: Sequence[str] = ()) -> dict:
+    """:func:`evaluate_crack` over the monitored records of ``split`` of a sample store (those ``rvdiag evaluate``
+    scores with the monitor: :func:`rvdiag.monitoring.training.monitored_records`), whole."""
+    from rvdiag.monitoring.training import monitored_records
+
+    s, _ = monitored_records(store.load(index=store.indices(split, list(where))))
+    hop = ((store.attrs.get("config") or {}).get("signal") or {}).get("hop")
+    return evaluate_crack(twin, s, float(store.fs), hop=hop)
+
+
 __all__ = ["ALPHA", "ASSUMPTIONS", "CRACK_SEVERITY", "CommissioningRecord", "CrackDetector", "CrackReference",
            "CrackResult", "CrackTwin", "attach_baseline", "commission_crack_references", "estimate_noise_var",
-           "load_twin", "model_p_value", "model_threshold", "on_reference_axis", "operating_points", "params_digest",
-           "simulate_reference"]
+           "evaluate_crack", "evaluate_crack_on_store", "load_twin", "model_p_value", "model_threshold", "on_reference_axis", "operating_points",
+           "params_digest", "simulate_reference", "whole_records"]
