@@ -181,8 +181,19 @@ def test_twin_picks_the_operating_point_and_names_the_others(tmp_path):
     with pytest.raises(ParameterError, match=r"no crack reference at 47 deg/s 90 N m .* it has 45 deg/s 90 N m, "
                                              r"30 deg/s 50 N m"):
         twin.detector(47.0, 90.0)
-    res = twin.judge(np.zeros(500), 48000.0, 45.0, 90.0)
+    x = np.random.default_rng(9).standard_normal(500)
+    res = twin.judge(x, 48000.0, 45.0, 90.0)
     assert res.alpha == 0.05 and res.to_dict()["reference"]["file"].endswith("op0.npz")
+    # the statistic and the threshold written out: the filter from the first 4 of 8 draws, the bound from the others
+    from scipy.stats import t as student
+
+    r = synthetic_reference(speed=45.0, load=90.0, seed=0)
+    g = GeneralisedMatchedFilter(r.template.astype(float), r.draws[:4].astype(float), 0.5, 3).fit()
+    w, d = g.weights_, g.deflection_
+    assert res.index == pytest.approx(float((x[:400] - r.baseline_mean) @ w) / d, rel=1e-9, abs=1e-12)
+    h = r.draws[4:].astype(float) @ w
+    thr = student.ppf(0.95, 3) * math.sqrt(1.25 * (4 / 3) * (np.var(h, ddof=1) + 0.5 * (w @ w))) / d
+    assert res.threshold == pytest.approx(thr, rel=1e-12) and res.alarm == (res.index > thr)
     with pytest.raises(ParameterError, match="needs 0.008375 s"):
         twin.judge(np.zeros(300), 48000.0, 45.0, 90.0)
     with pytest.raises(ParameterError, match="sampled at 8000 Hz"):
@@ -291,6 +302,9 @@ def test_update_specimen_commissions_the_crack_references_from_the_vibration_cha
     code, _, err = run_cli(argv[:-3] + ["--out", tmp_path / "t4", "-q", "--channel", "acc", "--crack-draws", "3"],
                            capsys)
     assert code == 2 and "--crack-draws must be >= 4" in err
+    code, _, err = run_cli(["update", files[0], "--output-speed", "45", "--load", "90", "--out", tmp_path / "u.toml",
+                            "--no-crack-references"], capsys)
+    assert code == 2 and "--no-crack-references applies to --specimen" in err
 
 
 # --------------------------------------------------------------------------- evaluate: the records of a store
