@@ -77,6 +77,24 @@ def run_cli(argv: list, capsys) -> tuple[int, str, str]:
     return code, cap.out, cap.err
 
 
+def as_saved_before_a_move(model_dir, new_module: str, old_module: str) -> None:
+    """Rewrite ``model_dir/model.skops`` as rvdiag wrote it when the types of ``new_module`` lived in
+    ``old_module`` (the module names in its ``schema.json``; the arrays are copied unchanged)."""
+    import io
+    import zipfile
+
+    f = Path(model_dir) / "model.skops"
+    src, out = zipfile.ZipFile(io.BytesIO(f.read_bytes())), io.BytesIO()
+    with zipfile.ZipFile(out, "w") as dst:
+        for info in src.infolist():
+            body = src.read(info)
+            if info.filename == "schema.json":
+                assert f'"{new_module}"'.encode() in body
+                body = body.replace(f'"{new_module}"'.encode(), f'"{old_module}"'.encode())
+            dst.writestr(info, body)
+    f.write_bytes(out.getvalue())
+
+
 def potential_gradient(model, t: float, q):
     """Central-difference gradient of :func:`rvdiag.dynamics.linear.potential_energy` at ``(t, q)``, the check
     that the compiled forces are ``Q = -grad V``.  Steps of 1e-12 (1e-13 on rotations, every third coordinate) are

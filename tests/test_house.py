@@ -40,7 +40,8 @@ def test_the_motor_current_study_has_a_module_named_for_it():
     from rvdiag.evaluation import motor_current_study
 
     assert callable(motor_current_study.run_mcsa)
-    assert not (SRC / "evaluation" / "mcsa.py").exists()
+    assert motor_current_study.run_mcsa.__module__.startswith("rvdiag.evaluation.motor_current_study.")
+    # its old path is only a deprecated alias of it (tests/test_deprecation.py)
 
 
 def test_one_home_for_window_starts_and_the_spectral_peak():

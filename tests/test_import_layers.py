@@ -3,6 +3,7 @@ circle.  Every ``import`` statement is read with ``ast`` (those inside functions
 dependency), so the test needs no import of rvdiag and runs in well under a second."""
 
 import ast
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -98,25 +99,33 @@ def test_no_import_circle_between_subpackages():
 CLI_TESTS = ("test_cli_basics.py", "test_cli_options.py", "test_warning_lines.py")
 
 
+def python_files(mentioning: str = ""):
+    """The Python files of the package, the tests, benchmarks, research scripts and examples (those whose text
+    matches the regular expression ``mentioning``: a quick filter before they are parsed)."""
+    root = SRC.parents[1]
+    for folder in (SRC, root / "tests", root / "bench", root / "research", root / "examples"):
+        yield from (f for f in sorted(folder.rglob("*.py")) if folder.is_dir() and re.search(mentioning, f.read_text()))
+
+
+def imported_names(path: Path):
+    """``("FILE:LINE", name)`` of each module and name that ``path`` imports (``from a import b``: ``a`` and
+    ``a.b``), FILE relative to the repository."""
+    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+        names = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+        yield from ((f"{path.relative_to(SRC.parents[1])}:{node.lineno}", n) for n in names)
+
+
 def test_nothing_outside_the_cli_imports_its_private_modules():
     """``rvdiag.cli._*`` are the command line's own; the rest of the package, the tests, benchmarks, research scripts
     and examples use the public API (rvdiag.workflows, rvdiag.monitoring).  The command line's own unit tests
     (:data:`CLI_TESTS`) may test its private parts."""
-    root = SRC.parents[1]
-    bad = []
-    for folder in (SRC, root / "tests", root / "bench", root / "research", root / "examples"):
-        for f in sorted(folder.rglob("*.py")) if folder.is_dir() else ():
-            if f.is_relative_to(SRC / "cli") or f == Path(__file__).resolve() or f.name in CLI_TESTS:
-                continue
-            tree = ast.parse(f.read_text(), filename=str(f))
-            for node in ast.walk(tree):
-                names = []
-                if isinstance(node, ast.Import):
-                    names = [a.name for a in node.names]
-                elif isinstance(node, ast.ImportFrom) and node.module:
-                    names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
-                bad += [f"{f.relative_to(root)}:{node.lineno}: {n}" for n in names
-                        if n.startswith("rvdiag.cli._")]
+    bad = [f"{where}: {name}" for f in python_files(r"rvdiag\.cli")
+           if not (f.is_relative_to(SRC / "cli") or f == Path(__file__).resolve() or f.name in CLI_TESTS)
+           for where, name in imported_names(f) if name.startswith("rvdiag.cli._")]
     assert not bad, "\n".join(bad)
 
 

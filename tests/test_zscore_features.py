@@ -145,12 +145,11 @@ def test_rvdiag_train_takes_tsa_ci_z(tmp_path, capsys):
 
 def test_a_model_saved_before_the_move_to_zscore_still_loads(tmp_path):
     """features/baseline.py became features/zscore.py: a model.skops written before names the old module, and
-    loads through rvdiag.registry.MOVED_TYPES (no module is left at the old path)."""
-    import importlib.util
-    import io
-    import zipfile
+    loads through rvdiag.registry.MOVED_TYPES (not through the deprecated alias left at the old path)."""
+    import warnings
 
     import skops.io as sio
+    from conftest import as_saved_before_a_move
 
     from rvdiag.registry import MOVED_TYPES, TRUSTED_TYPES
 
@@ -158,18 +157,14 @@ def test_a_model_saved_before_the_move_to_zscore_still_loads(tmp_path):
     p = make_classical_model("svm", "tsa-ci-z", features_kw={"fs": FS, "speed_column": "output_speed_deg_s",
                                                             "min_count": 8}).fit(X, y)
     save_classical(p, tmp_path / "m")
-    f = tmp_path / "m" / "model.skops"
-    src, out = zipfile.ZipFile(io.BytesIO(f.read_bytes())), io.BytesIO()
-    with zipfile.ZipFile(out, "w") as dst:  # the file as the module's old home wrote it
-        for info in src.infolist():
-            body = src.read(info)
-            if info.filename == "schema.json":
-                body = body.replace(b'"rvdiag.features.zscore"', b'"rvdiag.features.baseline"')
-            dst.writestr(info, body)
-    f.write_bytes(out.getvalue())
+    as_saved_before_a_move(tmp_path / "m", "rvdiag.features.zscore", "rvdiag.features.baseline")
     old = "rvdiag.features.baseline.HealthyBaselineFeatures"
-    assert old in sio.get_untrusted_types(data=f.read_bytes()) and old not in TRUSTED_TYPES
-    assert MOVED_TYPES[old] in TRUSTED_TYPES and importlib.util.find_spec("rvdiag.features.baseline") is None
-    q = load_classical(tmp_path / "m")
+    assert old in sio.get_untrusted_types(data=(tmp_path / "m" / "model.skops").read_bytes())
+    assert old not in TRUSTED_TYPES
+    assert MOVED_TYPES[old] in TRUSTED_TYPES
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        q = load_classical(tmp_path / "m")
+    assert not [w for w in rec if "rvdiag.features.baseline" in str(w.message)]
     assert type(q.steps[0][1]) is HealthyBaselineFeatures
     np.testing.assert_array_equal(q.predict(X), p.predict(X))

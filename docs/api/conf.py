@@ -3,8 +3,8 @@
 The reference is built from the numpydoc docstrings.  ``PACKAGES`` lists the public packages in the order of the
 layers, top to bottom; each gets one page, written here at build time into ``generated/`` (not kept in git): the
 package's docstring, then the names of its ``__all__``, or, for a package without ``__all__``, each public
-module's members.  A package listed but not in this checkout is left out with a line on the console, so a new one
-is added by naming it here.
+module's members (not the deprecated old paths of moved modules).  A package listed but not in this checkout is
+left out with a line on the console, so a new one is added by naming it here.
 """
 
 from __future__ import annotations
@@ -67,6 +67,13 @@ def _has_all(path: Path) -> bool:
                for node in ast.parse(path.read_text(encoding="utf-8")).body)
 
 
+def _is_moved(path: Path) -> bool:
+    """Whether a module file is the deprecated old path of a moved module (it calls
+    :func:`rvdiag.deprecation.moved_module`): not a module of the reference, whose page is the new one's."""
+    return any(isinstance(node, ast.Call) and getattr(node.func, "id", None) == "moved_module"
+               for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))))
+
+
 def _page(name: str, summary: str) -> str | None:
     pkg = SRC / "rvdiag" / name
     init = pkg / "__init__.py" if pkg.is_dir() else pkg.with_suffix(".py")
@@ -80,7 +87,7 @@ def _page(name: str, summary: str) -> str | None:
     if _has_all(init):  # a package: the names of its __all__, wherever they are defined
         lines[-1:] = ["   :members:", "   :imported-members:", ""]
         return "\n".join(lines)
-    subs = [p.stem for p in pkg.glob("*.py")] + [p.parent.name for p in pkg.glob("*/__init__.py")]
+    subs = [p.stem for p in pkg.glob("*.py") if not _is_moved(p)] + [p.parent.name for p in pkg.glob("*/__init__.py")]
     for mod in sorted(m for m in subs if not m.startswith("_")):
         sub = f"rvdiag.{name}.{mod}"
         lines += [f"``{sub}``", "-" * (len(sub) + 4), "", f".. automodule:: {sub}", "   :members:", ""]

@@ -99,6 +99,8 @@ MOVED_TYPES: dict[str, str] = {
     "rvdiag.features.baseline.HealthyBaselineFeatures": "rvdiag.features.zscore.HealthyBaselineFeatures",
     # the baseline monitor lived in models/monitoring.py until 2026-11-28 (now rvdiag.monitoring, its own package)
     "rvdiag.models.monitoring.BaselineMonitor": "rvdiag.monitoring.detector.BaselineMonitor",
+    # the CNN features (feature set ``cnn``) lived in features/cnn.py until 2026-11-24 (now models/cnn_features.py)
+    "rvdiag.features.cnn.CNNFeatures": "rvdiag.models.cnn_features.CNNFeatures",
 }
 
 

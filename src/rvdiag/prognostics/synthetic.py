@@ -2,7 +2,7 @@
 remaining life (not signals: the health index is drawn from a stated model of the monitor's index).
 
 The monitor's health index is a squared Mahalanobis distance of a record's features from the healthy ones over the
-alarm threshold (:mod:`rvdiag.models.monitoring`).  Here, for a record with fault size ``a``,
+alarm threshold (:mod:`rvdiag.monitoring.detector`).  Here, for a record with fault size ``a``,
 
     HI = s * chi'^2_d(lambda(a)) / q,   lambda(a) = lambda_fail (a / a_fail)^2,
 

@@ -1,0 +1,8 @@
+"""Deprecated: this module moved to :mod:`rvdiag.library.work_units`.
+
+Importing this old path warns; it will be removed in a later release.
+"""
+
+from rvdiag.deprecation import moved_module
+
+__getattr__, __dir__ = moved_module(__name__, "rvdiag.library.work_units")
