@@ -153,16 +153,21 @@ class CrackReference:
         if not isinstance(meta, dict) or meta.get("format") != FORMAT:
             raise DataFileError(f"{path} is not a crack reference (format {meta.get('format')!r}, expected "
                                 f"{FORMAT!r})" if isinstance(meta, dict) else f"{path} is not a crack reference")
-        n = int(meta["n_points"])
+        try:
+            n = int(meta["n_points"])
+            ref = cls(output_speed_deg_s=float(meta["output_speed_deg_s"]), load_Nm=float(meta["load_Nm"]),
+                      fs=float(meta["fs"]), duration_s=float(meta["duration_s"]), n_points=n, template=template,
+                      draws=draws, seed=int(meta["seed"]), severity=dict(meta["severity"]),
+                      params_digest=str(meta["params_digest"]), seconds=float(meta["seconds"]),
+                      simulation=dict(meta["simulation"]), baseline_mean=mean if mean.size else None,
+                      n_baseline=int(meta["n_baseline"]), noise_var=float(meta["noise_var"]),
+                      noise_var_source=str(meta["noise_var_source"]),
+                      baseline_records=list(meta["baseline_records"]))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise DataFileError(f"{path}: its metadata lack or garble {exc}") from None
         if template.shape != (n,) or draws.ndim != 2 or draws.shape[1] != n or mean.size not in (0, n):
             raise DataFileError(f"{path}: the arrays do not match its {n} points")
-        return cls(output_speed_deg_s=float(meta["output_speed_deg_s"]), load_Nm=float(meta["load_Nm"]),
-                   fs=float(meta["fs"]), duration_s=float(meta["duration_s"]), n_points=n, template=template,
-                   draws=draws, seed=int(meta["seed"]), severity=dict(meta["severity"]),
-                   params_digest=str(meta["params_digest"]), seconds=float(meta["seconds"]),
-                   simulation=dict(meta["simulation"]), baseline_mean=mean if mean.size else None,
-                   n_baseline=int(meta["n_baseline"]), noise_var=float(meta["noise_var"]),
-                   noise_var_source=str(meta["noise_var_source"]), baseline_records=list(meta["baseline_records"]))
+        return ref
 
 
 def simulate_reference(params, output_speed_deg_s: float, load_Nm: float, fs: float, duration_s: float,
@@ -604,11 +609,15 @@ def load_twin(folder, alpha: float | None = None) -> CrackTwin:
         manifest = json.loads(mpath.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise DataFileError(f"{mpath} cannot be read: {exc}") from None
+    if not isinstance(manifest, dict):
+        raise DataFileError(f"{mpath} is not a crack references' manifest")
     if not manifest.get("complete"):
         raise ParameterError(f"the crack references in {crack} are unfinished (the commissioning was interrupted): "
                              "run it again; the points already simulated are kept")
     if not manifest.get("ops"):
         raise ParameterError(f"{mpath} lists no crack reference")
+    if not all(isinstance(op, dict) and isinstance(op.get("file"), str) for op in manifest["ops"]):
+        raise DataFileError(f"{mpath}: every point must name its file")
     a = float(manifest.get("alpha", ALPHA)) if alpha is None else float(alpha)
     dets = [CrackDetector(CrackReference.load(crack / op["file"]), a, str(crack / op["file"]))
             for op in manifest["ops"]]
