@@ -29,7 +29,7 @@ Assumptions, stated wherever the detector is described:
 - the joint's run-to-run variation is the one the model draws (:data:`~rvdiag.evaluation.separability.
   RUN_TO_RUN_DEFAULT`); the threshold comes from the model's own draws, not from the joint's healthy records.
 - the noise floor is white: the baseline records vary by the run-to-run variation plus the floor, the draws by the
-  variation alone (:func:`estimate_noise_var`).
+  variation alone; its variance is what of the records' spread the draws do not span (:func:`estimate_noise_var`).
 """
 
 from __future__ import annotations
@@ -73,7 +73,8 @@ ASSUMPTIONS = (
     "the joint's run-to-run variation is the one the model draws (load 3 %, speed 1 %, temperature 2 %, mesh "
     "damping 10 %, gain 3 %); the alarm threshold comes from the model's own draws, not from healthy records of "
     "the joint",
-    "the noise floor is white; its variance is the baseline records' spread less the draws' spread (unless given)",
+    "the noise floor is white; its variance is what of the baseline records' spread the draws do not span "
+    "(unless given)",
 )
 
 
@@ -257,34 +258,52 @@ def on_reference_axis(x, fs: float, output_speed_deg_s: float, reference: CrackR
     return on_angle_axis(x, v / reference.output_speed_deg_s, reference.n_points)
 
 
-def estimate_noise_var(aligned_baseline, draws, floor: float | None = None) -> float:
+#: the ways :func:`estimate_noise_var` estimates the floor
+NOISE_METHODS = ("projection", "difference")
+
+
+def estimate_noise_var(aligned_baseline, draws, floor: float | None = None, method: str = "projection") -> float:
     """The white noise floor's variance per point, from a joint's commissioning records and the twin's draws.
 
-    A baseline record on the reference's axis is ``s(theta) + e``: the healthy signal at its run-to-run factors
-    ``theta`` plus white noise ``e`` of variance ``sigma^2``, independent of each other, so the records' sample
-    variance at each point estimates ``Var s + sigma^2``; the simulated draws are noise-free, their sample
-    variance estimates ``Var s`` alone (if the model draws the joint's run-to-run variation).  Averaged over the
-    ``n`` points::
+    A baseline record on the reference's axis is ``x_b = s(theta_b) + e_b``: the healthy signal at its run-to-run
+    factors ``theta_b`` plus white noise ``e_b`` of variance ``sigma^2``, independent of each other.  The simulated
+    draws ``h_k = s(theta_k)`` are noise-free: they hold the run-to-run variation alone (as far as the model draws
+    the joint's).  Two estimates:
 
-        sigma^2 = max(mean_i var_b(x_i) - mean_i var_k(h_i), floor)
+    - ``"projection"`` (default): the records' deviations from their mean, ``D = x_b - mean_b x``, less their
+      projection onto the span of the draws' deviations (rank ``r <= K - 1``, ``P`` its orthogonal projector)::
 
-    (both with ``ddof = 1``; the method of moments).  ``floor`` (default :data:`NOISE_FLOOR_SHARE` times the
-    records' mean power) keeps it positive where the records spread less than the draws: a joint whose
-    run-to-run variation is smaller than the model's, or too few records.  Needs at least 2 baseline records.
+          sigma^2 = ||(I - P) D||_F^2 / ((n_b - 1) (n - r))
+
+      The run-to-run deviations lie in that span as far as the draws span the variation; white noise is isotropic,
+      so ``(n_b - 1)(n - r)`` of its degrees of freedom remain.  Variation the draws do not span stays in and
+      raises the estimate: it errs towards a larger floor, a lower deflection and fewer alarms.
+    - ``"difference"``: the method of moments on the points' sample variances (``ddof = 1``), averaged over the
+      ``n`` points: ``sigma^2 = mean_i var_b(x_i) - mean_i var_k(h_i)``.  Unbiased, but where the run-to-run
+      variation dominates the floor its spread is that of the variation estimated from ``n_b - 1`` and ``K - 1``
+      degrees of freedom: several times the floor itself with 2-3 records.
+
+    Either is at least ``floor`` (default :data:`NOISE_FLOOR_SHARE` times the records' mean power).  The estimate is
+    the floor's variance on the reference's axis: the stretch's interpolation (:func:`on_reference_axis`) lowers a
+    white floor's variance a little, as it does the monitored record's.  Needs at least 2 baseline records.
 
     Parameters
     ----------
     aligned_baseline : array (n_b, n), the baseline records on the reference's axis (:func:`on_reference_axis`)
     draws : array (K, n), the twin's healthy draws on the same axis
     floor : float, optional
+    method : ``"projection"`` or ``"difference"``
     """
-    return _noise_var(aligned_baseline, draws, floor)[0]
+    return _noise_var(aligned_baseline, draws, floor, method)[0]
 
 
-def _noise_var(aligned_baseline, draws, floor: float | None = None) -> tuple[float, bool]:
+def _noise_var(aligned_baseline, draws, floor: float | None = None,
+               method: str = "projection") -> tuple[float, bool]:
     """:func:`estimate_noise_var` and whether the floor set it."""
     B = np.asarray(aligned_baseline, dtype=float)
     H = np.asarray(draws, dtype=float)
+    if method not in NOISE_METHODS:
+        raise ParameterError(f"the noise estimate's method must be one of {', '.join(NOISE_METHODS)}, got {method!r}")
     if B.ndim != 2 or B.shape[0] < 2:
         raise ParameterError(f"estimating the noise floor needs at least 2 baseline records at the operating point, "
                              f"got {B.shape[0] if B.ndim == 2 else B.ndim}; commission more records or give the "
@@ -294,24 +313,32 @@ def _noise_var(aligned_baseline, draws, floor: float | None = None) -> tuple[flo
     if floor is None:
         floor = NOISE_FLOOR_SHARE * float(np.mean(B ** 2))
     floor = max(float(floor), np.finfo(float).tiny)
-    est = float(np.mean(np.var(B, axis=0, ddof=1))) - float(np.mean(np.var(H, axis=0, ddof=1)))
+    if method == "difference":
+        est = float(np.mean(np.var(B, axis=0, ddof=1))) - float(np.mean(np.var(H, axis=0, ddof=1)))
+    else:
+        D = B - B.mean(axis=0)
+        U, sv, _ = np.linalg.svd((H - H.mean(axis=0)).T, full_matrices=False)     # the draws' span: U's columns
+        r = int(np.sum(sv > sv.max() * max(H.shape) * np.finfo(float).eps)) if sv.size and sv.max() > 0 else 0
+        R = D - (D @ U[:, :r]) @ U[:, :r].T
+        est = float(np.sum(R ** 2)) / ((B.shape[0] - 1) * (B.shape[1] - r))
     return max(est, floor), est <= floor
 
 
 def attach_baseline(reference: CrackReference, records: Sequence[CommissioningRecord],
-                    noise_var: float | None = None) -> CrackReference:
+                    noise_var: float | None = None, noise_method: str = "projection") -> CrackReference:
     """``reference`` with the joint's baseline at its operating point: the mean of the commissioning ``records``
     (each whole, from its first sample, on the reference's axis: :func:`on_reference_axis`), their number, and the
-    noise variance: ``noise_var`` when given, else :func:`estimate_noise_var` (2 records or more)."""
+    noise variance: ``noise_var`` when given, else :func:`estimate_noise_var` by ``noise_method`` (2 records or
+    more)."""
     if not records:
         raise ParameterError(f"no commissioning record at {reference.output_speed_deg_s:.4g} deg/s "
                              f"{reference.load_Nm:g} N m")
     A = np.array([on_reference_axis(r.data, r.fs, r.output_speed_deg_s, reference, name=r.name or "a record")
                   for r in records])
     if noise_var is None:
-        nv, floored = _noise_var(A, reference.draws)
-        source = ("the floor (the records spread no more than the draws)" if floored
-                  else f"estimated from {len(records)} baseline records")
+        nv, floored = _noise_var(A, reference.draws, method=noise_method)
+        source = (f"the floor ({noise_method}: the records spread no more than the draws)" if floored
+                  else f"estimated ({noise_method}) from {len(records)} baseline records")
     else:
         nv = float(noise_var)
         if not (math.isfinite(nv) and nv > 0):
@@ -456,7 +483,8 @@ def operating_points(records: Sequence[CommissioningRecord], tolerance: float = 
 
 def commission_crack_references(folder, params, records: Sequence[CommissioningRecord], *, draws: int = 32,
                                 seed: int = 0, alpha: float = ALPHA, duration_s: float = 1.0,
-                                noise_var: float | None = None, overwrite: bool = False,
+                                noise_var: float | None = None, noise_method: str = "projection",
+                                overwrite: bool = False,
                                 severity: Mapping[str, float] | None = None, transient_s: float = TRANSIENT_S,
                                 substeps: int | None = None, progress=None) -> dict:
     """Simulate a joint's crack references, one per operating point of its commissioning ``records``, into
@@ -508,6 +536,7 @@ def commission_crack_references(folder, params, records: Sequence[CommissioningR
     manifest: dict[str, Any] = {"format": "rvdiag crack references 1", "complete": False, "params_digest": digest,
                                 "draws": int(draws), "seed": int(seed), "alpha": float(alpha),
                                 "severity": sev, "transient_s": float(transient_s),
+                                "noise": "given" if noise_var is not None else noise_method,
                                 "run_to_run": dict(RUN_TO_RUN_DEFAULT),
                                 "simulations_per_point": int(draws) + 2, "assumptions": list(ASSUMPTIONS), "ops": []}
     total = len(groups)
@@ -540,7 +569,7 @@ def commission_crack_references(folder, params, records: Sequence[CommissioningR
         if ref is None:
             ref = simulate_reference(params, speed, load, fs, dur, int(draws), int(seed) + k, severity=sev,
                                      transient_s=transient_s, substeps=sub)
-        ref = attach_baseline(ref, recs, noise_var)
+        ref = attach_baseline(ref, recs, noise_var, noise_method)
         CrackDetector(ref, alpha)  # refuse here, not at the first monitored record, a reference that cannot judge
         ref.save(path)
         manifest["ops"].append({"file": path.name, "output_speed_deg_s": speed, "load_Nm": float(load),
@@ -699,7 +728,8 @@ def evaluate_crack_on_store(twin: CrackTwin, store, split: str = "all", where: S
     return evaluate_crack(twin, s, float(store.fs), hop=hop)
 
 
-__all__ = ["ALPHA", "ASSUMPTIONS", "CRACK_SEVERITY", "CommissioningRecord", "CrackDetector", "CrackReference",
-           "CrackResult", "CrackTwin", "attach_baseline", "commission_crack_references", "estimate_noise_var",
-           "evaluate_crack", "evaluate_crack_on_store", "load_twin", "model_p_value", "model_threshold", "on_reference_axis", "operating_points",
-           "params_digest", "simulate_reference", "whole_records"]
+__all__ = ["ALPHA", "ASSUMPTIONS", "CRACK_SEVERITY", "NOISE_METHODS", "CommissioningRecord", "CrackDetector",
+           "CrackReference", "CrackResult", "CrackTwin", "attach_baseline", "commission_crack_references",
+           "estimate_noise_var", "evaluate_crack", "evaluate_crack_on_store", "load_twin", "model_p_value",
+           "model_threshold", "on_reference_axis", "operating_points", "params_digest", "simulate_reference",
+           "whole_records"]
