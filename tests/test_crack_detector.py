@@ -296,7 +296,8 @@ def test_update_specimen_commissions_the_crack_references_from_the_vibration_cha
     code, stdout, err = run_cli(argv + ["--channel", "acc", "--crack-draws", "4"], capsys)
     assert code == 0, err
     assert calls == [(45.0, 90.0)]
-    assert "crack reference op0.npz at 45 deg/s 90 N m, 2 baseline record(s), 0.499 s: simulated: 6 simulations" in stdout
+    assert ("crack reference op0.npz at 45 deg/s 90 N m, 2 baseline record(s), 0.499 s: simulated: 6 simulations"
+            in stdout)
     man = json.loads((out / "crack" / "manifest.json").read_text())
     assert man["complete"] and man["draws"] == 4 and man["ops"][0]["records"] == [str(f) for f in files]
     ref = ck.CrackReference.load(out / "crack" / "op0.npz")

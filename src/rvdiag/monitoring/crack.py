@@ -654,7 +654,8 @@ def load_twin(folder, alpha: float | None = None) -> CrackTwin:
 
 
 # --------------------------------------------------------------------------- a store of a joint's records
-def whole_records(X: np.ndarray, meta: Mapping[str, Any], hop: int | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+def whole_records(X: np.ndarray, meta: Mapping[str, Any],
+                  hop: int | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
     """Each record (metadata ``unit``) of windows ``X`` (n, L) as one signal from its first sample: ``(rows, x)``.
 
     With a ``start`` column (``rvdiag dataset from-files``), the windows starting at 0, L, 2L, ... are joined while
