@@ -492,7 +492,8 @@ def commission_crack_references(folder, params, records: Sequence[CommissioningR
 
     The records are grouped by :func:`operating_points`; each point is simulated at its records' mean speed and
     their load (:func:`simulate_reference`, ``draws + 2`` simulations, seed ``seed + k``) for ``duration_s`` (at
-    most what the point's every record covers on the axis), and gets the baseline of its records
+    most what the point's every record covers on the axis, and what a record as long as the shortest covers at
+    :data:`SPEED_TOLERANCE` below the point's speed), and gets the baseline of its records
     (:func:`attach_baseline`).  Resumable: a point whose file already holds the same simulation (the same
     parameter digest, operating point, rate, duration, draws, seed, crack and settings) is not simulated again (its
     baseline is refreshed from the records); a file there that holds another is refused with one
@@ -545,8 +546,10 @@ def commission_crack_references(folder, params, records: Sequence[CommissioningR
         recs = [records[i] for i in g]
         speed = float(np.mean([r.output_speed_deg_s for r in recs]))
         load, fs = recs[0].load_Nm, recs[0].fs
-        # every record of the point must cover the axis: (fs D - 3)(1 - speed range) / ratio + 3 <= its samples
-        span = min((np.asarray(r.data).size - 4) * (r.output_speed_deg_s / speed) for r in recs) / fs
+        # every record of the point must cover the axis, (fs D - 3)(1 - speed range) / ratio + 3 <= its samples, and
+        # so must a monitored record as long as the shortest, down to SPEED_TOLERANCE slower than the point
+        span = min((np.asarray(r.data).size - 4) * min(r.output_speed_deg_s / speed, 1 - SPEED_TOLERANCE)
+                   for r in recs) / fs
         dur = min(float(duration_s), math.floor(1000 * span) / 1000)
         if dur <= 0:
             raise ParameterError(f"the records at {speed:.4g} deg/s are too short for a crack reference")
