@@ -504,6 +504,7 @@ def commission_crack_references(folder, params, records: Sequence[CommissioningR
     Returns the manifest (``ops``: per point its file, speed, load, records, seconds, and whether it was
     ``simulated`` now or ``kept``)."""
     from rvdiag.atomic import atomic_write
+    from rvdiag.evaluation.separability import RUN_TO_RUN_DEFAULT
     from rvdiag.progress import report
 
     progress = progress or report
@@ -514,6 +515,11 @@ def commission_crack_references(folder, params, records: Sequence[CommissioningR
                              f"its threshold), got {draws!r}")
     if not 0 < float(alpha) < 1:
         raise ParameterError(f"the false-alarm rate must lie in (0, 1), got {alpha}")
+    if noise_method not in NOISE_METHODS:
+        raise ParameterError(f"the noise estimate's method must be one of {', '.join(NOISE_METHODS)}, got "
+                             f"{noise_method!r}")
+    if noise_var is not None and not (math.isfinite(float(noise_var)) and float(noise_var) > 0):
+        raise ParameterError(f"the noise variance must be a positive number, got {noise_var!r}")
     for r in records:
         x = np.asarray(r.data)
         if x.ndim != 1 or not np.all(np.isfinite(x)):
@@ -532,8 +538,6 @@ def commission_crack_references(folder, params, records: Sequence[CommissioningR
     crack = _crack_dir(folder)
     crack.mkdir(parents=True, exist_ok=True)
     digest = params_digest(params)
-    from rvdiag.evaluation.separability import RUN_TO_RUN_DEFAULT
-
     manifest: dict[str, Any] = {"format": "rvdiag crack references 1", "complete": False, "params_digest": digest,
                                 "draws": int(draws), "seed": int(seed), "alpha": float(alpha),
                                 "severity": sev, "transient_s": float(transient_s),
