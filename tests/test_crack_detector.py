@@ -355,3 +355,58 @@ def test_evaluate_crack_joins_each_record_and_counts_its_alarms(tmp_path):
     assert res["crack_records"][1]["index"] == pytest.approx(twin.judge(x1, 48000.0, 45.2, 91.0).index, rel=1e-12)
     with pytest.raises(ParameterError, match="cannot be joined"):
         ck.whole_records(s.X, {"unit": meta["unit"]}, hop=125)
+
+
+# --------------------------------------------------------------------------- the fleet
+def test_fleet_commission_with_a_twin_adds_the_crack_detector_to_each_record(tmp_path):
+    """A joint commissioned with a twin (random references at 45 deg/s 90 N m): its references are copied to the
+    epoch, each record's result holds the crack detector's, and a record at a point the twin lacks holds the
+    reason instead (the record itself is judged by the monitor as ever).  The fleet's stand-in judge with the real
+    crack detector (its records carry no rate: 48 kHz)."""
+    from datetime import datetime, timedelta, timezone
+    from pathlib import Path
+    from types import SimpleNamespace
+
+    from fleet_fakes import FakeJudge
+
+    from rvdiag.errors import FleetError
+    from rvdiag.fleet import Fleet, Reading
+    from rvdiag.fleet.judge import Judge
+
+    class TwinJudge(FakeJudge):
+        real = Judge()
+
+        def twin(self, folder):
+            return self.real.twin(folder)
+
+        def crack(self, folder, x, op):
+            return self.real.crack(folder, SimpleNamespace(data=x, fs=48000.0), op)
+
+    twin = tmp_path / "twin"
+    (twin / "crack").mkdir(parents=True)
+    synthetic_reference().save(twin / "crack" / "op0.npz")
+    (twin / "crack" / "manifest.json").write_text(json.dumps({"complete": True, "alpha": 0.01,
+                                                              "ops": [{"file": "op0.npz"}]}))
+    t0, joint, reading = datetime(2026, 1, 1, tzinfo=timezone.utc), "plant/r1/j3", Reading(output_speed=45.0, load=90.0)
+    rng = np.random.default_rng(2)
+    files = []
+    for i in range(5):
+        files.append(tmp_path / f"r{i}.npy")
+        np.save(files[-1], 0.1 + 0.1 * rng.standard_normal(500))
+    f = Fleet.init(f"sqlite:///{tmp_path / 'fleet.db'}", judge=TwinJudge())
+    try:
+        (tmp_path / "monitor").mkdir()
+        f.add_joint(joint, tmp_path / "monitor")
+        with pytest.raises(FleetError, match="--twin .*none: the twin folder .* does not exist"):
+            f.commission(joint, files[:3], reading, time=t0, twin=tmp_path / "none")
+        res = f.commission(joint, files[:3], reading, time=t0, twin=twin)
+        assert (Path(res["twin"]) / "crack" / "op0.npz").is_file() and Path(res["twin"]).parent != twin.parent
+        a = f.ingest(joint, files[3], reading=reading, time=t0 + timedelta(hours=1))
+        crack = a["result"]["crack"]
+        want = ck.load_twin(twin).judge(np.load(files[3]), 48000.0, 45.0, 90.0)
+        assert crack["index"] == pytest.approx(want.index, rel=1e-12) and crack["alarm"] == want.alarm
+        assert crack["reference"]["file"].startswith(res["twin"])
+        b = f.ingest(joint, files[4], reading=Reading(output_speed=45.0, load=50.0), time=t0 + timedelta(hours=2))
+        assert b["rejected"] is None and "no crack reference at 45 deg/s 50 N m" in b["result"]["crack"]["error"]
+    finally:
+        f.close()
