@@ -62,6 +62,7 @@ from rvdiag.evaluation.separability import RUN_TO_RUN_DEFAULT, gmf_reference
 from rvdiag.features.gmf import GeneralisedMatchedFilter, on_angle_axis
 from rvdiag.library.config import DAMPING_KEYS, STIFFNESS_KEYS
 from rvdiag.library.paired import apply_variation, draw_variation
+from rvdiag.monitoring.crack import model_threshold  # the product's threshold, one home
 from rvdiag.library.states import tooth_faults
 from rvdiag.params import ReducerParams
 from rvdiag.updating import specimen as sp
@@ -233,20 +234,6 @@ def run_reducer(r: int, ss, a) -> None:
     save(path, rec)
     os.remove(part)
     print(f"reducer {r}: references done ({time.perf_counter() - t0:.0f} s)", flush=True)
-
-
-def model_threshold(g: GeneralisedMatchedFilter, fresh: np.ndarray, noise_var: float, n_baseline: int) -> dict:
-    """The alarm thresholds of ``T / d`` at 1 % and 5 % from the model alone: the spread of ``w^T h`` over healthy
-    draws ``fresh`` that the filter ``g`` was not fitted on, plus the noise's ``sigma^2 |w|^2``, times ``1 + 1/n``
-    for the baseline mean, and the Student-t quantile of ``m - 1`` degrees of freedom times ``sqrt(1 + 1/m)`` (a
-    Gaussian prediction bound for a new record, ``m`` fresh draws)."""
-    from scipy.stats import t as student
-
-    w = g.weights_
-    m = fresh.shape[0]
-    s2 = float(np.var(fresh @ w, ddof=1)) + noise_var * float(w @ w)
-    sd = np.sqrt((1 + 1 / n_baseline) * s2) / g.deflection_
-    return {al: float(student.ppf(1 - al, m - 1) * np.sqrt(1 + 1 / m) * sd) for al in (0.01, 0.05)}
 
 
 def evaluate(a) -> dict:

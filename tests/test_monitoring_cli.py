@@ -300,6 +300,82 @@ def test_diagnose_refuses_a_record_far_from_every_baseline_operating_point(paire
     assert code == 2 and "give --load" in err
 
 
+# ------------------------------------------------------------------------------------------- the twin's crack detector
+def twin_folder(path, ops):
+    """A twin folder whose crack references (``ops``: speed, load, points) hold random arrays, at this store's rate
+    (the detector itself is tested on simulated records in tests/test_crack_detector.py)."""
+    from test_crack_detector import synthetic_reference
+
+    (path / "crack").mkdir(parents=True)
+    for k, (v, ld, n) in enumerate(ops):
+        synthetic_reference(n=n, speed=v, load=ld, fs=FS, seed=k).save(path / "crack" / f"op{k}.npz")
+    (path / "crack" / "manifest.json").write_text(json.dumps({"complete": True, "alpha": 0.01,
+                                                              "ops": [{"file": f"op{k}.npz"} for k in range(len(ops))]}))
+    return path
+
+
+@pytest.fixture(scope="module")
+def twin(tmp_path_factory):
+    return twin_folder(tmp_path_factory.mktemp("twin") / "twin", [(30.0, 50.0, 3000), (30.0, 130.0, 20000)])
+
+
+def test_diagnose_with_a_twin_adds_the_crack_detector(paired, model, twin, tmp_path, capsys):
+    from rvdiag.monitoring.crack import load_twin
+
+    base = baseline_store(paired, tmp_path / "base.zarr")
+    f = record_file(paired, tmp_path / "r.npy", "T1")
+    argv = ["diagnose", model, f, "--baseline", base, "--fs", FS, "--output-speed", 30, "--load", 50, "--twin", twin]
+    code, out, err = run_cli(argv + ["--json"], capsys)
+    assert code == 0, err
+    r = json.loads(out)
+    assert "health_index" in r and r["crack"]["alpha"] == 0.01 and r["crack"]["reference"]["file"].endswith("op0.npz")
+    assert r["crack"]["index"] == pytest.approx(load_twin(twin).judge(np.load(f), FS, 30.0, 50.0).index, rel=1e-9)
+    assert r["crack"]["alarm"] == (r["crack"]["index"] > r["crack"]["threshold"])
+    code, out, err = run_cli(argv, capsys)
+    assert code == 0, err
+    line = [ln for ln in out.splitlines() if ln.startswith("crack detector (twin): index ")]
+    assert len(line) == 1 and " at 1 % false alarms: " in line[0] and line[0].endswith("alarm")
+
+
+@pytest.mark.parametrize("speed, load, folder, message", [
+    (30, 50, "missing", "does not exist"),
+    (30, 50, "empty", "holds no crack references"),
+    (60, 50, None, "no crack reference at 60 deg/s 50 N m (within 2.5 % of speed and 3 % of load); it has "
+                   "30 deg/s 50 N m, 30 deg/s 130 N m"),
+    (30, 130, None, "holds 1 s; the crack reference at 30 deg/s needs 2.5 s"),
+])
+def test_diagnose_with_a_twin_refuses_bad_input_in_one_line(paired, model, twin, tmp_path, capsys, speed, load,
+                                                           folder, message):
+    base = baseline_store(paired, tmp_path / "base.zarr")
+    f = record_file(paired, tmp_path / "r.npy", "T1", speed=speed, load=load)
+    if folder == "empty":
+        (tmp_path / "empty").mkdir()
+    where = twin if folder is None else tmp_path / folder
+    code, out, err = run_cli(["diagnose", model, f, "--baseline", base, "--fs", FS, "--output-speed", speed,
+                              "--load", load, "--twin", where], capsys)
+    assert code == 2 and err.startswith("error:") and err.count("\n") == 1, err
+    assert message in err
+
+
+def test_evaluate_with_a_twin_adds_the_crack_figures(paired, model, tmp_path, capsys):
+    """The paired store's monitored records (T1-T3, no crack) against one machine's baseline, with a twin of random
+    references at its four operating points: the crack detector's false-alarm rate on T1, no detection figure."""
+    twin = twin_folder(tmp_path / "twin4", [(v, ld, 3000) for v, ld in OPS])
+    base = baseline_store(paired, tmp_path / "base.zarr")
+    argv = ["evaluate", model, paired["store"], "--split", "test", "--baseline", base, "--twin", twin]
+    code, out, err = run_cli(argv + ["--json"], capsys)
+    assert code == 0, err
+    r = json.loads(out)
+    n_t1 = STATES["T1"] * (N_REDUCERS - TRAIN_REDUCERS)
+    assert r["crack_detection"] is None and r["crack_n_records"]["T1"] == n_t1 and r["crack_alpha"] == 0.01
+    assert r["crack_false_alarm_rate"] == sum(c["alarm"] for c in r["crack_records"] if c["label"] == "T1") / n_t1
+    assert "health_index" not in r and "false_alarm_rate" in r
+    code, out, err = run_cli(argv, capsys)
+    assert code == 0 and "crack detector (twin), alarm at 1 % false alarms: detection no records (T4)" in out, err
+    code, out, err = run_cli(argv[:-2] + ["--twin", tmp_path / "none"], capsys)
+    assert code == 2 and err.count("\n") == 1 and "does not exist" in err
+
+
 # ---------------------------------------------------------------------------------------------------- end to end
 def test_train_evaluate_diagnose_with_a_baseline_from_files(paired, tmp_path, capsys):
     """The whole flow: train on the paired store, evaluate on it, build one machine's baseline from CSV files with

@@ -4,8 +4,9 @@ The record is read as ``rvdiag dataset from-files`` reads a file of a store (``-
 ``--angle-channel``, ``--tacho-channel``, ``--ppr``, ``--meta-regex``; :func:`rvdiag.workflows.read_record`) and
 diagnosed by :func:`rvdiag.workflows.diagnose` (a classifier: the windows' probabilities, whether the record is
 recognised, the warnings that qualify the answer, the gear indicators or motor-current lines) or, for a model whose
-card says ``needs_baseline``, judged against ``--baseline`` by :func:`rvdiag.monitoring.monitor_record`.  This
-module parses the options and prints; ``--json`` prints the result's ``to_dict()``.
+card says ``needs_baseline``, judged against ``--baseline`` by :func:`rvdiag.monitoring.monitor_record`; with ``--twin
+DIR`` also by the crack detector of the joint's twin (:func:`rvdiag.monitoring.crack.load_twin`; its result under
+``crack``).  This module parses the options and prints; ``--json`` prints the result's ``to_dict()``.
 """
 
 from __future__ import annotations
@@ -39,6 +40,9 @@ def register(app: typer.Typer) -> None:
         baseline: Path = typer.Option(None, "--baseline", metavar="BASE.zarr",
                                       help="A baseline-referenced model: a healthy store of the same machine "
                                            "(docs/monitoring.md)."),
+        twin: Path = typer.Option(None, "--twin", metavar="DIR",
+                                  help="With --baseline: the joint's twin folder (rvdiag update --specimen ... --out "
+                                       "DIR); adds its crack detector's index and alarm (DIR/crack, docs/twin.md)."),
         angle_channel: str = opt.angle_source("angle_channel"),
         tacho_channel: str = opt.angle_source("tacho_channel"),
         ppr: int = opt.angle_source("ppr"),
@@ -54,7 +58,7 @@ def register(app: typer.Typer) -> None:
         reading = {"angle_channel": angle_channel, "tacho_channel": tacho_channel, "ppr": ppr,
                    "meta_regex": meta_regex}
         loaded = load_model(model_dir)
-        if _monitor(loaded, file, channel, fs, baseline, meta, output_speed, load, json_out, reading):
+        if _monitor(loaded, file, channel, fs, baseline, meta, output_speed, load, json_out, reading, twin):
             return
         rec = read_model_record(loaded, file, channel=channel, fs=fs, **reading)
         res = diagnose_record(loaded, rec, output_speed=output_speed, load=load,
@@ -68,30 +72,42 @@ def register(app: typer.Typer) -> None:
         _print(res)
 
 
-def _monitor(loaded, file, channel, fs, baseline, meta, output_speed, load, json_out, reading) -> bool:
-    """Diagnose with a baseline-referenced model (:func:`rvdiag.monitoring.monitor_record`) and say True; False
-    otherwise."""
+def _monitor(loaded, file, channel, fs, baseline, meta, output_speed, load, json_out, reading, twin=None) -> bool:
+    """Diagnose with a baseline-referenced model (:func:`rvdiag.monitoring.monitor_record`), and with the crack
+    detector of the twin ``twin`` if given, and say True; False otherwise."""
     from rvdiag.cli._baseline import print_diagnosis
     from rvdiag.monitoring import monitor_record, needs_baseline, open_baseline
+    from rvdiag.monitoring.crack import load_twin
     from rvdiag.workflows import read_record
 
     if not needs_baseline(loaded):
         if baseline is not None:
             raise ParameterError(f"--baseline applies to a baseline-referenced model; {loaded.path} is not one")
+        if twin is not None:
+            raise ParameterError(f"--twin applies with a baseline-referenced model and --baseline; {loaded.path} is "
+                                 "not one")
         return False
     if baseline is None:
         raise ParameterError(f"the model {loaded.path} is baseline-referenced (its card says needs_baseline): give "
                              "--baseline BASE.zarr, a healthy store of the same machine (docs/monitoring.md)")
+    crack_twin = load_twin(twin) if twin is not None else None
     base = open_baseline(baseline, loaded)
     rec = read_record(file, channel=channel, fs=fs, **reading)
     res = monitor_record(loaded, rec, base, output_speed=output_speed, load=load, metadata=_given_meta(meta)).to_dict()
     res.update({"file": str(file), "channel": rec.channel, "model": str(loaded.path)})
+    crack = None
+    if crack_twin is not None:
+        op = res["operating_point"]
+        crack = crack_twin.judge(rec.data, rec.fs, op["output_speed_deg_s"], op["load_Nm"], name=str(file))
+        res["crack"] = crack.to_dict()
     for w in res["warnings"]:
         typer.echo(w, err=True)
     if json_out:
         typer.echo(json.dumps(res, indent=2))
     else:
         print_diagnosis(res)
+        if crack is not None:
+            typer.echo(crack.line())
     return True
 
 

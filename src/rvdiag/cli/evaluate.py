@@ -63,6 +63,11 @@ def register(app: typer.Typer) -> None:
                                       help="A baseline-referenced model: a healthy store of the same machine, each "
                                            "sample matched with its windows at the nearest operating point (not "
                                            "needed on a paired store; docs/monitoring.md)."),
+        twin: Path = typer.Option(None, "--twin", metavar="DIR",
+                                  help="With a baseline-referenced model: the joint's twin folder (rvdiag update "
+                                       "--specimen ... --out DIR); adds its crack detector over the whole records: "
+                                       "crack_detection (share of T4 records alarmed) and crack_false_alarm_rate "
+                                       "(share of T1 records alarmed) at its stated rate (docs/twin.md)."),
     ) -> None:
         """Score a saved model on a split of a sample store (progress with an ETA on stderr; -q: none)."""
         from rvdiag.cli._progress import progress_bars
@@ -87,7 +92,7 @@ def register(app: typer.Typer) -> None:
             parse_condition(w)  # a malformed condition fails before the model is loaded
         loaded = load_model(model_dir)
         if _monitor(loaded, data, split, where, baseline, json_out, merge,
-                    {"--report": report, "--by": by, "--snr-db": snr_db, "--records": records}, life, seed):
+                    {"--report": report, "--by": by, "--snr-db": snr_db, "--records": records}, life, seed, twin):
             return
         if life:
             raise ParameterError(f"--life scores a baseline-referenced model (a monitor: 'rvdiag train' on a paired "
@@ -136,25 +141,34 @@ def sets_line(sets: dict | None, note: str | None) -> str:
 
 
 def _monitor(loaded, data, split, where, baseline, json_out, merge, others: dict, life: bool = False,
-             seed: int = 0) -> bool:
+             seed: int = 0, twin=None) -> bool:
     """Score a baseline-referenced model (:func:`rvdiag.monitoring.evaluate_monitor`; always per record, ``--merge``
-    as for any model; ``life``: also the figures over a life store's lives, key ``life``) and say True; False for
-    any other model."""
+    as for any model; ``life``: also the figures over a life store's lives, key ``life``; ``twin``: also the crack
+    detector of that twin, :func:`rvdiag.monitoring.crack.evaluate_crack_on_store`) and say True; False for any
+    other model."""
     from rvdiag.monitoring import evaluate_monitor, needs_baseline
+    from rvdiag.monitoring.crack import evaluate_crack_on_store, load_twin
 
     if not needs_baseline(loaded):
         if baseline is not None:
             raise ParameterError(f"--baseline applies to a baseline-referenced model; {loaded.path} is not one")
+        if twin is not None:
+            raise ParameterError(f"--twin applies to a baseline-referenced model; {loaded.path} is not one")
         return False
     for flag, v in others.items():
         if v:
             raise ParameterError(f"{flag} does not apply to a baseline-referenced model")
+    if life and twin is not None:
+        raise ParameterError("--twin does not apply with --life")
     from rvdiag.datasets import SampleStore
     from rvdiag.workflows.evaluation import parse_merge
 
+    crack_twin = load_twin(twin) if twin is not None else None
     merge_map = parse_merge(merge, loaded.card["classes"]) if merge is not None else None
-    res = evaluate_monitor(loaded, SampleStore.open(data), data, split, where or (), baseline, merge_map, life=life,
-                           seed=seed)
+    store = SampleStore.open(data)
+    res = evaluate_monitor(loaded, store, data, split, where or (), baseline, merge_map, life=life, seed=seed)
+    if crack_twin is not None:
+        res.update(evaluate_crack_on_store(crack_twin, store, split, where or ()))
     if json_out:
         typer.echo(json.dumps(res, indent=2))
     else:
@@ -163,7 +177,21 @@ def _monitor(loaded, data, split, where, baseline, json_out, merge, others: dict
         print_evaluation(res, loaded, data)
         if life:
             _print_life(res["life"])
+        if crack_twin is not None:
+            typer.echo(_crack_line(res))
     return True
+
+
+def _crack_line(res: dict) -> str:
+    """The crack detector's figures of ``rvdiag evaluate --twin`` in one line."""
+    n = res["crack_n_records"]
+
+    def share(v, state):
+        return "no records" if v is None else f"{100 * v:.3g} % of {n[state]} records"
+
+    return (f"crack detector (twin), alarm at {100 * res['crack_alpha']:g} % false alarms: detection "
+            f"{share(res['crack_detection'], 'T4')} (T4), false alarms {share(res['crack_false_alarm_rate'], 'T1')} "
+            "(T1)")
 
 
 def _print_life(life: dict) -> None:

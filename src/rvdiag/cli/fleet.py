@@ -121,6 +121,11 @@ def register(app: typer.Typer) -> None:
                    angle_channel: str = _angle_channel(), fs: float = _fs(),
                    time: Optional[str] = typer.Option(None, "--time", metavar="ISO",
                                                       help="When the baseline starts (default: now)."),
+                   twin: Optional[Path] = typer.Option(None, "--twin", metavar="DIR",
+                                                       help="The joint's twin folder (rvdiag update --specimen ... "
+                                                            "--out DIR): its crack references are copied to the "
+                                                            "epoch and every record is also judged by its crack "
+                                                            "detector (result key 'crack'; docs/twin.md)."),
                    db: str = _db()) -> None:
         """Make the joint's baseline from its commissioning records (a new epoch; earlier ones are kept)."""
         from rvdiag.fleet import Fleet
@@ -128,10 +133,11 @@ def register(app: typer.Typer) -> None:
 
         t = parse_time(time) if time else None
         res = Fleet.open(db).commission(joint, files, _reading(channel, fs, angle_channel, output_speed, load,
-                                                               meta_regex), time=t)
+                                                               meta_regex), time=t, twin=twin)
         ops = sorted({(o["output_speed_deg_s"], o["load_Nm"]) for o in res["operating_points"]}, key=str)
         typer.echo(f"commissioned {joint}: epoch {res['epoch']} from {res['n_records']} records at "
-                   f"{len(ops)} operating point(s), starting {res['started']}")
+                   f"{len(ops)} operating point(s), starting {res['started']}"
+                   + (f"; with the crack detector of the twin {twin}" if res.get("twin") else ""))
 
     @fleet_app.command("ingest")
     def ingest(joint: str = typer.Argument(...), files: List[Path] = typer.Argument(...),

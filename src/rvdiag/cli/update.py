@@ -1,6 +1,7 @@
 """``rvdiag update``: tune the assumed model parameters to a measured healthy record, write the updated TOML; with
 ``--specimen``, identify a joint's own sun tooth errors from its commissioning records' transmission error and
-write its parameter set and their uncertainty to a folder (:mod:`rvdiag.updating.specimen`, docs/twin.md)."""
+write its parameter set and their uncertainty to a folder (:mod:`rvdiag.updating.specimen`, docs/twin.md), then the
+crack detector's references from the same records' vibration channel (:mod:`rvdiag.monitoring.crack`)."""
 
 from __future__ import annotations
 
@@ -31,8 +32,13 @@ def register(app: typer.Typer) -> None:
         specimen: bool = typer.Option(False, "--specimen", help="Identify the joint's own sun tooth errors from the "
                                       "transmission error between its input (--angle-channel) and output "
                                       "(--output-angle-channel) encoders in the records, at --load; write "
-                                      "DIR/params.toml, DIR/uncertainty.toml and DIR/specimen.json to --out DIR."),
-        channel: Optional[str] = opt.channel(),
+                                      "DIR/params.toml, DIR/uncertainty.toml and DIR/specimen.json to --out DIR, "
+                                      "then, from the records' --channel, the crack detector's references "
+                                      "(DIR/crack)."),
+        channel: Optional[str] = opt.channel("Regular expression picking the vibration channel (may be left out "
+                                             "when the file holds one); with --specimen, the housing vibration "
+                                             "channel of the records, from which the crack detector's references "
+                                             "are commissioned (DIR/crack; without it they are not)."),
         fs: Optional[float] = opt.fs("Sampling rate, Hz (default: the one the file states)."),
         output_speed: Optional[float] = typer.Option(None, "--output-speed", help="Output (carrier) speed of the "
                                                      "record, deg/s (with --specimen the output encoder gives it)."),
@@ -52,6 +58,13 @@ def register(app: typer.Typer) -> None:
         te_noise: Optional[float] = typer.Option(None, "--te-noise", help="--specimen: the output encoder's white "
                                                  "noise per sample, arcsec rms (default: 23-bit quantisation, "
                                                  "0.045 arcsec)."),
+        crack_draws: int = typer.Option(32, "--crack-draws", help="--specimen: healthy run-to-run records the twin "
+                                        "simulates per operating point for the crack detector (half fit its filter, "
+                                        "half set its threshold; >= 4). Costs --crack-draws + 2 simulations of 1.2 s "
+                                        "(1 s after a 0.2 s run-in) per operating point; a point already simulated "
+                                        "with the same parameters and settings is kept."),
+        no_crack_references: bool = typer.Option(False, "--no-crack-references", help="--specimen: do not "
+                                                 "commission the crack detector's references (DIR/crack)."),
         overwrite: bool = opt.overwrite("Overwrite an existing --out file (with --specimen, the files it writes "
                                         "there)."),
         force: bool = opt.deprecated("--force", flag=True),
@@ -86,10 +99,13 @@ def register(app: typer.Typer) -> None:
             _update_specimen(measured_files, params=params, out=out, overwrite=overwrite, fs=fs, load=load,
                              output_speed=output_speed, angle_channel=angle_channel,
                              output_angle_channel=output_angle_channel, iterations=iterations, draws=draws,
-                             te_noise=te_noise, as_json=as_json, quiet=quiet)
+                             te_noise=te_noise, as_json=as_json, quiet=quiet,
+                             vibration_channel=None if no_crack_references else channel, crack_draws=crack_draws,
+                             skip_note=not no_crack_references)
             return
         given = [o for o, v in (("--angle-channel", angle_channel), ("--output-angle-channel", output_angle_channel),
-                                ("--te-noise", te_noise)) if v is not None]
+                                ("--te-noise", te_noise), ("--crack-draws", None if crack_draws == 32 else crack_draws),
+                                ("--no-crack-references", no_crack_references or None)) if v is not None]
         if given:
             raise ParameterError(f"{given[0]} applies to --specimen")
         if len(measured_files) != 1:
@@ -198,9 +214,12 @@ SPECIMEN_FILES = ("params.toml", "uncertainty.toml", "specimen.json")
 
 def _update_specimen(files: list[Path], *, params, out: Path, overwrite: bool, fs, load: float, output_speed,
                      angle_channel, output_angle_channel, iterations: int, draws: int, te_noise, as_json: bool,
-                     quiet: bool) -> None:
+                     quiet: bool, vibration_channel: str | None = None, crack_draws: int = 32,
+                     skip_note: bool = True) -> None:
     """``rvdiag update --specimen``: read each record's two encoder angles, identify the sun's tooth errors
-    (:func:`rvdiag.updating.specimen.identify_specimen`), write ``SPECIMEN_FILES`` into ``out``."""
+    (:func:`rvdiag.updating.specimen.identify_specimen`), write ``SPECIMEN_FILES`` into ``out``; with
+    ``vibration_channel``, commission the crack detector's references from that channel of the same records
+    (:func:`rvdiag.monitoring.crack.commission_crack_references`, ``out/crack``)."""
     import math
 
     import tomli_w
@@ -224,6 +243,9 @@ def _update_specimen(files: list[Path], *, params, out: Path, overwrite: bool, f
         raise ParameterError("--specimen takes each record's speed from its output encoder; leave out --output-speed")
     if iterations < 0 or draws < 0:
         raise ParameterError(f"--iterations and --draws must be >= 0, got {iterations} and {draws}")
+    if vibration_channel is not None and crack_draws < 4:
+        raise ParameterError(f"--crack-draws must be >= 4 (half fit the crack filter, half set its threshold), got "
+                             f"{crack_draws}")
     if te_noise is not None:
         finite_number(te_noise, "--te-noise", 0, strict=True, noun="a number")
     settings = SpecimenSettings(iterations=iterations, draws=draws, **(
@@ -243,7 +265,7 @@ def _update_specimen(files: list[Path], *, params, out: Path, overwrite: bool, f
 
     base = ReducerParams.load(params)
     text = base_text(base, params)
-    records = []
+    records, vibration = [], []
     for f in files:
         sig_in = read_signal(f, angle_channel, fs)
         try:
@@ -262,6 +284,9 @@ def _update_specimen(files: list[Path], *, params, out: Path, overwrite: bool, f
                                  f"{sig_in.channel!r}")
         records.append(te_record(sig_in.data, sig_out.data, sig_in.fs, base, load_Nm=load, name=str(f),
                                  settings=settings))
+        if vibration_channel is not None:
+            vibration.append(_vibration_record(f, vibration_channel, fs, records[-1], (sig_in.channel,
+                                                                                      sig_out.channel)))
 
     result = identify_specimen(base, records, settings,
                                progress=None if quiet else (lambda msg: typer.echo(f"specimen: {msg}", err=True)))
@@ -290,8 +315,19 @@ def _update_specimen(files: list[Path], *, params, out: Path, overwrite: bool, f
     if not result.converged:
         typer.echo(f"warning: the fit had not converged after {result.iterations} iterations (its cost still fell); "
                    "raise --iterations", err=True)
+    crack = None
+    if vibration:
+        from rvdiag.cli._progress import progress_bars
+        from rvdiag.monitoring.crack import commission_crack_references
+
+        twin = ReducerParams.load(out / "params.toml")          # the references are of the set as written
+        with progress_bars(quiet):
+            crack = commission_crack_references(out, twin, vibration, draws=crack_draws, overwrite=overwrite)
+    elif skip_note:
+        typer.echo("note: without --channel the crack detector's references (DIR/crack) are not commissioned; give "
+                   "--channel RE, the records' housing vibration channel (or --no-crack-references)", err=True)
     if as_json:
-        typer.echo(json.dumps({**d, "out": str(out)}, indent=2))
+        typer.echo(json.dumps({**d, "out": str(out), **({"crack_references": crack} if crack else {})}, indent=2))
         return
     typer.echo(f"sun tooth errors identified from {len(result.records)} record(s): chi-square {d['chi2_start']:.4g} -> "
                f"{d['chi2']:.4g} over {d['n_lines']} line parts, {result.iterations} iterations, "
@@ -301,6 +337,28 @@ def _update_specimen(files: list[Path], *, params, out: Path, overwrite: bool, f
                    f"+- {s_ * result.birge_ratio:.4f})")
     typer.echo("not identified: " + "; ".join(d["not_identified"]))
     typer.echo(f"wrote {', '.join(str(out / n) for n in SPECIMEN_FILES)}")
+    if crack:
+        for op in crack["ops"]:
+            what = ("kept (simulated before with the same parameters and settings)" if op.get("kept") else
+                    f"simulated: {crack['simulations_per_point']} simulations in {op['seconds']:.0f} s")
+            typer.echo(f"crack reference {op['file']} at {op['output_speed_deg_s']:.4g} deg/s {op['load_Nm']:g} N m, "
+                       f"{len(op['records'])} baseline record(s), {op['duration_s']:g} s: {what}")
+        typer.echo(f"wrote {out / 'crack'}")
+
+
+def _vibration_record(path: Path, channel: str, fs, te, angle_channels: tuple):
+    """The commissioning vibration record (:class:`rvdiag.monitoring.crack.CommissioningRecord`) of ``channel`` in
+    ``path``, at the speed the output encoder measured (``te``, its :class:`~rvdiag.updating.specimen.TERecord`)."""
+    from rvdiag.io import read_signal
+    from rvdiag.monitoring.crack import CommissioningRecord
+
+    sig = read_signal(path, channel, fs)
+    if sig.channel in angle_channels:
+        raise ParameterError(f"{path}: --channel picks the encoder channel {sig.channel!r}; give the housing "
+                             "vibration channel")
+    if sig.fs is None:
+        raise ParameterError(f"{path} states no sampling rate; give --fs")
+    return CommissioningRecord(sig.data, float(sig.fs), te.output_speed_deg_s, te.load_Nm, str(path))
 
 
 def _told_apart(before: float, after: float, digits: int) -> tuple[str, str]:

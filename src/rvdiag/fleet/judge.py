@@ -3,7 +3,8 @@
 watcher or a server pays a model's start-up once, not per record.
 
 :class:`Judge` is what :class:`rvdiag.fleet.store.Fleet` calls; a test may hand the fleet another object with the
-same methods (``describe``, ``read``, ``make_baseline``, ``judge``).
+same methods (``describe``, ``read``, ``make_baseline``, ``judge``; ``twin`` and ``crack`` for a joint commissioned
+with a twin).
 """
 
 from __future__ import annotations
@@ -85,6 +86,7 @@ class Judge:
     def __init__(self):
         self._models: dict = {}
         self._baselines: dict = {}
+        self._twins: dict = {}
         self._lock = threading.Lock()
 
     # ---------------------------------------------------------------- what a joint's monitor is
@@ -118,6 +120,17 @@ class Judge:
                 self._baselines[key] = open_baseline(Path(path), model)
             return self._baselines[key]
 
+    def twin(self, folder: Path):
+        """The crack detectors of a twin folder (:func:`rvdiag.monitoring.crack.load_twin`), loaded once per process
+        (an epoch's copy never changes)."""
+        from rvdiag.monitoring.crack import load_twin
+
+        key = str(Path(folder).resolve())
+        with self._lock:
+            if key not in self._twins:
+                self._twins[key] = load_twin(key)
+            return self._twins[key]
+
     # ---------------------------------------------------------------- reading, baselines, judging
     def read(self, path: Path, reading: Reading, monitor: Path):
         """The record of ``path`` as the joint's monitor reads it (:func:`rvdiag.workflows.read_record`)."""
@@ -145,6 +158,15 @@ class Judge:
                              load=operating_point.get("load_Nm"))
         out = res.to_dict() if hasattr(res, "to_dict") else dict(res)
         return json.loads(json.dumps(out, default=_jsonable))
+
+
+    def crack(self, folder: Path, signal, operating_point: dict) -> dict:
+        """The crack detector's result for one record (``CrackResult.to_dict()``) with the twin ``folder``'s
+        reference at the record's operating point."""
+        x = np.asarray(getattr(signal, "data", signal), dtype=np.float64)
+        res = self.twin(folder).judge(x, getattr(signal, "fs", None), operating_point.get("output_speed_deg_s"),
+                                      operating_point.get("load_Nm"))
+        return json.loads(json.dumps(res.to_dict(), default=_jsonable))
 
 
 def clipped_reason(x: np.ndarray) -> str | None:

@@ -11,7 +11,10 @@ Ingesting a record:
 2. the bytes' SHA-256 names the record: the same file twice for one joint is one record (``duplicate``);
 3. the raw bytes are kept content-addressed (:mod:`rvdiag.fleet.blobs`);
 4. the record is read and judged by the joint's monitor against the epoch's baseline (:mod:`rvdiag.fleet.judge`);
-   a file that cannot be read or judged is stored as ``rejected`` with its reason and reaches nothing else;
+   a file that cannot be read or judged is stored as ``rejected`` with its reason and reaches nothing else.  An
+   epoch commissioned with a twin (``rvdiag fleet commission ... --twin DIR``: its crack references, copied beside
+   the baseline) also runs its crack detector (:mod:`rvdiag.monitoring.crack`), kept under ``crack`` in the
+   record's result (its error instead where the record cannot be judged by it); it does not enter the alarm rules;
 5. the joint's state is replayed; alarms raised or cleared become events.
 """
 
@@ -39,6 +42,8 @@ from rvdiag.fleet.judge import Judge, Reading
 _PART = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,99}$")
 #: how many of a joint's last records ``status()`` gives as its ``trend`` (the dashboard's trend line)
 TREND_RECORDS = 40
+#: the suffix of an epoch's twin folder beside its baseline store (``epoch-N-XXXX.zarr`` -> ``epoch-N-XXXX.twin``)
+TWIN_SUFFIX = ".twin"
 #: the result keys kept in a record's ``result`` (the windows are left out: they are recomputed from the raw record)
 _DROP = ("windows",)
 
@@ -179,12 +184,14 @@ class Fleet:
 
     # ------------------------------------------------------------------------------------------- epochs
     def commission(self, joint: str, files: list[Path], reading: Reading, time: datetime | None = None,
-                   operating_points: list[dict] | None = None) -> dict:
+                   operating_points: list[dict] | None = None, twin: Path | None = None) -> dict:
         """Make the joint's baseline from its commissioning records ``files`` (healthy, at the joint's operating
         points): a new epoch starting at ``time`` (default now); earlier epochs are kept.  Every file must read; a
         bad one refuses the whole commissioning (nothing is stored).  Each file's operating point is ``reading``'s
         (``output_speed``, ``load`` or ``meta_regex`` on its name), or the matching one of ``operating_points``
-        (``{"output_speed_deg_s", "load_Nm"}`` per file)."""
+        (``{"output_speed_deg_s", "load_Nm"}`` per file).  ``twin``: the joint's twin folder (``rvdiag update
+        --specimen ... --out DIR``); its crack references are checked and copied beside the epoch's baseline, and
+        every record of the epoch is also judged by its crack detector."""
         files = [Path(f) for f in files]
         if not files:
             raise FleetError("commissioning needs at least one record file")
@@ -192,6 +199,11 @@ class Fleet:
             raise FleetError(f"{len(operating_points)} operating points for {len(files)} commissioning files")
         reading = reading or Reading()
         t = now() if time is None else _aware(time)
+        if twin is not None:
+            try:
+                self.judge.twin(Path(twin))
+            except RvdiagError as exc:
+                raise FleetError(f"--twin {twin}: {exc}") from None
         with self._sessions() as s:
             j = self._joint(s, joint)
             jid, monitor = j.id, Path(j.monitor)
@@ -223,6 +235,8 @@ class Fleet:
             info = self.judge.make_baseline(monitor, signals, ops, out)
         except RvdiagError as exc:
             raise FleetError(f"cannot commission {joint}: {exc}") from None
+        if twin is not None:
+            _copy_twin(Path(twin), out.with_suffix(TWIN_SUFFIX))
         alpha = self.judge.describe(monitor)["alpha"]
         with self._writes() as s, s.begin():
             j = self._joint(s, joint, lock=True)
@@ -238,7 +252,8 @@ class Fleet:
             s.add(db.Event(joint_id=j.id, kind="commissioned", time=t, epoch_id=ep.id,
                            note=f"epoch {number}: baseline of {len(files)} records"))
         return {"joint": joint, "epoch": number, "started": _iso(t), "n_records": len(files),
-                "operating_points": ops, "baseline": str(out)}
+                "operating_points": ops, "baseline": str(out),
+                "twin": None if twin is None else str(out.with_suffix(TWIN_SUFFIX))}
 
     def _epochs(self, s, jid: int) -> list[db.Epoch]:
         return list(s.scalars(select(db.Epoch).where(db.Epoch.joint_id == jid).order_by(db.Epoch.number)))
@@ -303,6 +318,12 @@ class Fleet:
             # the reader read the kept copy: name the file as the user knows it
             text = str(exc).replace(str(kept), filename).replace(kept.name, filename)
             rejected = " ".join(text.split()) or type(exc).__name__
+        twin = base.with_suffix(TWIN_SUFFIX)
+        if result is not None and twin.is_dir():
+            try:
+                result["crack"] = self.judge.crack(twin, sig, result.get("operating_point") or op)
+            except RvdiagError as exc:
+                result["crack"] = {"error": " ".join(str(exc).replace(str(kept), filename).split())}
         rec = db.Record(joint_id=jid, epoch_id=ep_id, time=t, received=now(), checksum=digest, filename=filename,
                         client_id=client_id, reading=reading.to_dict(), rejected=rejected)
         if result is not None:
@@ -650,3 +671,16 @@ def prognosis_of(judged: list, last, failure_index: float | None = None) -> dict
                                 "to): set one with 'rvdiag fleet set JOINT --failure-index X'"}
     return {"onset_time": p["onset_time"], "change_alarm_time": p["alarm_time"], "change_evidence": p["evidence"],
             "rul": rul}
+
+
+def _copy_twin(twin: Path, out: Path) -> None:
+    """Copy a twin folder's crack references (``crack/``) and its ``params.toml`` to ``out`` (whole or not at all:
+    :func:`rvdiag.atomic.staged_directory`), so that the epoch keeps them as the fleet keeps its records."""
+    import shutil
+
+    from rvdiag.atomic import staged_directory
+
+    with staged_directory(out) as tmp:
+        shutil.copytree(twin / "crack", tmp / "crack")
+        if (twin / "params.toml").is_file():
+            shutil.copy2(twin / "params.toml", tmp / "params.toml")

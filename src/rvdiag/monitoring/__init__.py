@@ -26,6 +26,10 @@ Modules
 ``training``              :func:`train_monitor`, :func:`evaluate_monitor` on a paired store
 ``life``                  :func:`evaluate_life`: change detection and remaining life over a life store's
                           histories (``rvdiag evaluate --life``)
+``crack``                 the crack detector with a joint's twin (:mod:`rvdiag.monitoring.crack`): its references
+                          simulated at commissioning (:func:`~rvdiag.monitoring.crack.commission_crack_references`),
+                          :func:`~rvdiag.monitoring.crack.load_twin`, ``diagnose`` / ``evaluate --twin``
+                          (docs/twin.md)
 ========================  ==================================================================================
 
 The baseline-referenced *features* (:class:`rvdiag.features.relative.BaselineReferencedFeatures`, the TSA change,
