@@ -6,7 +6,8 @@ model whose sun tooth errors were identified from the joint's own commissioning 
     PYTHONPATH=src nice python research/twin_gmf.py --prepare --out out/twin_gmf           # linearisation, nominal refs
     PYTHONPATH=src nice python research/twin_gmf.py --only 0 2 4 6 8 10 --out out/twin_gmf &   # one process each
     PYTHONPATH=src nice python research/twin_gmf.py --only 1 3 5 7 9 11 --out out/twin_gmf
-    PYTHONPATH=src python research/twin_gmf.py --evaluate --out out/twin_gmf [--extra-db 10]
+    PYTHONPATH=src nice python research/twin_gmf.py --reidentify --out out/twin_gmf        # (and --marginal)
+    PYTHONPATH=src python research/twin_gmf.py --evaluate --out out/twin_gmf [--extra-db 10] [--estimate-noise]
 
 Reducers (``--reducers``, 12; reducer r seeded by ``SeedSequence(--seed).spawn(reducers)[r]``, seed 36, drawn apart
 from every earlier study's): as research/monitoring_pairs.py draws them, a specimen of the built-in RV-20E with every
@@ -39,7 +40,13 @@ model of a reducer, so that the models differ only in their parameters):
 - ``twin x3``: the same with the true teeth plus 3 times the identification's error (the error's dose);
 - ``global only``: the specimen's global parameters, the built-in teeth and planet table (no ``--specimen``);
 - ``twin, nominal global``: the built-in global parameters with the identified teeth (no global update);
-- ``nominal``: the built-in set.
+- ``nominal``: the built-in set;
+- with ``--marginal``: ``twin, planets marginalised`` and ``true teeth, planets marginalised``, the references over
+  ``--tables`` (8) planet tables the twin does not know (:func:`marginal_reference`, as
+  :func:`rvdiag.monitoring.crack.simulate_reference` with ``planet_tables``);
+- with ``--reidentify``: the teeth identified again on the specimen's global parameters (a perfect global update
+  first, as docs/twin.md recommends), ``twin, global updated`` and ``twin, global updated, planets marginalised``
+  (the product's default twin).
 
 Evaluation (:class:`rvdiag.features.gmf.GeneralisedMatchedFilter`, as research/monitoring_gmf.py): every record on
 the nominal angle axis by its speed ratio; ``T / d`` against the mean of the reducer's 3 commissioning records at the
@@ -62,8 +69,8 @@ from rvdiag.evaluation.separability import RUN_TO_RUN_DEFAULT, gmf_reference
 from rvdiag.features.gmf import GeneralisedMatchedFilter, on_angle_axis
 from rvdiag.library.config import DAMPING_KEYS, STIFFNESS_KEYS
 from rvdiag.library.paired import apply_variation, draw_variation
-from rvdiag.monitoring.crack import model_threshold  # the product's threshold, one home
 from rvdiag.library.states import tooth_faults
+from rvdiag.monitoring.crack import estimate_noise_var, model_threshold  # the product's, one home
 from rvdiag.params import ReducerParams
 from rvdiag.updating import specimen as sp
 from rvdiag.updating.observability import nominal_tooth_errors
@@ -74,7 +81,8 @@ OPS = [(45.0, 90.0), (30.0, 50.0), (60.0, 130.0)]
 CRACK = {"crack_depth": 1.8e-3, "crack_angle_deg": 45.0}
 SETTINGS = ModelSettings(transient_s=0.2, substeps=4)
 MODELS = ["oracle", "twin", "true teeth", "twin x3", "global only", "twin, nominal global", "nominal"]
-MARGINAL = ["twin, planets marginalised", "true teeth, planets marginalised"]
+MARGINAL = ["twin, planets marginalised", "true teeth, planets marginalised", "twin, global updated",
+            "twin, global updated, planets marginalised"]
 
 
 def draw_specimen(rng, base: ReducerParams) -> tuple[ReducerParams, dict]:
@@ -181,6 +189,44 @@ def run_marginal(r: int, ss, a) -> None:
     print(f"reducer {r}: marginal references done ({time.perf_counter() - t0:.0f} s)", flush=True)
 
 
+def run_reidentify(r: int, ss, a) -> None:
+    """Identify reducer ``r``'s teeth again on its global parameters (a perfect global update: stiffnesses, damping
+    and path known, the planet table not), and add the models ``twin, global updated`` and ``twin, global updated,
+    planets marginalised``."""
+    path = os.path.join(a.out, f"r{r}.pkl")
+    rec = load(path)
+    if "twin, global updated, planets marginalised" in rec["refs"]:
+        return
+    base = ReducerParams.default()
+    spec, _ = draw_specimen(np.random.default_rng(ss), base)
+    glob = spec.replace(modification={"error_seed": base.modification.error_seed})
+    t0 = time.perf_counter()
+    if "ident_g" not in rec:
+        te_rng = np.random.default_rng([r, 36])
+        angles = [sp.simulated_record(spec, OPS[0][0], OPS[0][1], 1.0, FS_TE, variation=draw_variation(te_rng),
+                                      rng=np.random.default_rng([r, 36, i])) for i in range(a.te_records)]
+        recs = [sp.te_record(x, y, FS_TE, glob, load_Nm=OPS[0][1], name=f"r{r}-{i}") for i, (x, y) in
+                enumerate(angles)]
+        res = sp.identify_specimen(glob, recs)
+        truth = rec["truth"]
+        rec["ident_g"] = res.teeth_m
+        rec["ident_g_error"] = float(np.sqrt(np.mean((res.teeth_m - truth) ** 2)) / np.sqrt(np.mean(truth ** 2)))
+        rec["ident_g_seconds"] = time.perf_counter() - t0
+        save(path, rec)
+        print(f"reducer {r}: teeth on the global parameters identified to {rec['ident_g_error']:.3f} of the pattern "
+              f"({rec['ident_g_seconds']:.0f} s, linearisation included)", flush=True)
+    um = [float(v) * 1e6 for v in rec["ident_g"]]
+    if "twin, global updated" not in rec["refs"]:
+        p = glob.replace(modification={"sun_tooth_errors_um": um})
+        rec["refs"]["twin, global updated"] = [reference(p, o, 5000 + 10 * r + o, a.draws) for o in range(len(OPS))]
+        save(path, rec)
+    p = spec.replace(modification={"sun_tooth_errors_um": um})
+    rec["refs"]["twin, global updated, planets marginalised"] = [
+        marginal_reference(p, o, 7000 + 10 * r + o, a.tables, a.per_table) for o in range(len(OPS))]
+    save(path, rec)
+    print(f"reducer {r}: re-identified twin's references done ({time.perf_counter() - t0:.0f} s)", flush=True)
+
+
 def run_reducer(r: int, ss, a) -> None:
     path = os.path.join(a.out, f"r{r}.pkl")
     part = os.path.join(a.out, f"r{r}_records.pkl")
@@ -243,21 +289,22 @@ def evaluate(a) -> dict:
 
     nominal = [load(os.path.join(a.out, f"nominal_op{o}.pkl")) for o in range(len(OPS))]
     reducers = sorted(int(f[1:-4]) for f in os.listdir(a.out) if f.startswith("r") and f.endswith(".pkl")
-                      and "_" not in f)
+                      and "_" not in f and (a.only is None or int(f[1:-4]) in a.only))
     extra = 10 ** (a.extra_db / 10) - 1.0
     models: list = []
     rows: dict = {}            # model -> (reducer, state, op, depth, statistic, ...)
     defl: dict = {}
-    ident = {}
+    ident, ident_g = {}, {}
     noise_ratio: dict = {}
     for r in reducers:
         rec = load(os.path.join(a.out, f"r{r}.pkl"))
         if not models:
-            models = MODELS + [m for m in MARGINAL if m in rec["refs"]]
+            models = MODELS + [m for m in MARGINAL if all(m in load(os.path.join(a.out, f"r{q}.pkl"))["refs"]
+                                                          for q in reducers)]
             rows, defl = {m: [] for m in models}, {m: {} for m in models}
-        elif any(m not in rec["refs"] for m in models if m != "nominal"):
-            raise SystemExit(f"reducer {r} lacks some of the models {models}: run --marginal for it")
         ident[r] = rec["ident_error"]
+        if "ident_g_error" in rec:
+            ident_g[r] = rec["ident_g_error"]
         sig2 = sig_true = rec["sigma"] ** 2 * (1 + extra)
         meta = rec["meta"]
         n = nominal[0]["template"].size
@@ -275,10 +322,8 @@ def evaluate(a) -> dict:
             mu = Yo[base_rows].mean(axis=0)
             for name in models:
                 ref = nominal[o] if name == "nominal" else rec["refs"][name][o]
-                if a.estimate_noise:        # the floor from the records: their spread less the draws'
-                    sig2 = max(float(np.mean(np.var(Yo[base_rows], axis=0, ddof=1)))
-                               - float(np.mean(np.var(ref["draws"].astype(float), axis=0, ddof=1))),
-                               1e-6 * float(np.mean(Yo[base_rows] ** 2)))
+                if a.estimate_noise:        # the floor as the product estimates it from the commissioning records
+                    sig2 = estimate_noise_var(Yo[base_rows], ref["draws"].astype(float))
                     noise_ratio.setdefault(name, []).append(sig2 / (rec["sigma"] ** 2 * (1 + extra)))
                 H = ref["draws"][: a.use_draws or None].astype(float)
                 g = GeneralisedMatchedFilter(ref["template"].astype(float), H, sig2, len(base_rows)).fit()
@@ -296,9 +341,11 @@ def evaluate(a) -> dict:
                     rows[name].append((r, m["state"], o, m.get("crack_depth", np.nan), float(s), float(sh),
                                        th[0.01], th[0.05]))
     folds = [reducers[k::4] for k in range(4)]
-    out = {"floor_db": 20 - a.extra_db, "draws": a.use_draws or "all", "reducers": reducers, "identification_error": ident, "models": {}}
-    print(f"floor {20 - a.extra_db:.0f} dB; draws {a.use_draws or 'all'}; {len(reducers)} reducers; identification error / pattern RMS: "
-          + ", ".join(f"{ident[r]:.3f}" for r in reducers))
+    out = {"floor_db": 20 - a.extra_db, "draws": a.use_draws or "all", "reducers": reducers, "identification_error": ident,
+           "identification_error_global_updated": ident_g, "models": {}}
+    print(f"floor {20 - a.extra_db:.0f} dB; draws {a.use_draws or 'all'}; {len(reducers)} reducers; identification "
+          "error / pattern RMS (nominal global): " + ", ".join(f"{ident[r]:.3f}" for r in reducers)
+          + "; (global updated): " + ", ".join(f"{ident_g[r]:.3f}" for r in reducers if r in ident_g))
     print("\n| model | AUC T4 | detection at 1 % / 5 % | false alarms at 1 % / 5 % | Spearman(depth) | median d | "
           "model threshold: detection at 1 % / 5 % | its false alarms | learning threshold: detection | its false "
           "alarms |")
@@ -365,10 +412,12 @@ def evaluate(a) -> dict:
         out["noise_ratio"] = {k: [float(np.min(v)), float(np.median(v)), float(np.max(v))] for k, v in noise_ratio.items()}
         print("\nestimated / true noise variance (min, median, max): " + "; ".join(
             f"{k} {v[0]:.2f} {v[1]:.2f} {v[2]:.2f}" for k, v in out["noise_ratio"].items()))
-    print("\nper reducer: identification error, AUC twin / true teeth / twin x3 / oracle")
+    shown = [m for m in ("twin", "true teeth", "twin x3", "oracle", "twin, global updated",
+                         "twin, global updated, planets marginalised") if m in out["models"]]
+    print("\nper reducer: identification error (nominal global, global updated), AUC " + " / ".join(shown))
     for r in reducers:
-        print(f"  r{r}: {ident[r]:.3f}  " + " / ".join(f"{out['models'][m]['auc_per_reducer'][r]:.3f}"
-                                                   for m in ("twin", "true teeth", "twin x3", "oracle")))
+        print(f"  r{r}: {ident[r]:.3f} {ident_g.get(r, float('nan')):.3f}  "
+              + " / ".join(f"{out['models'][m]['auc_per_reducer'][r]:.3f}" for m in shown))
     return out
 
 
@@ -388,10 +437,12 @@ def main() -> None:
     ap.add_argument("--learning", type=int, default=4,
                     help="with --evaluate: healthy records per operating point in each joint's learning period")
     ap.add_argument("--estimate-noise", action="store_true",
-                    help="with --evaluate: the floor estimated from the commissioning records (their spread less the "
-                         "draws'), not the true one")
+                    help="with --evaluate: the floor estimated from the commissioning records as the product does "
+                         "(rvdiag.monitoring.crack.estimate_noise_var), not the true one")
     ap.add_argument("--marginal", action="store_true",
                     help="add the models whose draws span --tables planet tables the twin does not know")
+    ap.add_argument("--reidentify", action="store_true",
+                    help="identify the teeth again on each specimen's global parameters and add its models")
     ap.add_argument("--tables", type=int, default=8)
     ap.add_argument("--per-table", type=int, default=4)
     ap.add_argument("--prepare", action="store_true")
@@ -408,6 +459,10 @@ def main() -> None:
                 json.dump(out, fh, indent=1, default=str)
         return
     for r, ss in enumerate(np.random.SeedSequence(a.seed).spawn(a.reducers)):
+        if a.reidentify:
+            if (a.only is None or r in a.only) and os.path.exists(os.path.join(a.out, f"r{r}.pkl")):
+                run_reidentify(r, ss, a)
+            continue
         if a.marginal:
             if (a.only is None or r in a.only) and os.path.exists(os.path.join(a.out, f"r{r}.pkl")):
                 run_marginal(r, ss, a)

@@ -131,7 +131,7 @@ def fake_simulation(calls: list, fail: list | None = None):
                                   digest=ck.params_digest(params))
         ref.duration_s = duration_s
         ref.simulation = {"transient_s": kw["transient_s"], "substeps": kw["substeps"],
-                          "ranges": dict(RUN_TO_RUN_DEFAULT), "channel": 0}
+                          "ranges": dict(RUN_TO_RUN_DEFAULT), "channel": 0, "planet_tables": kw["planet_tables"]}
         return ref
 
     return fake
@@ -147,32 +147,34 @@ def test_commissioning_is_resumable_and_refuses_other_parameters(tmp_path, monke
     p = ReducerParams.default()
     recs = _records([(45.0, 90.0), (45.3, 90.0), (30.0, 50.0), (30.1, 50.0)])
     with pytest.raises(KeyboardInterrupt):
-        ck.commission_crack_references(tmp_path, p, recs, draws=6, duration_s=0.25)
+        ck.commission_crack_references(tmp_path, p, recs, draws=6, duration_s=0.25, planet_tables=0)
     assert (tmp_path / "crack" / "op0.npz").exists() and not (tmp_path / "crack" / "op1.npz").exists()
     with pytest.raises(ParameterError, match="unfinished"):
         ck.load_twin(tmp_path)
     fail[0] = False
     calls.clear()
-    man = ck.commission_crack_references(tmp_path, p, recs, draws=6, duration_s=0.25)
+    man = ck.commission_crack_references(tmp_path, p, recs, draws=6, duration_s=0.25, planet_tables=0)
     assert calls == [(30.05, 50.0)] and man["complete"] and man["ops"][0]["kept"] and man["ops"][1]["simulated"]
     assert man["ops"][0]["output_speed_deg_s"] == pytest.approx(45.15) and man["simulations_per_point"] == 8
     assert json.loads((tmp_path / "crack" / "manifest.json").read_text()) == man
     calls.clear()
-    man = ck.commission_crack_references(tmp_path, p, recs, draws=6, duration_s=0.25)
+    man = ck.commission_crack_references(tmp_path, p, recs, draws=6, duration_s=0.25, planet_tables=0)
     assert calls == [] and all(op["kept"] for op in man["ops"])
     twin = ck.load_twin(tmp_path)
     assert len(twin.detectors) == 2
     other = p.replace(damping={"mesh_damping_ratio": 1.1 * p.damping.mesh_damping_ratio})
     with pytest.raises(ParameterError, match="params_digest differ.*--overwrite"):
-        ck.commission_crack_references(tmp_path, other, recs, draws=6, duration_s=0.25)
+        ck.commission_crack_references(tmp_path, other, recs, draws=6, duration_s=0.25, planet_tables=0)
     assert calls == []
-    ck.commission_crack_references(tmp_path, other, recs, draws=6, duration_s=0.25, overwrite=True)
+    ck.commission_crack_references(tmp_path, other, recs, draws=6, duration_s=0.25, planet_tables=0, overwrite=True)
     assert len(calls) == 2
     # one record at a point: the noise floor cannot be estimated, unless it is given
     with pytest.raises(ParameterError, match="has one commissioning record"):
-        ck.commission_crack_references(tmp_path / "b", p, recs[:1], draws=6, duration_s=0.25)
+        ck.commission_crack_references(tmp_path / "b", p, recs[:1], draws=6, duration_s=0.25, planet_tables=0)
     with pytest.raises(ParameterError, match="at least 4 run-to-run draws"):
-        ck.commission_crack_references(tmp_path / "b", p, recs, draws=3)
+        ck.commission_crack_references(tmp_path / "b", p, recs, draws=3, planet_tables=0)
+    with pytest.raises(ParameterError, match=r"multiple of the planet tables \(4\)"):
+        ck.commission_crack_references(tmp_path / "b", p, recs, draws=6, planet_tables=4)
 
 
 def test_twin_picks_the_operating_point_and_names_the_others(tmp_path):
@@ -238,7 +240,8 @@ def test_a_cracked_record_scores_above_healthy_ones_of_the_same_twin(tmp_path):
         x = d["gain"] * np.asarray(res.signal[0], dtype=float)
         sigma = sigma or math.sqrt(np.mean(x ** 2) / 100)
         recs.append(ck.CommissioningRecord(x + sigma * rng.standard_normal(x.size), fs, v, L0, f"rec{k}"))
-    man = ck.commission_crack_references(tmp_path, p, recs[:3], draws=12, duration_s=dur, transient_s=tr)
+    man = ck.commission_crack_references(tmp_path, p, recs[:3], draws=12, duration_s=dur, transient_s=tr,
+                                         planet_tables=0)
     assert len(man["ops"]) == 1 and man["ops"][0]["simulated"] and man["ops"][0]["seed"] == 0
     twin = ck.load_twin(tmp_path)
     ref = twin.detectors[0].reference
@@ -293,17 +296,19 @@ def test_update_specimen_commissions_the_crack_references_from_the_vibration_cha
     out = tmp_path / "twin"
     argv = ["update", "--specimen", *files, "--angle-channel", "theta_in", "--output-angle-channel", "theta_out",
             "--load", "90", "--out", out, "-q"]
-    code, stdout, err = run_cli(argv + ["--channel", "acc", "--crack-draws", "4"], capsys)
+    code, stdout, err = run_cli(argv + ["--channel", "acc", "--crack-draws", "4", "--crack-planet-tables", "2"],
+                                capsys)
     assert code == 0, err
     assert calls == [(45.0, 90.0)]
-    assert ("crack reference op0.npz at 45 deg/s 90 N m, 2 baseline record(s), 0.487 s: simulated: 6 simulations"
+    assert ("crack reference op0.npz at 45 deg/s 90 N m, 2 baseline record(s), 0.487 s: simulated: 8 simulations"
             in stdout)
     man = json.loads((out / "crack" / "manifest.json").read_text())
     assert man["complete"] and man["draws"] == 4 and man["ops"][0]["records"] == [str(f) for f in files]
     ref = ck.CrackReference.load(out / "crack" / "op0.npz")
     assert ref.params_digest == ck.params_digest(ReducerParams.load(out / "params.toml")) and ref.n_baseline == 2
     # again, with --overwrite (the identification is repeated): the reference is kept, not simulated
-    code, stdout, err = run_cli(argv + ["--channel", "acc", "--crack-draws", "4", "--overwrite"], capsys)
+    code, stdout, err = run_cli(argv + ["--channel", "acc", "--crack-draws", "4", "--crack-planet-tables", "2",
+                                        "--overwrite"], capsys)
     assert code == 0 and len(calls) == 1 and "kept (simulated before" in stdout, err
     # without --channel: a note, no references; the encoder's channel as --channel: one error line
     code, stdout, err = run_cli(argv[:-3] + ["--out", tmp_path / "t2", "-q"], capsys)
@@ -314,6 +319,9 @@ def test_update_specimen_commissions_the_crack_references_from_the_vibration_cha
     code, _, err = run_cli(argv[:-3] + ["--out", tmp_path / "t4", "-q", "--channel", "acc", "--crack-draws", "3"],
                            capsys)
     assert code == 2 and "--crack-draws must be >= 4" in err
+    code, _, err = run_cli(argv[:-3] + ["--out", tmp_path / "t5", "-q", "--channel", "acc", "--crack-draws", "4"],
+                           capsys)
+    assert code == 2 and err.count("\n") == 1 and "multiple of --crack-planet-tables (8)" in err
     code, _, err = run_cli(["update", files[0], "--output-speed", "45", "--load", "90", "--out", tmp_path / "u.toml",
                             "--no-crack-references"], capsys)
     assert code == 2 and "--no-crack-references applies to --specimen" in err
@@ -410,3 +418,27 @@ def test_fleet_commission_with_a_twin_adds_the_crack_detector_to_each_record(tmp
         assert b["rejected"] is None and "no crack reference at 45 deg/s 50 N m" in b["result"]["crack"]["error"]
     finally:
         f.close()
+
+
+def test_a_reference_over_planet_tables_pools_each_tables_own_variation():
+    """``planet_tables`` J: the template is the mean of the J tables' templates and the draws are each table's own
+    draws less their mean, times sqrt((K - 1) / (K - J)), interleaved; checked against ``gmf_reference`` called
+    per table in the same run (short records: 0.1 s after a 0.05 s run-in)."""
+    from rvdiag.evaluation.separability import RUN_TO_RUN_DEFAULT, gmf_reference
+
+    p = ReducerParams.default()
+    kw = dict(output_speed_deg_s=45.0, load_Nm=90.0, duration_s=0.1, fs=48000.0)
+    ref = ck.simulate_reference(p, draws=4, seed=3, transient_s=0.05, planet_tables=2, **kw)
+    per_table = [gmf_reference("T4", ranges=RUN_TO_RUN_DEFAULT, draws=2, transient_s=0.05, model={"substeps": 4},
+                               severities=ck.CRACK_SEVERITY, seed=3 + 100 * (j + 1),
+                               params=p.replace(modification={"error_seed": 1 + j}), **kw) for j in range(2)]
+    np.testing.assert_allclose(ref.template, (per_table[0]["template"] + per_table[1]["template"]) / 2, rtol=1e-6,
+                               atol=1e-6 * np.abs(ref.template).max())
+    scale = math.sqrt(3 / 2)
+    want = [scale * (t["draws"][i] - t["draws"].mean(axis=0)) for i in range(2) for t in per_table]  # interleaved
+    np.testing.assert_allclose(ref.draws, np.array(want), rtol=1e-5, atol=1e-5 * np.abs(ref.draws).max())
+    assert ref.simulation["planet_tables"] == 2 and ref.draws.shape == (4, ref.n_points)
+    # the two tables differ (else the test could not tell them apart), and each half of the draws holds both
+    assert not np.allclose(per_table[0]["template"], per_table[1]["template"])
+    with pytest.raises(ParameterError, match="multiple of the planet tables"):
+        ck.simulate_reference(p, draws=6, planet_tables=4, **kw)

@@ -335,6 +335,9 @@ def test_diagnose_with_a_twin_adds_the_crack_detector(paired, model, twin, tmp_p
     assert code == 0, err
     line = [ln for ln in out.splitlines() if ln.startswith("crack detector (twin): index ")]
     assert len(line) == 1 and " at 1 % false alarms: " in line[0] and line[0].endswith("alarm")
+    # the threshold's measured false-alarm rate on joints whose planet table the twin does not know, said once
+    assert err.count("warning: the crack threshold comes from the twin's own draws") == 1
+    assert r["crack"]["warning"].startswith("the crack threshold comes from the twin's own draws")
 
 
 @pytest.mark.parametrize("speed, load, folder, message", [

@@ -100,6 +100,8 @@ def _monitor(loaded, file, channel, fs, baseline, meta, output_speed, load, json
         op = res["operating_point"]
         crack = crack_twin.judge(rec.data, rec.fs, op["output_speed_deg_s"], op["load_Nm"], name=str(file))
         res["crack"] = crack.to_dict()
+        if crack.warning:
+            res["warnings"].append(f"warning: {crack.warning}")
     for w in res["warnings"]:
         typer.echo(w, err=True)
     if json_out:

@@ -60,9 +60,14 @@ def register(app: typer.Typer) -> None:
                                                  "0.045 arcsec)."),
         crack_draws: int = typer.Option(32, "--crack-draws", help="--specimen: healthy run-to-run records the twin "
                                         "simulates per operating point for the crack detector (half fit its filter, "
-                                        "half set its threshold; >= 4). Costs --crack-draws + 2 simulations of 1.2 s "
+                                        "half set its threshold; >= 4). Costs --crack-draws + 2 x --crack-planet-tables simulations of 1.2 s "
                                         "(1 s after a 0.2 s run-in) per operating point; a point already simulated "
                                         "with the same parameters and settings is kept."),
+        crack_planet_tables: int = typer.Option(8, "--crack-planet-tables", help="--specimen: planet tables the "
+                                                "crack references span (the planets' runouts, crank holes and "
+                                                "phases are not identified; 0: the twin's own table only). "
+                                                "--crack-draws must be a multiple, 2 or more a table; each table "
+                                                "adds 2 simulations per operating point."),
         no_crack_references: bool = typer.Option(False, "--no-crack-references", help="--specimen: do not "
                                                  "commission the crack detector's references (DIR/crack)."),
         overwrite: bool = opt.overwrite("Overwrite an existing --out file (with --specimen, the files it writes "
@@ -101,10 +106,11 @@ def register(app: typer.Typer) -> None:
                              output_angle_channel=output_angle_channel, iterations=iterations, draws=draws,
                              te_noise=te_noise, as_json=as_json, quiet=quiet,
                              vibration_channel=None if no_crack_references else channel, crack_draws=crack_draws,
-                             skip_note=not no_crack_references)
+                             crack_planet_tables=crack_planet_tables, skip_note=not no_crack_references)
             return
         given = [o for o, v in (("--angle-channel", angle_channel), ("--output-angle-channel", output_angle_channel),
                                 ("--te-noise", te_noise), ("--crack-draws", None if crack_draws == 32 else crack_draws),
+                                ("--crack-planet-tables", None if crack_planet_tables == 8 else crack_planet_tables),
                                 ("--no-crack-references", no_crack_references or None)) if v is not None]
         if given:
             raise ParameterError(f"{given[0]} applies to --specimen")
@@ -215,7 +221,7 @@ SPECIMEN_FILES = ("params.toml", "uncertainty.toml", "specimen.json")
 def _update_specimen(files: list[Path], *, params, out: Path, overwrite: bool, fs, load: float, output_speed,
                      angle_channel, output_angle_channel, iterations: int, draws: int, te_noise, as_json: bool,
                      quiet: bool, vibration_channel: str | None = None, crack_draws: int = 32,
-                     skip_note: bool = True) -> None:
+                     crack_planet_tables: int = 8, skip_note: bool = True) -> None:
     """``rvdiag update --specimen``: read each record's two encoder angles, identify the sun's tooth errors
     (:func:`rvdiag.updating.specimen.identify_specimen`), write ``SPECIMEN_FILES`` into ``out``; with
     ``vibration_channel``, commission the crack detector's references from that channel of the same records
@@ -246,6 +252,10 @@ def _update_specimen(files: list[Path], *, params, out: Path, overwrite: bool, f
     if vibration_channel is not None and crack_draws < 4:
         raise ParameterError(f"--crack-draws must be >= 4 (half fit the crack filter, half set its threshold), got "
                              f"{crack_draws}")
+    if vibration_channel is not None and (crack_planet_tables < 0 or (crack_planet_tables and (
+            crack_draws % crack_planet_tables or crack_draws // crack_planet_tables < 2))):
+        raise ParameterError(f"--crack-draws ({crack_draws}) must be a multiple of --crack-planet-tables "
+                             f"({crack_planet_tables}), at least 2 a table (or --crack-planet-tables 0)")
     if te_noise is not None:
         finite_number(te_noise, "--te-noise", 0, strict=True, noun="a number")
     settings = SpecimenSettings(iterations=iterations, draws=draws, **(
@@ -322,7 +332,8 @@ def _update_specimen(files: list[Path], *, params, out: Path, overwrite: bool, f
 
         twin = ReducerParams.load(out / "params.toml")          # the references are of the set as written
         with progress_bars(quiet):
-            crack = commission_crack_references(out, twin, vibration, draws=crack_draws, overwrite=overwrite)
+            crack = commission_crack_references(out, twin, vibration, draws=crack_draws, overwrite=overwrite,
+                                                planet_tables=crack_planet_tables)
     elif skip_note:
         typer.echo("note: without --channel the crack detector's references (DIR/crack) are not commissioned; give "
                    "--channel RE, the records' housing vibration channel (or --no-crack-references)", err=True)

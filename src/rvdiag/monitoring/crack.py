@@ -48,6 +48,15 @@ from rvdiag.errors import DataFileError, ParameterError
 
 #: the crack simulated for the template: a 1.8 mm root crack at 45 deg on sun tooth 0 (the T4 state)
 CRACK_SEVERITY = {"crack_depth": 1.8e-3, "crack_angle_deg": 45.0}
+#: planet tables the references span by default (:func:`simulate_reference`): the twin does not know its own
+PLANET_TABLES = 8
+#: what the model's threshold keeps where the twin does not know the joint's planet table (every joint a
+#: ``--specimen`` twin is made for): measured on 12 simulated joints never used to develop it, 20 dB floor, teeth
+#: identified on the global parameters, 8 planet tables, the floor estimated (docs/twin.md, "The crack detector
+#: measured on held-out specimens": research/twin_gmf.py --evaluate --estimate-noise)
+THRESHOLD_WARNING = ("the crack threshold comes from the twin's own draws; on 12 simulated joints whose planet table "
+                     "the twin did not know it raised 13 % false alarms at a stated 1 % (26 % at 5 %): read the index "
+                     "against the joint's own healthy records (docs/twin.md)")
 #: the default false-alarm rate of an alarm
 ALPHA = 0.01
 #: the run-in simulated before each record (s), as in research/twin_gmf.py
@@ -174,14 +183,25 @@ class CrackReference:
 def simulate_reference(params, output_speed_deg_s: float, load_Nm: float, fs: float, duration_s: float,
                        draws: int = 32, seed: int = 0, *, severity: Mapping[str, float] | None = None,
                        transient_s: float = TRANSIENT_S, substeps: int | None = None,
-                       ranges: Mapping[str, float] | None = None, channel: int = 0) -> CrackReference:
+                       ranges: Mapping[str, float] | None = None, channel: int = 0,
+                       planet_tables: int = PLANET_TABLES) -> CrackReference:
     """Simulate a joint's crack reference at one operating point with its twin ``params``
     (:func:`rvdiag.evaluation.separability.gmf_reference`, seed ``seed``): the template of the crack ``severity``
     (default :data:`CRACK_SEVERITY`) and ``draws`` healthy draws with the run-to-run variation ``ranges`` (default
     :data:`~rvdiag.evaluation.separability.RUN_TO_RUN_DEFAULT`), each ``duration_s`` after a run-in of
     ``transient_s``, on channel ``channel`` (0: the housing's x).  ``draws + 2`` simulations; ``substeps`` default
     ``ceil(STEP_RATE / fs)`` (4 at 48 kHz).  ``draws >= 4``: half fit the filter, the other half set its threshold.
-    The baseline is attached afterwards (:func:`attach_baseline`)."""
+    The baseline is attached afterwards (:func:`attach_baseline`).
+
+    ``planet_tables`` (``J``, default :data:`PLANET_TABLES`; 0: the twin's own table alone): the planets' runouts,
+    crank holes and phases are not identified (:data:`rvdiag.updating.specimen.NOT_IDENTIFIED`), so the twin's
+    table is one guess.  With ``J`` tables (``[modification] error_seed`` the twin's plus 1..J, its sun teeth kept)
+    the template is the mean of their templates, and the draws are ``draws / J`` per table, each table's centred on
+    its own mean (a joint's baseline removes its own table's static signal; what is left is how the run-to-run
+    variation acts under each table) and scaled by ``sqrt((K - 1) / (K - J))`` so that the filter's ``K - 1``
+    divisor gives the pooled within-table covariance (the nuisance parameters' spread taken into the covariance:
+    Kay, vol. 2, sec. 4.5).  The tables are interleaved, so that each half of the draws holds every table.
+    ``J (draws / J + 2)`` simulations; ``draws`` must be a multiple of ``J`` with at least 2 per table."""
     from rvdiag.evaluation.separability import RUN_TO_RUN_DEFAULT, gmf_reference
     from rvdiag.validation import finite_number
 
@@ -196,18 +216,34 @@ def simulate_reference(params, output_speed_deg_s: float, load_Nm: float, fs: fl
     sev = dict(CRACK_SEVERITY if severity is None else severity)
     rr = dict(RUN_TO_RUN_DEFAULT if ranges is None else ranges)
     sub = int(substeps) if substeps is not None else max(1, math.ceil(STEP_RATE / float(fs)))
+    J = int(planet_tables)
+    if J < 0 or (J and (draws % J or draws // J < 2)):
+        raise ParameterError(f"the draws ({draws}) must be a multiple of the planet tables ({J}), at least 2 a table")
     t0 = time.perf_counter()
-    ref = gmf_reference("T4", ranges=rr, draws=int(draws), params=params, output_speed_deg_s=float(output_speed_deg_s),
-                        load_Nm=float(load_Nm), duration_s=float(duration_s), fs=float(fs),
-                        transient_s=float(transient_s), model={"substeps": sub}, channel=int(channel),
-                        severities=sev, seed=int(seed))
+
+    def simulate(p, n_draws, s):
+        return gmf_reference("T4", ranges=rr, draws=n_draws, params=p, output_speed_deg_s=float(output_speed_deg_s),
+                             load_Nm=float(load_Nm), duration_s=float(duration_s), fs=float(fs),
+                             transient_s=float(transient_s), model={"substeps": sub}, channel=int(channel),
+                             severities=sev, seed=s)
+
+    if J == 0:
+        ref = simulate(params, int(draws), int(seed))
+    else:
+        per = int(draws) // J
+        refs = [simulate(params.replace(modification={"error_seed": params.modification.error_seed + 1 + j}), per,
+                         int(seed) + 100 * (j + 1)) for j in range(J)]
+        H = np.concatenate([r["draws"] - r["draws"].mean(axis=0) for r in refs])
+        H *= math.sqrt((draws - 1) / (draws - J))
+        order = np.argsort(np.tile(np.arange(per), J), kind="stable")
+        ref = {"template": np.mean([r["template"] for r in refs], axis=0), "draws": H[order]}
     template = ref["template"].astype(np.float32)
     return CrackReference(output_speed_deg_s=float(output_speed_deg_s), load_Nm=float(load_Nm), fs=float(fs),
                           duration_s=float(duration_s), n_points=int(template.size), template=template,
                           draws=ref["draws"].astype(np.float32), seed=int(seed), severity=sev,
                           params_digest=params_digest(params), seconds=time.perf_counter() - t0,
                           simulation={"transient_s": float(transient_s), "substeps": sub, "ranges": rr,
-                                      "channel": int(channel)})
+                                      "channel": int(channel), "planet_tables": J})
 
 
 # --------------------------------------------------------------------------- the joint's baseline on the axis
@@ -391,7 +427,8 @@ def _healthy_spread(g, fresh: np.ndarray, noise_var: float, n_baseline: int) -> 
 class CrackResult:
     """One record judged by the crack detector: ``index`` (``T / d``), the ``threshold`` at the false-alarm rate
     ``alpha``, ``alarm`` (index above it), the filter's ``deflection`` ``d``, ``p_value`` (the rate at which the
-    index would just alarm), the record's operating point and the reference it was judged with."""
+    index would just alarm), the record's operating point and the reference it was judged with; ``warning``
+    (:data:`THRESHOLD_WARNING`): what the threshold was measured to keep."""
 
     index: float
     threshold: float
@@ -402,12 +439,13 @@ class CrackResult:
     output_speed_deg_s: float
     load_Nm: float
     reference: dict
+    warning: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         return {"index": self.index, "threshold": self.threshold, "alarm": self.alarm, "alpha": self.alpha,
                 "deflection": self.deflection, "p_value": self.p_value,
                 "output_speed_deg_s": self.output_speed_deg_s, "load_Nm": self.load_Nm,
-                "reference": dict(self.reference)}
+                "reference": dict(self.reference), "warning": self.warning}
 
     def line(self) -> str:
         """One line for people: the index, the threshold and whether it alarms."""
@@ -459,7 +497,7 @@ class CrackDetector:
         t = float(self.index(y[None])[0])
         p = model_p_value(t, self.filter_, self.fresh_, r.noise_var, r.n_baseline)
         return CrackResult(index=t, threshold=self.threshold_, alarm=bool(t > self.threshold_), alpha=self.alpha,
-                           deflection=float(self.filter_.deflection_), p_value=p,
+                           deflection=float(self.filter_.deflection_), p_value=p, warning=THRESHOLD_WARNING,
                            output_speed_deg_s=float(output_speed_deg_s), load_Nm=r.load_Nm,
                            reference={"file": self.path, "output_speed_deg_s": r.output_speed_deg_s,
                                       "load_Nm": r.load_Nm, "fs": r.fs, "n_points": r.n_points,
@@ -486,12 +524,14 @@ def commission_crack_references(folder, params, records: Sequence[CommissioningR
                                 noise_var: float | None = None, noise_method: str = "projection",
                                 overwrite: bool = False,
                                 severity: Mapping[str, float] | None = None, transient_s: float = TRANSIENT_S,
-                                substeps: int | None = None, progress=None) -> dict:
+                                substeps: int | None = None, planet_tables: int = PLANET_TABLES,
+                                progress=None) -> dict:
     """Simulate a joint's crack references, one per operating point of its commissioning ``records``, into
     ``folder/crack/op{k}.npz`` with ``folder/crack/manifest.json``.
 
     The records are grouped by :func:`operating_points`; each point is simulated at its records' mean speed and
-    their load (:func:`simulate_reference`, ``draws + 2`` simulations, seed ``seed + k``) for ``duration_s`` (at
+    their load (:func:`simulate_reference` over ``planet_tables`` planet tables, ``planet_tables (draws /
+    planet_tables + 2)`` simulations, or ``draws + 2`` with ``planet_tables`` 0; seed ``seed + k``) for ``duration_s`` (at
     most what the point's every record covers on the axis, and what a record as long as the shortest covers at
     :data:`SPEED_TOLERANCE` below the point's speed), and gets the baseline of its records
     (:func:`attach_baseline`).  Resumable: a point whose file already holds the same simulation (the same
@@ -508,6 +548,10 @@ def commission_crack_references(folder, params, records: Sequence[CommissioningR
     from rvdiag.progress import report
 
     progress = progress or report
+    J = int(planet_tables)
+    if J < 0 or (J and (draws % J or draws // J < 2)):
+        raise ParameterError(f"the draws ({draws}) must be a multiple of the planet tables ({J}), at least 2 a table "
+                             "(or 0 planet tables: the twin's own)")
     if not records:
         raise ParameterError("the crack references need at least one commissioning vibration record")
     if isinstance(draws, bool) or not isinstance(draws, (int, np.integer)) or draws < 4:
@@ -543,7 +587,9 @@ def commission_crack_references(folder, params, records: Sequence[CommissioningR
                                 "severity": sev, "transient_s": float(transient_s),
                                 "noise": "given" if noise_var is not None else noise_method,
                                 "run_to_run": dict(RUN_TO_RUN_DEFAULT),
-                                "simulations_per_point": int(draws) + 2, "assumptions": list(ASSUMPTIONS), "ops": []}
+                                "planet_tables": J,
+                                "simulations_per_point": int(draws) + 2 * max(J, 1),
+                                "assumptions": list(ASSUMPTIONS), "ops": []}
     total = len(groups)
     for k, g in enumerate(groups):
         progress("crack references", k, total)
@@ -562,7 +608,7 @@ def commission_crack_references(folder, params, records: Sequence[CommissioningR
         want = {"output_speed_deg_s": speed, "load_Nm": float(load), "fs": float(fs), "duration_s": dur,
                 "draws": int(draws), "seed": int(seed) + k, "severity": sev, "params_digest": digest,
                 "simulation": {"transient_s": float(transient_s), "substeps": sub, "ranges": dict(RUN_TO_RUN_DEFAULT),
-                               "channel": 0}}
+                               "channel": 0, "planet_tables": J}}
         ref = None
         if path.exists():
             old = CrackReference.load(path)
@@ -575,7 +621,7 @@ def commission_crack_references(folder, params, records: Sequence[CommissioningR
         kept = ref is not None
         if ref is None:
             ref = simulate_reference(params, speed, load, fs, dur, int(draws), int(seed) + k, severity=sev,
-                                     transient_s=transient_s, substeps=sub)
+                                     transient_s=transient_s, substeps=sub, planet_tables=J)
         ref = attach_baseline(ref, recs, noise_var, noise_method)
         CrackDetector(ref, alpha)  # refuse here, not at the first monitored record, a reference that cannot judge
         ref.save(path)
