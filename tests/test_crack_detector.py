@@ -420,6 +420,90 @@ def test_fleet_commission_with_a_twin_adds_the_crack_detector_to_each_record(tmp
         f.close()
 
 
+def test_fleet_ranks_the_crack_index_among_the_joints_own_learning_records(tmp_path, monkeypatch, capsys):
+    """A joint with a twin: each record after its learning period gets ``crack["joint_p_value"]``, the conformal
+    rank of its crack index among the crack indices of the replay's learning records, ``(1 + #{c_i >= c}) /
+    (N + 1)``, and ``joint_alarm`` at the rules' alpha; learning records carry None and ``learning``; a crack error
+    and a record not recognised are no calibration scores.  A record ingested late but earlier in time moves the
+    learning period as it moves the health index's.  ``fleet status --json`` has ``crack`` for that joint only.
+    A stand-in judge whose crack index is the record's first sample (an error where it is negative)."""
+    from datetime import datetime, timedelta, timezone
+
+    from conftest import run_cli
+    from fleet_fakes import FakeJudge
+
+    from rvdiag.fleet import Fleet, Reading
+
+    class CrackJudge(FakeJudge):
+        def twin(self, folder):
+            if not (folder / "crack").is_dir():
+                raise ParameterError(f"no twin at {folder}")
+
+        def crack(self, folder, x, op):
+            if x[0] < 0:
+                raise ParameterError("no crack reference at this point")
+            return {"index": float(x[0]), "threshold": 0.7, "alarm": bool(x[0] > 0.7), "alpha": 0.01}
+
+    monkeypatch.setattr("rvdiag.fleet.store.Judge", CrackJudge)
+    db_url = f"sqlite:///{tmp_path / 'fleet.db'}"
+    monkeypatch.setenv("RVDIAG_FLEET_DB", db_url)
+    (tmp_path / "twin" / "crack").mkdir(parents=True)
+    (tmp_path / "monitor").mkdir()
+    rng = np.random.default_rng(4)
+
+    def record(name, crack_index, flat=False):
+        x = np.full(16, crack_index) if flat else np.r_[crack_index, 0.1 + 0.1 * rng.standard_normal(15)]
+        np.save(tmp_path / name, x)
+        return tmp_path / name
+
+    t0, joint, reading = datetime(2026, 1, 1, tzinfo=timezone.utc), "plant/r1/j3", Reading(output_speed=45.0, load=90.0)
+    f = Fleet.init(db_url, judge=CrackJudge())
+    try:
+        for name in (joint, "plant/r1/j4"):
+            f.add_joint(name, tmp_path / "monitor", rules={"alpha": 0.25, "learning": 5})
+            f.commission(name, [record(f"c{name[-1]}.npy", 0.1)], reading, time=t0,
+                         twin=tmp_path / "twin" if name == joint else None)
+        # (hours after t0, crack index, flat): the flat record is not recognised; -1 is a crack error
+        plan = [(1, 0.5, False), (2, 0.05, True), (3, 0.2, False), (4, -1.0, False), (5, 0.9, False), (6, 0.4, False),
+                (7, 0.3, False), (8, 1.0, False), (9, 0.45, False), (2.5, 0.35, False)]  # the last: late, early
+        answers = []
+        for i, (h, c, flat) in enumerate(plan):
+            answers.append(f.ingest(joint, record(f"r{i}.npy", c, flat), reading=reading,
+                                    time=t0 + timedelta(hours=h)))
+        assert answers[0]["result"]["crack"] == {"index": 0.5, "threshold": 0.7, "alarm": False, "alpha": 0.01,
+                                                 "joint_p_value": None, "joint_alarm": None, "learning": True}
+        # before the late record, the learning records were 0.5, 0.2, (error), 0.9, 0.4: N = 4 scores
+        assert answers[6]["result"]["crack"]["joint_p_value"] == pytest.approx(4 / 5)  # 0.3
+        assert answers[7]["result"]["crack"]["joint_p_value"] == pytest.approx(1 / 5)  # 1.0
+        assert answers[7]["result"]["crack"]["joint_alarm"] is True
+        # brute force over the records as they stand: the first 5 recognised in time order learn
+        hist = f.history(joint)
+        recog = [r for r in hist if r["recognised"]]
+        learn = recog[:5]
+        calib = [r["crack"]["index"] for r in learn if "error" not in r["crack"]]
+        assert sorted(calib) == [0.2, 0.35, 0.5, 0.9]  # the late record learns; the 0.4 record no longer does
+        for r in hist:
+            cr = r["crack"]
+            assert cr["learning"] == bool(r["learning"])
+            if r in learn or not r["recognised"] or "error" in cr:
+                assert cr["joint_p_value"] is None and cr["joint_alarm"] is None
+            else:
+                want = (1 + sum(c >= cr["index"] for c in calib)) / (len(calib) + 1)
+                assert cr["joint_p_value"] == pytest.approx(want, abs=1e-15)
+                assert cr["joint_alarm"] is (want <= 0.25)
+        assert [r["crack"]["joint_p_value"] for r in recog[5:]] == pytest.approx([3 / 5, 4 / 5, 1 / 5, 3 / 5])
+        assert answers[-1]["result"]["crack"]["learning"] is True
+        # an error result stays an error, a record not recognised keeps its crack result unranked
+        assert "error" in hist[4]["crack"] and hist[1]["recognised"] is False
+    finally:
+        f.close()
+    code, out, err = run_cli(["fleet", "status", "--json"], capsys)
+    assert code == 0, err
+    rows = {r["joint"]: r for r in json.loads(out)}
+    assert rows[joint]["crack"] == {"last_index": 0.45, "joint_alarm": False, "learning_left": 0}
+    assert "crack" not in rows["plant/r1/j4"]
+
+
 def test_a_reference_over_planet_tables_pools_each_tables_own_variation():
     """``planet_tables`` J: the template is the mean of the J tables' templates and the draws are each table's own
     draws less their mean, times sqrt((K - 1) / (K - J)), interleaved; checked against ``gmf_reference`` called

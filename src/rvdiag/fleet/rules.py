@@ -178,6 +178,57 @@ def conformal_p_value(calibration, score: float) -> float:
     return float((1 + np.count_nonzero(c >= score)) / (c.size + 1))
 
 
+def joint_alarm(p: float, alpha: float) -> bool:
+    """Whether a record alarms for the joint: its conformal p-value ``p <= alpha`` (module docstring)."""
+    return bool(p <= alpha + 1e-12)
+
+
+def rank_after_learning(steps, scores: dict, alpha: float) -> dict:
+    """Another score of the joint's records ranked as :func:`replay` ranks the health index: its calibration scores
+    are the finite ``scores`` of the records :func:`replay` took as learning records (the same ones, so the same
+    time order, out-of-order records included), and each recognised record after learning gets
+    :func:`conformal_p_value` among them and :func:`joint_alarm` at ``alpha``.
+
+    Parameters
+    ----------
+    steps : list of Step
+        :func:`replay`'s steps of one epoch.
+    scores : dict
+        A record's ``key`` -> its score; None or not finite (an error, no score): not a calibration score and not
+        ranked.
+    alpha : float
+        The rules' per-record rate.
+
+    Returns
+    -------
+    dict
+        For each record step whose key is in ``scores``: ``{"joint_p_value", "joint_alarm", "learning"}`` (the
+        first two None in the learning period, for a record not recognised, and for a record without a score).
+
+    >>> from datetime import datetime
+    >>> t = datetime(2026, 1, 1)
+    >>> st = [Step(1, t, "record", "learning", learning=True), Step(2, t, "record", "learning", learning=True),
+    ...       Step(3, t, "record", "normal", record_alarm=False)]
+    >>> rank_after_learning(st, {1: 0.1, 2: 0.3, 3: 0.2}, 0.4)[3]
+    {'joint_p_value': 0.6666666666666666, 'joint_alarm': False, 'learning': False}
+    """
+    def usable(v):
+        return v is not None and math.isfinite(v)
+
+    calib = [scores[st.key] for st in steps
+             if st.kind == "record" and st.learning and st.key in scores and usable(scores[st.key])]
+    out = {}
+    for st in steps:
+        if st.kind != "record" or st.key not in scores:
+            continue
+        p = None
+        if not st.learning and st.record_alarm is not None and usable(scores[st.key]):
+            p = conformal_p_value(calib, float(scores[st.key]))
+        out[st.key] = {"joint_p_value": p, "joint_alarm": None if p is None else joint_alarm(p, alpha),
+                       "learning": bool(st.learning)}
+    return out
+
+
 def replay(items, rules: Rules, *, acknowledge_at_once: bool = False) -> list[Step]:
     """The joint's state after each item of one epoch, in time order (ties: records before acknowledgements, then
     as given).  ``rules`` must be :meth:`Rules.resolved`.  Pure: the same items give the same steps.
@@ -215,7 +266,7 @@ def replay(items, rules: Rules, *, acknowledge_at_once: bool = False) -> list[St
                     calib.append(float(it.health_index))
             else:
                 p = conformal_p_value(calib, float(it.health_index))
-                rec_alarm = p <= rules.alpha + 1e-12
+                rec_alarm = joint_alarm(p, rules.alpha)
             if not learning:  # the monitor's own alarm, in the learning period, can raise an alert only
                 window.append(rec_alarm)
             normal_run = 0 if rec_alarm else normal_run + 1

@@ -14,7 +14,11 @@ Ingesting a record:
    a file that cannot be read or judged is stored as ``rejected`` with its reason and reaches nothing else.  An
    epoch commissioned with a twin (``rvdiag fleet commission ... --twin DIR``: its crack references, copied beside
    the baseline) also runs its crack detector (:mod:`rvdiag.monitoring.crack`), kept under ``crack`` in the
-   record's result (its error instead where the record cannot be judged by it); it does not enter the alarm rules;
+   record's result (its error instead where the record cannot be judged by it).  Its index is ranked among the
+   crack indices of the joint's own learning records as the health index is (:func:`rvdiag.fleet.rules.
+   rank_after_learning`, computed when read, so out-of-order records are ranked as the replay orders them):
+   ``joint_p_value``, ``joint_alarm`` (``joint_p_value <= alpha``) and ``learning`` are added to ``crack`` in the
+   answers (ingest, ``history``, ``status``), never stored; it does not enter the alarm rules;
 5. the joint's state is replayed; alarms raised or cleared become events.
 """
 
@@ -346,33 +350,38 @@ class Fleet:
                 j = self._joint(s, joint, lock=True)
                 s.add(rec)
                 s.flush()
-                state = self._derive_events(s, j)
+                d = self._derive_events(s, j)
         except IntegrityError:  # the same file, ingested at the same time by another process
             with self._sessions() as s:
                 j = self._joint(s, joint)
                 dup = s.scalar(select(db.Record).where(db.Record.joint_id == jid, db.Record.checksum == digest))
                 return self._ingest_answer(s, j, dup, duplicate=True)
-        return self._ingest_answer(None, None, rec, duplicate=False, state=state)
+        return self._ingest_answer(None, None, rec, duplicate=False, derived=d)
 
-    def _ingest_answer(self, s, j: db.Joint | None, rec: db.Record, duplicate: bool, state: str | None = None) -> dict:
-        if state is None:
-            state = self._derive(s, j)["state"]
-        return {"record_id": rec.id, "duplicate": duplicate, "rejected": rec.rejected, "result": rec.result,
-                "joint_state": state, "time": _iso(rec.time), "checksum": rec.checksum}
+    def _ingest_answer(self, s, j: db.Joint | None, rec: db.Record, duplicate: bool, derived: dict | None = None
+                       ) -> dict:
+        d = self._derive(s, j) if derived is None else derived
+        result = rec.result
+        if result is not None and (d["crack"] or {}).get(rec.id) is not None:
+            result = {**result, "crack": d["crack"][rec.id]}
+        return {"record_id": rec.id, "duplicate": duplicate, "rejected": rec.rejected, "result": result,
+                "joint_state": d["state"], "time": _iso(rec.time), "checksum": rec.checksum}
 
     # ------------------------------------------------------------------------------------------- the state
     def _derive(self, s, j: db.Joint) -> dict:
         """The joint's current epoch replayed (:func:`rvdiag.fleet.rules.replay`): ``{"state", "epoch", "rules",
-        "steps", "records" (id -> row), "since", "threshold"}``."""
+        "steps", "records" (id -> row), "since", "threshold", "crack"}``; ``crack``: :meth:`_crack_ranks` (None
+        without a twin)."""
         eps = self._epochs(s, j.id)
         out = {"state": "no-baseline", "epoch": None, "rules": None, "steps": [], "records": {}, "since": j.created,
-               "threshold": None, "calibration": []}
+               "threshold": None, "calibration": [], "crack": None}
         if not eps:
             return out
         ep = eps[-1]
         maint = self._maintenances(s, ep)
         rl, recs, steps = self._replay_epoch(s, j, ep)
-        out.update(epoch=ep, rules=rl, steps=steps, records={r.id: r for r in recs}, since=ep.started)
+        out.update(epoch=ep, rules=rl, steps=steps, records={r.id: r for r in recs}, since=ep.started,
+                   crack=self._crack_ranks(s, ep, rl, steps))
         if maint:
             out.update(state="no-baseline", since=maint[0])
             return out
@@ -390,13 +399,14 @@ class Fleet:
             out["threshold"] = calib[-jrank]  # a record alarms when its index exceeds this (conformal rank)
         return out
 
-    def _derive_events(self, s, j: db.Joint) -> str:
+    def _derive_events(self, s, j: db.Joint) -> dict:
         """Append the ``raised`` / ``cleared`` events the replay shows beyond those already stored for the epoch
-        (an out-of-order record may move an alarm; stored events are never rewritten); returns the joint's state."""
+        (an out-of-order record may move an alarm; stored events are never rewritten); returns :meth:`_derive`'s
+        answer."""
         d = self._derive(s, j)
         ep = d["epoch"]
         if ep is None:
-            return d["state"]
+            return d
         for kind in ("raised", "cleared"):
             derived = [st for st in d["steps"] if kind in st.events]
             stored = s.scalar(select(func.count()).select_from(db.Event)
@@ -409,14 +419,31 @@ class Fleet:
                     note = f"{d['rules'].k} of the last {d['rules'].n} records alarmed (health index " \
                            f"{r.health_index:.3g})" if r.health_index is not None else None
                 s.add(db.Event(joint_id=j.id, kind=kind, time=st.time, record_id=rid, epoch_id=ep.id, note=note))
-        return d["state"]
+        return d
+
+    def _crack_ranks(self, s, ep: db.Epoch, rl: R.Rules, steps) -> dict | None:
+        """For an epoch commissioned with a twin: record id -> its stored ``crack`` result with ``joint_p_value``,
+        ``joint_alarm`` and ``learning`` added (:func:`rvdiag.fleet.rules.rank_after_learning` on the crack index,
+        among the same learning records as the health index; a crack error or a record not recognised is no
+        calibration score).  None for an epoch without a twin."""
+        if not (self.blobs.root / ep.baseline).with_suffix(TWIN_SUFFIX).is_dir():
+            return None
+        rows = s.execute(select(db.Record.id, db.Record.result, db.Record.recognised)
+                         .where(db.Record.epoch_id == ep.id, db.Record.rejected.is_(None))).all()
+        cracks = {r.id: r.result["crack"] for r in rows if isinstance((r.result or {}).get("crack"), dict)}
+        scores = {rid: _num(c.get("index")) if "error" not in c else None for rid, c in cracks.items()}
+        ranks = R.rank_after_learning(steps, scores, rl.alpha)
+        return {rid: {**c, **ranks.get(rid, {"joint_p_value": None, "joint_alarm": None, "learning": False})}
+                for rid, c in cracks.items()}
 
     def status(self, joint: str | None = None) -> list[dict]:
         """One row per joint (``joint``: that joint's only): ``joint, state, last_index, last_record_time,
         state_since, threshold, n_records, last_fault_state, last_probability, open_alarm`` (and ``epoch``,
         ``signal``, ``learning_left``, ``trend``: the health indices of the current epoch's last
         :data:`TREND_RECORDS` recognised records, oldest first; ``failure_index``; and the prognosis of
-        :func:`prognosis_of`: ``onset_time``, ``change_evidence``, ``rul``)."""
+        :func:`prognosis_of`: ``onset_time``, ``change_evidence``, ``rul``).  A joint whose epoch has a twin also has
+        ``crack``: ``last_index`` and ``joint_alarm`` of its last recognised record with a crack index (None
+        before one), and ``learning_left`` (as the joint's)."""
         rows = []
         with self._sessions() as s:
             q = select(db.Joint).order_by(db.Joint.path)
@@ -433,7 +460,7 @@ class Fleet:
                 failure_index = R.Rules.from_dict(j.rules).failure_index
                 if d["rules"] is not None:
                     learn = max(0, d["rules"].learning - sum(st.learning for st in d["steps"]))
-                rows.append({
+                row = {
                     "joint": j.path, "state": d["state"], "last_index": None if lastj is None else lastj.health_index,
                     "last_record_time": _iso(last.time) if last else None, "state_since": _iso(d["since"]),
                     "threshold": d["threshold"], "n_records": int(n_all),
@@ -443,13 +470,20 @@ class Fleet:
                     else False,
                     "epoch": None if d["epoch"] is None else d["epoch"].number, "signal": j.signal_kind,
                     "learning_left": learn, "trend": [r.health_index for r in judged[-TREND_RECORDS:]],
-                    "failure_index": failure_index, **prognosis_of(judged, lastj, failure_index)})
+                    "failure_index": failure_index, **prognosis_of(judged, lastj, failure_index)}
+                if d["crack"] is not None:
+                    cr = [d["crack"][r.id] for r in judged if _num(d["crack"].get(r.id, {}).get("index")) is not None]
+                    row["crack"] = {"last_index": cr[-1]["index"] if cr else None,
+                                    "joint_alarm": cr[-1]["joint_alarm"] if cr else None, "learning_left": learn}
+                rows.append(row)
         return rows
 
     def history(self, joint: str, limit: int | None = None) -> list[dict]:
         """The joint's records in time order (the last ``limit``): ``time, checksum, health_index, p_value,
         record_alarm, joint_state, fault_state, probability, recognised, reason, changes, epoch, rejected`` and
-        ``joint_p_value`` (the record's rank among the joint's own), ``learning``, ``filename``, ``record_id``.
+        ``joint_p_value`` (the record's rank among the joint's own), ``learning``, ``filename``, ``record_id``,
+        ``crack`` (an epoch with a twin: the crack detector's result with its rank, :meth:`_crack_ranks`; else
+        None).
         ``record_alarm`` is the alarm the joint's rules count (the monitor's in the learning period, the joint's
         own rank after); ``monitor_alarm`` the monitor's at its alpha.  ``joint_state`` is the state after the
         record, replayed; records of earlier epochs keep their epoch's."""
@@ -457,8 +491,11 @@ class Fleet:
             j = self._joint(s, joint)
             eps = {e.id: e for e in self._epochs(s, j.id)}
             steps: dict = {}
+            cracks: dict = {}
             for ep in eps.values():  # replay every epoch, so old records show the state they led to
-                steps.update({st.key: st for st in self._replay_epoch(s, j, ep)[2] if st.kind == "record"})
+                rl, _, ep_steps = self._replay_epoch(s, j, ep)
+                steps.update({st.key: st for st in ep_steps if st.kind == "record"})
+                cracks.update(self._crack_ranks(s, ep, rl, ep_steps) or {})
             q = select(db.Record).where(db.Record.joint_id == j.id).order_by(db.Record.time, db.Record.id)
             recs = list(s.scalars(q))
             if limit is not None:
@@ -475,7 +512,7 @@ class Fleet:
                     "probability": r.probability, "recognised": r.recognised, "reason": r.reason,
                     "changes": r.changes or [], "epoch": eps[r.epoch_id].number if r.epoch_id in eps else None,
                     "rejected": r.rejected, "learning": None if st is None else st.learning,
-                    "operating_point": r.operating_point})
+                    "operating_point": r.operating_point, "crack": cracks.get(r.id)})
             return out
 
     def _replay_epoch(self, s, j: db.Joint, ep: db.Epoch):
