@@ -20,6 +20,8 @@ measured 20 % on healthy records of unseen reducers at a stated 5 %). The two ar
 joint's ranking replaces the monitor's cross-reducer calibration, whose rate is not that joint's; the health index
 itself is the monitor's. ``alpha`` defaults to the monitor's. With ``N`` calibration records the smallest p-value is
 ``1/(N+1)``, so ``learning`` must be at least ``1/alpha - 1`` for any alarm to be possible (:meth:`Rules.check`).
+:func:`rank_after_learning` ranks another score of the same records (the crack detector's index) among the same
+learning records by the same p-value; the rules do not count its alarm.
 
 **Persistence, hysteresis, latching** (ISO 17359 alarm criteria; ThingsBoard / Grafana practice).  ``alert`` from
 the first alarming record; ``alarm`` when ``k`` of the last ``n`` recognised records alarm; an alert clears after
