@@ -420,17 +420,19 @@ def test_fleet_commission_with_a_twin_adds_the_crack_detector_to_each_record(tmp
         f.close()
 
 
-def test_fleet_ranks_the_crack_index_among_the_joints_own_learning_records(tmp_path, monkeypatch, capsys):
+@pytest.mark.parametrize("database", ["sqlite", "postgresql"])
+def test_fleet_ranks_the_crack_index_among_the_joints_own_learning_records(database, tmp_path, monkeypatch, capsys):
     """A joint with a twin: each record after its learning period gets ``crack["joint_p_value"]``, the conformal
     rank of its crack index among the crack indices of the replay's learning records, ``(1 + #{c_i >= c}) /
     (N + 1)``, and ``joint_alarm`` at the rules' alpha; learning records carry None and ``learning``; a crack error
     and a record not recognised are no calibration scores.  A record ingested late but earlier in time moves the
     learning period as it moves the health index's.  ``fleet status --json`` has ``crack`` for that joint only.
     A stand-in judge whose crack index is the record's first sample (an error where it is negative)."""
+    from contextlib import ExitStack
     from datetime import datetime, timedelta, timezone
 
     from conftest import run_cli
-    from fleet_fakes import FakeJudge
+    from fleet_fakes import FakeJudge, postgres_database
 
     from rvdiag.fleet import Fleet, Reading
 
@@ -445,7 +447,12 @@ def test_fleet_ranks_the_crack_index_among_the_joints_own_learning_records(tmp_p
             return {"index": float(x[0]), "threshold": 0.7, "alarm": bool(x[0] > 0.7), "alpha": 0.01}
 
     monkeypatch.setattr("rvdiag.fleet.store.Judge", CrackJudge)
-    db_url = f"sqlite:///{tmp_path / 'fleet.db'}"
+    stack = ExitStack()
+    if database == "sqlite":
+        db_url = f"sqlite:///{tmp_path / 'fleet.db'}"
+    else:
+        monkeypatch.setenv("RVDIAG_FLEET_BLOBS", str(tmp_path / "blobs"))
+        db_url = stack.enter_context(postgres_database())
     monkeypatch.setenv("RVDIAG_FLEET_DB", db_url)
     (tmp_path / "twin" / "crack").mkdir(parents=True)
     (tmp_path / "monitor").mkdir()
@@ -458,7 +465,8 @@ def test_fleet_ranks_the_crack_index_among_the_joints_own_learning_records(tmp_p
 
     t0, joint, reading = datetime(2026, 1, 1, tzinfo=timezone.utc), "plant/r1/j3", Reading(output_speed=45.0, load=90.0)
     f = Fleet.init(db_url, judge=CrackJudge())
-    try:
+    stack.callback(f.close)
+    with stack:
         for name in (joint, "plant/r1/j4"):
             f.add_joint(name, tmp_path / "monitor", rules={"alpha": 0.25, "learning": 5})
             f.commission(name, [record(f"c{name[-1]}.npy", 0.1)], reading, time=t0,
@@ -495,13 +503,11 @@ def test_fleet_ranks_the_crack_index_among_the_joints_own_learning_records(tmp_p
         assert answers[-1]["result"]["crack"]["learning"] is True
         # an error result stays an error, a record not recognised keeps its crack result unranked
         assert "error" in hist[4]["crack"] and hist[1]["recognised"] is False
-    finally:
-        f.close()
-    code, out, err = run_cli(["fleet", "status", "--json"], capsys)
-    assert code == 0, err
-    rows = {r["joint"]: r for r in json.loads(out)}
-    assert rows[joint]["crack"] == {"last_index": 0.45, "joint_alarm": False, "learning_left": 0}
-    assert "crack" not in rows["plant/r1/j4"]
+        code, out, err = run_cli(["fleet", "status", "--json"], capsys)
+        assert code == 0, err
+        rows = {r["joint"]: r for r in json.loads(out)}
+        assert rows[joint]["crack"] == {"last_index": 0.45, "joint_alarm": False, "learning_left": 0}
+        assert "crack" not in rows["plant/r1/j4"]
 
 
 def test_a_reference_over_planet_tables_pools_each_tables_own_variation():

@@ -428,7 +428,7 @@ class Fleet:
         calibration score).  None for an epoch without a twin."""
         if not (self.blobs.root / ep.baseline).with_suffix(TWIN_SUFFIX).is_dir():
             return None
-        rows = s.execute(select(db.Record.id, db.Record.result, db.Record.recognised)
+        rows = s.execute(select(db.Record.id, db.Record.result)
                          .where(db.Record.epoch_id == ep.id, db.Record.rejected.is_(None))).all()
         cracks = {r.id: r.result["crack"] for r in rows if isinstance((r.result or {}).get("crack"), dict)}
         scores = {rid: _num(c.get("index")) if "error" not in c else None for rid, c in cracks.items()}
