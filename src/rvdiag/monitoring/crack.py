@@ -180,6 +180,20 @@ class CrackReference:
         return ref
 
 
+def _planet_tables(draws: int, planet_tables: int) -> int:
+    """``planet_tables`` as a whole number, with ``draws`` checked: at least 4 (half fit the filter, half set its
+    threshold), and ``planet_tables`` 0 (the twin's own table) or a divisor of ``draws`` with at least 2 draws a
+    table (:func:`simulate_reference`)."""
+    if isinstance(draws, bool) or not isinstance(draws, (int, np.integer)) or draws < 4:
+        raise ParameterError(f"the crack detector needs at least 4 run-to-run draws (half fit the filter, half set "
+                             f"its threshold), got {draws!r}")
+    J = int(planet_tables)
+    if J < 0 or (J and (draws % J or draws // J < 2)):
+        raise ParameterError(f"the draws ({draws}) must be a multiple of the planet tables ({J}), at least 2 a table "
+                             "(or 0 planet tables: the twin's own)")
+    return J
+
+
 def simulate_reference(params, output_speed_deg_s: float, load_Nm: float, fs: float, duration_s: float,
                        draws: int = 32, seed: int = 0, *, severity: Mapping[str, float] | None = None,
                        transient_s: float = TRANSIENT_S, substeps: int | None = None,
@@ -205,9 +219,7 @@ def simulate_reference(params, output_speed_deg_s: float, load_Nm: float, fs: fl
     from rvdiag.evaluation.separability import RUN_TO_RUN_DEFAULT, gmf_reference
     from rvdiag.validation import finite_number
 
-    if isinstance(draws, bool) or not isinstance(draws, (int, np.integer)) or draws < 4:
-        raise ParameterError(f"the crack detector needs at least 4 run-to-run draws (half fit the filter, half set "
-                             f"its threshold), got {draws!r}")
+    J = _planet_tables(draws, planet_tables)
     for name, v in (("the output speed", output_speed_deg_s), ("the sampling rate", fs),
                     ("the duration", duration_s)):
         finite_number(v, name, 0, strict=True, noun="a number")
@@ -216,9 +228,6 @@ def simulate_reference(params, output_speed_deg_s: float, load_Nm: float, fs: fl
     sev = dict(CRACK_SEVERITY if severity is None else severity)
     rr = dict(RUN_TO_RUN_DEFAULT if ranges is None else ranges)
     sub = int(substeps) if substeps is not None else max(1, math.ceil(STEP_RATE / float(fs)))
-    J = int(planet_tables)
-    if J < 0 or (J and (draws % J or draws // J < 2)):
-        raise ParameterError(f"the draws ({draws}) must be a multiple of the planet tables ({J}), at least 2 a table")
     t0 = time.perf_counter()
 
     def simulate(p, n_draws, s):
@@ -548,15 +557,9 @@ def commission_crack_references(folder, params, records: Sequence[CommissioningR
     from rvdiag.progress import report
 
     progress = progress or report
-    J = int(planet_tables)
-    if J < 0 or (J and (draws % J or draws // J < 2)):
-        raise ParameterError(f"the draws ({draws}) must be a multiple of the planet tables ({J}), at least 2 a table "
-                             "(or 0 planet tables: the twin's own)")
     if not records:
         raise ParameterError("the crack references need at least one commissioning vibration record")
-    if isinstance(draws, bool) or not isinstance(draws, (int, np.integer)) or draws < 4:
-        raise ParameterError(f"the crack detector needs at least 4 run-to-run draws (half fit the filter, half set "
-                             f"its threshold), got {draws!r}")
+    J = _planet_tables(draws, planet_tables)
     if not 0 < float(alpha) < 1:
         raise ParameterError(f"the false-alarm rate must lie in (0, 1), got {alpha}")
     if noise_method not in NOISE_METHODS:
