@@ -28,7 +28,7 @@ The twin's teeth: 3 commissioning records of the two encoders (1 s, 8 kHz, 23 bi
 :func:`~rvdiag.updating.specimen.identify_specimen` with the command's defaults on the built-in set (its stiffnesses
 nominal, its planet table ``error_seed`` 0's): the linearisation is shared (``--prepare``).
 
-Models for the filter (each ``gmf_reference`` at each operating point: the T1/T4 change of a 1.8 mm crack at 45 deg,
+Models for the filter (each :func:`reference` at each operating point: the T1/T4 change of a 1.8 mm crack at 45 deg,
 noise-free, and ``--draws`` (32) healthy draws with the run-to-run variation (``--use-draws`` evaluates with the first ones); seed ``5000 + 10 r + op``, the same for every
 model of a reducer, so that the models differ only in their parameters):
 
@@ -42,8 +42,8 @@ model of a reducer, so that the models differ only in their parameters):
 - ``twin, nominal global``: the built-in global parameters with the identified teeth (no global update);
 - ``nominal``: the built-in set;
 - with ``--marginal``: ``twin, planets marginalised`` and ``true teeth, planets marginalised``, the references over
-  ``--tables`` (8) planet tables the twin does not know (:func:`marginal_reference`, as
-  :func:`rvdiag.monitoring.crack.simulate_reference` with ``planet_tables``);
+  ``--tables`` (8) planet tables the twin does not know (:func:`rvdiag.monitoring.crack.simulate_reference` with
+  ``planet_tables``);
 - with ``--reidentify``: the teeth identified again on the specimen's global parameters (a perfect global update
   first, as docs/twin.md recommends), ``twin, global updated`` and ``twin, global updated, planets marginalised``
   (the product's default twin).
@@ -65,12 +65,11 @@ import time
 import numpy as np
 
 from rvdiag.dynamics import ModelSettings, simulate
-from rvdiag.evaluation.separability import RUN_TO_RUN_DEFAULT, gmf_reference
 from rvdiag.features.gmf import GeneralisedMatchedFilter, on_angle_axis
 from rvdiag.library.config import DAMPING_KEYS, STIFFNESS_KEYS
 from rvdiag.library.paired import apply_variation, draw_variation
 from rvdiag.library.states import tooth_faults
-from rvdiag.monitoring.crack import estimate_noise_var, model_threshold  # the product's, one home
+from rvdiag.monitoring.crack import estimate_noise_var, model_threshold, simulate_reference  # the product's
 from rvdiag.params import ReducerParams
 from rvdiag.updating import specimen as sp
 from rvdiag.updating.observability import nominal_tooth_errors
@@ -112,13 +111,15 @@ def model_params(name: str, spec: ReducerParams, base: ReducerParams, truth, ide
             "nominal": lambda: base}[name]()
 
 
-def reference(p: ReducerParams, op: int, seed: int, draws: int) -> dict:
+def reference(p: ReducerParams, op: int, seed: int, draws: int, tables: int = 0) -> dict:
+    """The filter's reference at operating point ``op`` with ``p``: the product's
+    :func:`rvdiag.monitoring.crack.simulate_reference` (1 s at 48 kHz after a 0.2 s run-in, 4 sub-steps, the
+    1.8 mm crack), with the twin's own planet table (``tables`` 0, ``draws + 2`` simulations) or over ``tables``
+    planet tables (``error_seed`` of ``p`` plus 1..tables, ``tables (draws / tables + 2)`` simulations)."""
     v, L = OPS[op]
-    t = time.perf_counter()
-    ref = gmf_reference("T4", ranges=RUN_TO_RUN_DEFAULT, draws=draws, params=p, output_speed_deg_s=v, load_Nm=L,
-                        duration_s=1.0, fs=FS, transient_s=0.2, model={"substeps": 4}, severities=CRACK, seed=seed)
-    return {"template": ref["template"].astype(np.float32), "draws": ref["draws"].astype(np.float32),
-            "seconds": time.perf_counter() - t}
+    ref = simulate_reference(p, v, L, FS, 1.0, draws, seed, severity=CRACK, transient_s=0.2, substeps=4,
+                             planet_tables=tables)
+    return {"template": ref.template, "draws": ref.draws, "seconds": ref.seconds}
 
 
 def save(path: str, obj) -> None:
@@ -149,41 +150,20 @@ def prepare(a) -> None:
             print(f"nominal op {o} done", flush=True)
 
 
-def marginal_reference(p: ReducerParams, op: int, seed: int, tables: int, per_table: int) -> dict:
-    """A reference over ``tables`` planet tables the twin does not know (``error_seed`` 1..tables, its sun teeth
-    kept: ``p`` states them): the mean of their templates, and ``per_table`` run-to-run draws of each, centred on
-    their table's own mean (the baseline removes each joint's own static signal; what is left is how the variation
-    acts under each table), scaled by ``sqrt((K - 1) / (K - tables))`` so that the filter's ``K - 1`` divisor gives
-    the pooled within-table covariance.  ``tables * (per_table + 2)`` simulations."""
-    t = time.perf_counter()
-    templates, draws = [], []
-    for j in range(tables):
-        pj = p.replace(modification={"error_seed": 1 + j})
-        ref = reference(pj, op, seed + 100 * (j + 1), per_table)
-        templates.append(ref["template"].astype(float))
-        H = ref["draws"].astype(float)
-        draws.append(H - H.mean(axis=0))
-    K = tables * per_table
-    H = np.concatenate(draws) * np.sqrt((K - 1) / (K - tables))
-    # interleave the tables so that the first and the second half of the draws each hold every table
-    order = np.argsort(np.tile(np.arange(per_table), tables), kind="stable")
-    return {"template": np.mean(templates, axis=0).astype(np.float32), "draws": H[order].astype(np.float32),
-            "seconds": time.perf_counter() - t}
-
-
 def run_marginal(r: int, ss, a) -> None:
     """Add the models ``twin, planets marginalised`` and ``true teeth, planets marginalised`` to reducer ``r``'s file."""
     path = os.path.join(a.out, f"r{r}.pkl")
     rec = load(path)
     base = ReducerParams.default()
     spec, _ = draw_specimen(np.random.default_rng(ss), base)
+    glob = spec.replace(modification={"error_seed": base.modification.error_seed})   # tables 1..J, as the product's
     t0 = time.perf_counter()
     for name, teeth in (("twin, planets marginalised", rec["ident"]), ("true teeth, planets marginalised",
                                                                        rec["truth"])):
         if name in rec["refs"]:
             continue
-        p = spec.replace(modification={"sun_tooth_errors_um": [float(v) * 1e6 for v in teeth]})
-        rec["refs"][name] = [marginal_reference(p, o, 7000 + 10 * r + o, a.tables, a.per_table)
+        p = glob.replace(modification={"sun_tooth_errors_um": [float(v) * 1e6 for v in teeth]})
+        rec["refs"][name] = [reference(p, o, 7000 + 10 * r + o, a.tables * a.per_table, a.tables)
                              for o in range(len(OPS))]
         save(path, rec)
     print(f"reducer {r}: marginal references done ({time.perf_counter() - t0:.0f} s)", flush=True)
@@ -215,14 +195,12 @@ def run_reidentify(r: int, ss, a) -> None:
         save(path, rec)
         print(f"reducer {r}: teeth on the global parameters identified to {rec['ident_g_error']:.3f} of the pattern "
               f"({rec['ident_g_seconds']:.0f} s, linearisation included)", flush=True)
-    um = [float(v) * 1e6 for v in rec["ident_g"]]
+    p = glob.replace(modification={"sun_tooth_errors_um": [float(v) * 1e6 for v in rec["ident_g"]]})
     if "twin, global updated" not in rec["refs"]:
-        p = glob.replace(modification={"sun_tooth_errors_um": um})
         rec["refs"]["twin, global updated"] = [reference(p, o, 5000 + 10 * r + o, a.draws) for o in range(len(OPS))]
         save(path, rec)
-    p = spec.replace(modification={"sun_tooth_errors_um": um})
     rec["refs"]["twin, global updated, planets marginalised"] = [
-        marginal_reference(p, o, 7000 + 10 * r + o, a.tables, a.per_table) for o in range(len(OPS))]
+        reference(p, o, 7000 + 10 * r + o, a.tables * a.per_table, a.tables) for o in range(len(OPS))]
     save(path, rec)
     print(f"reducer {r}: re-identified twin's references done ({time.perf_counter() - t0:.0f} s)", flush=True)
 
