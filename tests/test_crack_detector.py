@@ -508,6 +508,24 @@ def test_fleet_ranks_the_crack_index_among_the_joints_own_learning_records(datab
         rows = {r["joint"]: r for r in json.loads(out)}
         assert rows[joint]["crack"] == {"last_index": 0.45, "joint_alarm": False, "learning_left": 0}
         assert "crack" not in rows["plant/r1/j4"]
+        # the dashboard shows what status and history give: the joint page's crack fact, its figure and column
+        import re
+
+        from rvdiag.fleet import web
+
+        page = web.joint_page(f, joint)
+        assert re.search(r'class="crack-index" data-value="0\.45"', page) and 'crack-alarm" data-value="false"' in page
+        fig = json.loads(re.search(r'data-plot="crack-plot">(.*?)</script>', page, re.S).group(1))
+        shown = {tr["name"]: tr["y"] for tr in fig["data"]}
+        ranked = [r for r in recog if "error" not in r["crack"]]
+        assert sorted(shown["learning"]) == sorted(r["crack"]["index"] for r in ranked if r["crack"]["learning"])
+        assert shown["crack alarm"] == [r["crack"]["index"] for r in ranked if r["crack"]["joint_alarm"]] == [1.0]
+        cells = re.findall(r'<td class="num crack-index[^"]*" data-value="([^"]*)"', page)
+        assert len(cells) == len(hist) and sorted(c for c in cells if c) == sorted(
+            repr(r["crack"]["index"]) for r in hist if "error" not in r["crack"])
+        assert "crack-plot" not in web.joint_page(f, "plant/r1/j4")
+        fleet_html = web.fleet_page(f)
+        assert fleet_html.count('<td class="num crack-index"') == 2 and 'data-value="0.45"' in fleet_html
 
 
 def test_a_reference_over_planet_tables_pools_each_tables_own_variation():

@@ -5,7 +5,8 @@
   indices against its alarm threshold, and how long it has been in its state;
 - the joint page (``/joints/{joint}``): the health index over time with the alarm threshold and the events, the most
   probable state with its probability, what changed, the last records' evidence (their spectra, from the kept raw
-  records), the records and the events, and acknowledge / maintenance forms;
+  records), the records and the events, and acknowledge / maintenance forms; for a joint commissioned with a twin,
+  also its crack detector's index over time and its crack alarm (shown, never part of the joint's state);
 - the alarms page (``/alarms``): the joints whose alarm is open, each with acknowledge, and the fleet's alarm log.
 
 Everything the pages load comes from this server (or the snapshot's folder): the dashboard's own script and style
@@ -240,6 +241,31 @@ def _index_figure(history: list[dict], threshold: float | None, events: list[dic
     return {"data": data, "layout": layout}
 
 
+def _crack_figure(history: list[dict]) -> dict | None:
+    """The crack detector's index over time for a joint commissioned with a twin (None without one): the learning
+    records, the records ranked among them, and those whose rank raised the crack alarm (``joint_alarm``), as a
+    Plotly figure.  No threshold line: a record's crack alarm is its conformal rank among the learning records of
+    its own epoch (:func:`rvdiag.fleet.rules.rank_after_learning`), not one fixed value."""
+    rows = [h for h in history if isinstance(h.get("crack"), dict) and not h.get("rejected")
+            and _finite_or_none(h["crack"].get("index")) is not None and h.get("recognised", True)]
+    if not rows:
+        return None
+    groups = {"learning": [h for h in rows if h["crack"].get("learning")],
+              "ranked": [h for h in rows if not h["crack"].get("learning") and not h["crack"].get("joint_alarm")],
+              "crack alarm": [h for h in rows if h["crack"].get("joint_alarm")]}
+    style = {"learning": dict(color="#8a8a8a", size=6), "ranked": dict(color="#1f5fa8", size=6),
+             "crack alarm": dict(color="#c62828", size=8)}
+    data = [{"type": "scatter", "mode": "markers", "name": name, "x": [fmt_iso(h["time"]) for h in g],
+             "y": [_finite_or_none(h["crack"]["index"]) for h in g], "marker": style[name],
+             "text": [f"p={fmt_number(h['crack'].get('joint_p_value'), 3)}" for h in g],
+             "hovertemplate": "%{x}<br>crack index %{y:.4g}<br>%{text}<extra></extra>"}
+            for name, g in groups.items() if g]
+    layout = {"margin": {"l": 55, "r": 15, "t": 10, "b": 40}, "height": 260, "hovermode": "closest",
+              "xaxis": {"title": {"text": "record time (UTC)"}}, "yaxis": {"title": {"text": "crack index"}},
+              "legend": {"orientation": "h", "y": 1.1}}
+    return {"data": data, "layout": layout}
+
+
 def fmt_iso(value) -> str | None:
     t = _dt(value)
     return None if t is None else t.astimezone(timezone.utc).isoformat()
@@ -302,7 +328,8 @@ def fleet_page(fleet, links: Links = Links(), now: datetime | None = None) -> st
         row["trend"] = sparkline(row.get("trend") or [], row.get("threshold"))
     counts = {s: sum(r.get("state") == s for r in rows) for s in STATES}
     return _render("fleet.html", links, now, rows=rows, counts=counts,
-                   open_alarms=sum(bool(r.get("open_alarm")) for r in rows))
+                   open_alarms=sum(bool(r.get("open_alarm")) for r in rows),
+                   any_crack=any(r.get("crack") is not None for r in rows))
 
 
 def joint_page(fleet, joint: str, links: Links = Links(), now: datetime | None = None) -> str:
@@ -322,6 +349,8 @@ def joint_page(fleet, joint: str, links: Links = Links(), now: datetime | None =
                    history=list(reversed(history[-TABLE_RECORDS:])), n_history=len(history),
                    events=list(reversed(events)), last=last_ok, stated=stated,
                    index_figure=_index_figure(history, row.get("threshold"), events),
+                   crack_figure=_crack_figure(history) if row.get("crack") is not None else None,
+                   has_crack=any(isinstance(h.get("crack"), dict) for h in history),
                    evidence=evidence, evidence_rows=evidence_rows, evidence_note=evidence_note)
 
 
