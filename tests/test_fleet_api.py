@@ -91,6 +91,32 @@ def test_reads_answer_what_the_store_holds(env):
     assert [r["joint"] for r in c.get("/api/alarms").json()] == [J1]
 
 
+def test_history_as_csv_is_the_history_one_row_a_record(env):
+    """``?format=csv``: a header of rvdiag.fleet.export.COLUMNS, then one row per record in the JSON's order, each
+    value read back equal to the JSON's (numbers in full); the joint page links to it; another format is refused."""
+    import csv
+
+    from rvdiag.fleet.export import COLUMNS
+
+    c = env["client"]
+    hist = c.get(f"/api/joints/{J1}/history").json()
+    r = c.get(f"/api/joints/{J1}/history?format=csv")
+    assert r.status_code == 200 and r.headers["content-type"].startswith("text/csv")
+    assert 'filename="plant_r1_j1-history.csv"' in r.headers["content-disposition"]
+    rows = list(csv.DictReader(io.StringIO(r.text)))
+    assert tuple(rows[0]) == COLUMNS and len(rows) == len(hist) == 8
+    for h, row in zip(hist, rows):
+        assert row["checksum"] == h["checksum"] and row["joint_state"] == h["joint_state"]
+        assert float(row["health_index"]) == h["health_index"] and float(row["p_value"]) == h["p_value"]
+        assert row["record_alarm"] == {True: "true", False: "false", None: ""}[h["record_alarm"]]
+        assert float(row["load_Nm"]) == h["operating_point"]["load_Nm"] == 50.0
+        assert row["changes"] == "; ".join(h["changes"]) and row["crack_index"] == ""
+    assert [row["checksum"] for row in csv.DictReader(io.StringIO(
+        c.get(f"/api/joints/{J1}/history?format=csv&limit=2").text))] == [h["checksum"] for h in hist[-2:]]
+    assert c.get(f"/api/joints/{J1}/history?format=xml").status_code == 422
+    assert f'href="/api/joints/{J1}/history?format=csv"' in c.get(f"/joints/{J1}").text
+
+
 def test_the_same_record_again_is_the_same_record(env):
     c, rng = env["client"], env["rng"]
     data = record_bytes(rng)

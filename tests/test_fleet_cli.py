@@ -77,6 +77,34 @@ def test_from_commissioning_to_an_acknowledged_alarm(env, capsys):
          "has no baseline at 2099-01-01T00:00:00+00:00: commission it first")
 
 
+def test_history_as_csv_and_a_static_snapshot_from_the_cli(env, capsys):
+    """``fleet history --csv`` prints the JSON's records as CSV (one row each, values read back equal);
+    ``fleet snapshot DIR`` writes the static dashboard, replaces an earlier snapshot, and refuses any other folder
+    with one error line, leaving it as it was."""
+    import csv
+    import io
+
+    setup_joint(env, capsys)
+    d = env["dir"]
+    files = [write_record(d / f"rec_2026-01-02T{6 * i:02d}.npy", 0.1, seed=i) for i in range(3)]
+    ok(["fleet", "ingest", J, *files, "--time-regex", r"\d{4}-\d\d-\d\dT\d\d", "--load", 50], capsys)
+    out, _ = ok(["fleet", "history", J, "--json"], capsys)
+    hist = json.loads(out)
+    out, _ = ok(["fleet", "history", J, "--csv"], capsys)
+    rows = list(csv.DictReader(io.StringIO(out)))
+    assert [r["checksum"] for r in rows] == [h["checksum"] for h in hist] and len(rows) == 3
+    assert [float(r["health_index"]) for r in rows] == [h["health_index"] for h in hist]
+    assert [r["learning"] for r in rows] == ["true"] * 3 and rows[0]["filename"] == files[0].name
+    fail(["fleet", "history", J, "--csv", "--json"], capsys, "give --json or --csv, not both")
+    out, _ = ok(["fleet", "snapshot", d / "dash"], capsys)
+    assert "wrote the dashboard's snapshot" in out and (d / "dash" / "joints" / f"{J}.html").is_file()
+    ok(["fleet", "snapshot", d / "dash"], capsys)
+    (d / "mine").mkdir()
+    (d / "mine" / "keep.txt").write_text("mine")
+    fail(["fleet", "snapshot", d / "mine"], capsys, "is not an earlier dashboard snapshot")
+    assert [p.name for p in (d / "mine").iterdir()] == ["keep.txt"]
+
+
 def test_the_watcher_ingests_a_folder_tree_named_by_joint(env, capsys):
     setup_joint(env, capsys)
     root = env["dir"] / "incoming"

@@ -206,13 +206,21 @@ def register(app: typer.Typer) -> None:
     @fleet_app.command("history")
     def history(joint: str = typer.Argument(...),
                 limit: Optional[int] = typer.Option(None, "--limit", help="Only the last N records."),
-                json_out: bool = opt.json_flag("Print the records as JSON."), db: str = _db()) -> None:
+                json_out: bool = opt.json_flag("Print the records as JSON."),
+                csv_out: bool = typer.Option(False, "--csv", help="Print the records as CSV, one row a record "
+                                                                  "(a service record to keep or send on)."),
+                db: str = _db()) -> None:
         """The joint's records in time order, with the state each left it in."""
-        from rvdiag.fleet import Fleet
+        from rvdiag.fleet import Fleet, history_csv
 
+        if json_out and csv_out:
+            raise FleetError("give --json or --csv, not both")
         rows = Fleet.open(db).history(joint, limit=limit)
         if json_out:
             _print_json(rows)
+            return
+        if csv_out:
+            typer.echo(history_csv(rows), nl=False)
             return
         from rich.console import Console
         from rich.table import Table
@@ -327,6 +335,20 @@ def register(app: typer.Typer) -> None:
         app = create_app(Fleet.open(db), read_needs_token=read_token,
                          max_upload=None if max_upload_mb is None else int(max_upload_mb * 2 ** 20))
         uvicorn.run(app, host=host, port=port)
+
+    @fleet_app.command("snapshot")
+    def snapshot(out: Path = typer.Argument(..., help="A new or empty folder, or an earlier snapshot (replaced "
+                                                      "whole); any other folder is refused."),
+                 db: str = _db()) -> None:
+        """Write the dashboard as static HTML (fleet, joints, alarms) that opens in a browser with no server."""
+        from rvdiag.fleet import Fleet
+
+        try:
+            from rvdiag.fleet.web import snapshot as write_snapshot
+        except ImportError:
+            raise FleetError("this rvdiag has no fleet dashboard (rvdiag.fleet.web)") from None
+        index = write_snapshot(Fleet.open(db), out)
+        typer.echo(f"wrote the dashboard's snapshot: {index}")
 
     @fleet_app.command("watch")
     def watch(folder: Path = typer.Argument(..., help="Folder tree DIR/site/robot/joint/FILE."),

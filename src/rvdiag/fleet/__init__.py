@@ -8,12 +8,14 @@
 - :mod:`rvdiag.fleet.judge`: reading a record and calling the monitor, models and baselines cached per process;
 - :mod:`rvdiag.fleet.blobs`: raw records kept content-addressed beside the database;
 - :mod:`rvdiag.fleet.auth`: API tokens, stored hashed;
-- :mod:`rvdiag.fleet.watch`: new files in a folder tree named by joint.
+- :mod:`rvdiag.fleet.watch`: new files in a folder tree named by joint;
+- :mod:`rvdiag.fleet.export`: a joint's records as CSV (its service record).
 """
 
 from rvdiag.errors import AuthError, FleetError
+from rvdiag.fleet.export import history_csv
 from rvdiag.fleet.judge import Reading
 from rvdiag.fleet.rules import STATES, Rules
 from rvdiag.fleet.store import Fleet
 
-__all__ = ["AuthError", "Fleet", "FleetError", "Reading", "Rules", "STATES"]
+__all__ = ["AuthError", "Fleet", "FleetError", "Reading", "Rules", "STATES", "history_csv"]

@@ -11,7 +11,7 @@ request that misses a field or a record the joint's monitor refused (stored as r
 ``GET  /api/health``                            liveness: ``{"ok": true, "version", "joints"}``
 ``GET  /api/joints``                            every joint's status row (:meth:`Fleet.status`)
 ``GET  /api/joints/{joint}/status``             one joint's status row
-``GET  /api/joints/{joint}/history``            its records, oldest first (``?limit=N``: the last N)
+``GET  /api/joints/{joint}/history``            its records, oldest first (``?limit=N``: the last N; ``?format=csv``)
 ``GET  /api/joints/{joint}/events``             its events (``?kind=raised|acknowledged|cleared|maintenance|...``)
 ``GET  /api/events``, ``GET /api/alarms``        every joint's events; the joints with an open alarm
 ``POST /api/joints/{joint}/records``            ingest one record (multipart, below): 201 new, 200 the same record
@@ -46,7 +46,7 @@ import math
 import os
 import re
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from fastapi import FastAPI, File, Form, Header, Query, Request, UploadFile
 from fastapi.encoders import jsonable_encoder
@@ -59,7 +59,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from rvdiag import __version__
 from rvdiag.errors import RvdiagError
-from rvdiag.fleet import AuthError, FleetError, Reading
+from rvdiag.fleet import AuthError, FleetError, Reading, history_csv
 from rvdiag.fleet import web
 from rvdiag.fleet.store import parse_time, split_joint
 from rvdiag.validation import finite_number
@@ -322,10 +322,17 @@ def create_app(fleet, *, max_upload: int | None = None, read_needs_token: bool |
         return _json(fleet.status(known(joint))[0])
 
     @app.get("/api/joints/{joint:path}/history", tags=["read"])
-    def history(request: Request, joint: str, limit: Annotated[int | None, Query(ge=1, le=100000)] = None):
-        """The joint's records, oldest first; ``limit`` keeps the last N."""
+    def history(request: Request, joint: str, limit: Annotated[int | None, Query(ge=1, le=100000)] = None,
+                format: Annotated[Literal["json", "csv"], Query(description="json, or csv: one row a record "
+                                                                           "(rvdiag.fleet.export)")] = "json"):
+        """The joint's records, oldest first; ``limit`` keeps the last N; ``format=csv`` as CSV."""
         reader(request)
-        return _json(fleet.history(known(joint), limit=limit))
+        rows = fleet.history(known(joint), limit=limit)
+        if format == "csv":
+            name = re.sub(r"[^A-Za-z0-9_.-]", "_", joint)
+            return Response(history_csv(rows), media_type="text/csv; charset=utf-8",
+                            headers={"Content-Disposition": f'attachment; filename="{name}-history.csv"'})
+        return _json(rows)
 
     @app.get("/api/joints/{joint:path}/events", tags=["read"])
     def joint_events(request: Request, joint: str, kind: str | None = None):
