@@ -195,6 +195,14 @@ def monitor_record(model, rec, base: Baseline, *, output_speed: float | None = N
 #: a record's mesh line missing where the baseline shows it is "masked", not gone, when the record's amplitude at
 #: the line is at most this many dB below the baseline's line and its floor there has risen above the baseline's
 MASK_DB = 6.0
+#: a record's mesh line missing where the baseline shows it is *lost* only when the record's amplitude at the line
+#: lies more than this many dB below the baseline's line: the mesh's vibration no longer reaches the sensor.
+#: Measured (bench/HISTORY.md, 2026-11-28 "the mesh-line check: a line lost is a line whose energy is gone"):
+#: the healthy records of 360 simulated joints whose reading missed a line the baseline shows stood -5.4 to +0.4 dB
+#: from it (26 records of 6 joints: the baseline's line 10-12 dB above its floor, the record's reading of fewer
+#: windows scattering across the 10 dB mark), their broken-tooth records -0.5 to +15.2 dB (31), a disconnected
+#: sensor -16.0 to -25.5 dB
+LOST_DB = 10.0
 
 
 def _mean_power_spectrum(X: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
@@ -276,14 +284,16 @@ def mesh_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float, speed
     ``cache``: the baseline's spectra kept between records (:func:`baseline_spectrum`).
 
     The record is "not recognised" when it has *lost* a line the baseline shows: the line is missing from the
-    record's reading and not masked.  A missing line is *masked*, not lost, when the record's amplitude at the
-    line stands at most :data:`MASK_DB` below the baseline's line while its floor around the line has risen above
-    the baseline's floor: the mesh's vibration still reaches the sensor, under more energy at the reducer's
-    orders.  That is a changed machine (a broken tooth's impacts raise the floor around the mesh lines;
-    :func:`rvdiag.features.mesh_lines.confirm_speed`), and the record goes on to its health index, which judges
-    the change.  A dead or disconnected sensor, or another machine's signal, adds no energy at the reducer's
-    orders: its amplitude at the line falls with the line, and it stays "not recognised".  Measured on
-    bench/fleet_alarms.py (bench/HISTORY.md, 2026-11-28 "the mesh-line check ..."; docs/fleet.md)."""
+    record's reading and the record's amplitude at the line lies more than :data:`LOST_DB` below the baseline's
+    line (the mesh's vibration no longer reaches the sensor: a dead or disconnected sensor, or another machine's
+    signal with little energy at the reducer's orders).  A missing line whose amplitude stays within
+    :data:`LOST_DB` is not lost: it is *masked* when the amplitude stands at most :data:`MASK_DB` below the
+    baseline's line while the floor around the line has risen above the baseline's (a changed machine: a broken
+    tooth's impacts raise the floor around the mesh lines; :func:`rvdiag.features.mesh_lines.confirm_speed`), and
+    *weaker* otherwise (a line the baseline shows just above the reading's threshold, which a record's reading of
+    fewer windows scatters across it).  Either way the record goes on to its health index, which judges the
+    change.  Measured on bench/fleet_alarms.py (bench/HISTORY.md, 2026-11-28 "the mesh-line check ..." and "the
+    mesh-line check: a line lost is a line whose energy is gone"; docs/fleet.md)."""
     lines = rec.get("checks", {}).get("mesh_lines")
     if rec["recognised"] or lines is None or lines["present"]:
         return rec
@@ -292,16 +302,20 @@ def mesh_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float, speed
     k = max(x.size // L, 1)
     in_base = _mesh_lines_mean(baseline_spectrum(base, near, fs, cache), fs, np.shape(base.X)[1], v)
     in_record = _mesh_lines_mean(_mean_power_spectrum(x[: k * L].reshape(k, L), fs), fs, L, v)
-    lost, masked = [], []
+    lost, masked, weaker = [], [], []
     for name in in_base["present"]:
         if name in in_record["present"]:
             continue
         b, r = in_base[name], in_record[name]
-        is_masked = (r["amplitude"] is not None and r["amplitude"] >= b["amplitude"] * 10.0 ** (-MASK_DB / 20.0)
-                     and r["floor"] > b["floor"])
-        (masked if is_masked else lost).append(name)
+        if r["amplitude"] is None or r["amplitude"] < b["amplitude"] * 10.0 ** (-LOST_DB / 20.0):
+            lost.append(name)
+        elif r["amplitude"] >= b["amplitude"] * 10.0 ** (-MASK_DB / 20.0) and r["floor"] > b["floor"]:
+            masked.append(name)
+        else:
+            weaker.append(name)
     checks = {**rec["checks"], "mesh_lines": {**lines, "baseline": in_base["present"],
                                               "record_windows": in_record["present"], "masked": masked,
+                                              "weaker": weaker,
                                               "baseline_lines": {n: in_base[n] for n in ("stage1", "stage2")},
                                               "record_lines": {n: in_record[n] for n in ("stage1", "stage2")}}}
     if lost:
@@ -465,6 +479,6 @@ def level_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float | Non
     return {**rec, "checks": checks}
 
 
-__all__ = ["BAND_MIN_LINES", "GAIN_FACTOR", "LEVEL_FACTOR", "MASK_DB", "SHAPE_FACTOR", "SPREAD_FACTOR", "MonitorResult",
+__all__ = ["BAND_MIN_LINES", "GAIN_FACTOR", "LEVEL_FACTOR", "LOST_DB", "MASK_DB", "SHAPE_FACTOR", "SPREAD_FACTOR", "MonitorResult",
            "band_ratios", "baseline_spectrum", "level_check_against_baseline", "mesh_check_against_baseline",
            "monitor_record"]
