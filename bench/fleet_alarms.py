@@ -140,7 +140,8 @@ def configs(out: Path, reducers: int, sets: int) -> dict[str, Path]:
 
 #: ``--years``: the life-history libraries of long healthy histories (name, seed), built and judged one after the
 #: other (``--sets``): vibration, motor current
-LIFE = {"vibration": [("life1", 39), ("life2", 41), ("life3", 42), ("life4", 43)],
+LIFE = {"vibration": [("life1", 39), ("life2", 41), ("life3", 42), ("life4", 43), ("life5", 47), ("life6", 48),
+                      ("life7", 49)],
         "current": [("life1", 44), ("life2", 45), ("life3", 46)]}
 #: ``--years``: records a day (``[history] interval_days`` = 1 / this) and the broken-tooth records ending a history
 BROKEN_RECORDS = 3
