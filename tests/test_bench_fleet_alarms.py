@@ -49,6 +49,25 @@ def test_the_life_config_is_the_monitors_design_healthy_then_a_broken_tooth(benc
         assert len({u.variation["load"] for u in later}) == 8
 
 
+@pytest.mark.parametrize("signal", ["vibration", "current"])
+def test_the_short_benchs_configs_derive_from_the_shipped_ones(bench, tmp_path, signal):
+    """The short bench's libraries (``bench/fleet_alarms.py [--signal current]``) are edits of the shipped configs:
+    each edit must still apply (an edit that no longer matches stops the bench), the unseen joints hold healthy
+    records then the broken tooth only (vibration from half the tooth, current the whole tooth)."""
+    paths = bench.configs(tmp_path, 6, 2) if signal == "vibration" else bench.current_configs(tmp_path)
+    assert set(paths) == ({"train", "unseen", "unseen2"} if signal == "vibration" else {"train", "unseen"})
+    for name, path in paths.items():
+        cfg = LibraryConfig.load(path)
+        d = cfg.to_dict()
+        if name == "train":
+            assert d["split"]["reducers"] == 8
+            continue
+        assert set(d["states"]) == {"T1", "T2"}
+        units = [u for u in make_plan(cfg) if u.role == "monitored" and u.state == "T2"]
+        lo = 0.5 if signal == "vibration" else 1.0
+        assert units and all(lo <= u.severity["broken_fraction"] <= 1.0 for u in units)
+
+
 def _records(means, states):
     rng = np.random.default_rng(1)
     out = [{"reducer": 0, "role": "baseline", "state": "T1", "speed": 45.0, "load": 50.0, "record": i,
