@@ -88,9 +88,9 @@ def test_a_line_masked_by_added_energy_is_a_changed_machine_a_lost_line_is_not()
 
 def test_a_line_read_just_under_its_threshold_is_weaker_not_lost():
     """A baseline whose line stands just above the reading's 10 dB (8 windows: 11.5 dB here): a record of 2 windows
-    with the line at half its amplitude (-6 dB) and its floor 1 dB lower reads it under 10 dB, yet its amplitude at the line stays within
-    LOST_DB of the baseline's: "weaker", recognised, on to its index (healthy records of simulated joints did this,
-    -5.4 to +0.4 dB).  The same record with the sensor disconnected (everything 40 dB down) has lost the line."""
+    with the line at half its amplitude (-6 dB) and its floor 1 dB lower reads it under 10 dB, yet its amplitude at
+    the line stays within LOST_DB of the baseline's: "weaker", recognised, on to its index (healthy records of
+    simulated joints did this, -5.4 to +0.4 dB).  The same record with the sensor disconnected (everything 40 dB down) has lost the line."""
     from rvdiag.monitoring.diagnosis import LOST_DB
 
     rng = np.random.default_rng(0)

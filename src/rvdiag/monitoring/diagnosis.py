@@ -479,6 +479,6 @@ def level_check_against_baseline(rec: dict, x: np.ndarray, base, fs: float | Non
     return {**rec, "checks": checks}
 
 
-__all__ = ["BAND_MIN_LINES", "GAIN_FACTOR", "LEVEL_FACTOR", "LOST_DB", "MASK_DB", "SHAPE_FACTOR", "SPREAD_FACTOR", "MonitorResult",
-           "band_ratios", "baseline_spectrum", "level_check_against_baseline", "mesh_check_against_baseline",
+__all__ = ["BAND_MIN_LINES", "GAIN_FACTOR", "LEVEL_FACTOR", "LOST_DB", "MASK_DB", "SHAPE_FACTOR", "SPREAD_FACTOR",
+           "MonitorResult", "band_ratios", "baseline_spectrum", "level_check_against_baseline", "mesh_check_against_baseline",
            "monitor_record"]
